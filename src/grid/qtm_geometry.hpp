@@ -1,0 +1,160 @@
+// QTM geometry: point location, cell centres, vertices and polygons (QTM-SPEC.md, "Geometry").
+//
+// All angles are in degrees. Each octant is mapped to the planar right triangle
+// 0 <= w <= v <= 1 with v = (90 - lat') / 90 and w = (lon' / 90) v, where lon' and lat' are the
+// octant's local longitude and latitude; rows and columns are cut in that plane.
+#pragma once
+
+#include <cmath>
+
+#include "qtm_code.hpp"
+#include "qtm_math.hpp"
+
+namespace qtmv::grid {
+
+/// A geographic position: longitude and latitude (degrees).
+struct LonLat {
+  double lon, lat;
+};
+
+/// Longitude of octant o (0..7) at local longitude lon_local (degrees), without normalisation:
+/// octant 1's lon' = 90 edge is +180 and octant 2's lon' = 0 edge is -180.
+QTMV_HD inline double lon_from_local(int octant, double lon_local) {
+  switch (octant) {
+    case 0: return lon_local;
+    case 1: return lon_local + 90.0;
+    case 2: return lon_local - 180.0;
+    case 3: return lon_local - 90.0;
+    case 4: return 90.0 - lon_local;
+    case 5: return 180.0 - lon_local;
+    case 6: return -90.0 - lon_local;
+    default: return -lon_local;
+  }
+}
+
+QTMV_HD inline double lat_from_local(int octant, double lat_local) { return octant < 4 ? lat_local : -lat_local; }
+
+/// Longitude (degrees) brought into [-180, 180). Exact: fmod is exact, and the one
+/// correction step subtracts 360 from a value in [180, 360), which Sterbenz's lemma makes exact.
+QTMV_HD inline double normalise_lon(double lon) {
+  if (lon >= -180.0 && lon < 180.0) return lon;
+  lon = fmod(lon, 360.0);
+  if (lon >= 180.0) lon -= 360.0;
+  if (lon < -180.0) lon += 360.0;
+  return lon;
+}
+
+/// The cell that contains the point (lon, lat) (degrees), exactly the steps of the spec in
+/// double precision. Longitude may be any finite value; latitude must lie in [-90, 90].
+/// Gives kInvalidCode for a NaN or infinite coordinate, a latitude beyond +-90 or a bad level.
+QTMV_HD inline Code lonlat_to_code(double lon, double lat, int level) {
+  if (!is_valid_level(level) || !(lat >= -90.0 && lat <= 90.0) || !(lon - lon == 0.0)) return kInvalidCode;
+  lon = normalise_lon(lon);
+  // 1. Octant, local longitude and latitude, planar coordinates.
+  int octant;
+  double lon_local;
+  if (lon >= 0.0) {
+    octant = lon < 90.0 ? 0 : 1;
+  } else {
+    octant = lon < -90.0 ? 2 : 3;
+  }
+  if (lat >= 0.0) {
+    const double offset[4] = {0.0, -90.0, 180.0, 90.0};
+    lon_local = lon + offset[octant];
+  } else {
+    const double base[4] = {90.0, 180.0, -90.0, 0.0};
+    lon_local = base[octant] - lon;
+    octant += 4;
+  }
+  const double lat_local = fabs(lat);
+  const double v = (90.0 - lat_local) / 90.0;
+  const double w = (lon_local / 90.0) * v;
+  // 2. Row and the square [a, a+1] x [i, i+1] of the plane.
+  const double rows = static_cast<double>(rows_per_octant(level));
+  const double vI = v * rows;
+  const double wI = w * rows;
+  std::uint64_t i = static_cast<std::uint64_t>(floor(vI));
+  if (i > rows_per_octant(level) - 1) i = rows_per_octant(level) - 1;
+  std::uint64_t a = static_cast<std::uint64_t>(floor(wI));
+  if (a > i) a = i;
+  // 3. Which half of the square: up when fw <= fv.
+  const double fw = wI - static_cast<double>(a);
+  const double fv = vI - static_cast<double>(i);
+  std::uint64_t j = fw <= fv ? 2 * a : 2 * a + 1;
+  if (j > 2 * i) j = 2 * i;
+  return code_of({octant, static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(j)}, level);
+}
+
+/// Centre of a cell (degrees): the centroid of its planar triangle mapped back to the sphere.
+QTMV_HD inline LonLat cell_centre(const Cell& c, int level) {
+  const double rows = static_cast<double>(rows_per_octant(level));
+  const double a = static_cast<double>(c.col / 2);
+  const double i = static_cast<double>(c.row);
+  double lon_local, lat_local;
+  if (is_up(c)) {
+    lon_local = 90.0 * (3.0 * a + 1.0) / (3.0 * i + 2.0);
+    lat_local = 90.0 * (1.0 - (3.0 * i + 2.0) / (3.0 * rows));
+  } else {
+    lon_local = 90.0 * (3.0 * a + 2.0) / (3.0 * i + 1.0);
+    lat_local = 90.0 * (1.0 - (3.0 * i + 1.0) / (3.0 * rows));
+  }
+  return {lon_from_local(c.octant, lon_local), lat_from_local(c.octant, lat_local)};
+}
+
+QTMV_HD inline LonLat cell_centre(Code code, int level) { return cell_centre(cell_of(code, level), level); }
+
+/// Unit vector of a cell's centre, computed with the deterministic sincos_deg so that the
+/// CPU and CUDA code get the same bits.
+QTMV_HD inline Vec3 cell_centre_vector(Code code, int level) {
+  const LonLat p = cell_centre(code, level);
+  return unit_vector(p.lon, p.lat);
+}
+
+/// Grid vertex (r, k), 0 <= k <= r <= 2^L, of an octant (degrees). The pole (r = 0) gets the
+/// longitude of the octant's lon' = 0 side.
+QTMV_HD inline LonLat grid_vertex(int octant, std::uint64_t r, std::uint64_t k, int level) {
+  const double rows = static_cast<double>(rows_per_octant(level));
+  const double lat_local = 90.0 * (1.0 - static_cast<double>(r) / rows);
+  const double lon_local = r == 0 ? 0.0 : 90.0 * static_cast<double>(k) / static_cast<double>(r);
+  return {lon_from_local(octant, lon_local), lat_from_local(octant, lat_local)};
+}
+
+/// The three vertices of a cell in the spec's order (degrees): up (i, a), (i+1, a), (i+1, a+1);
+/// down (i, a), (i, a+1), (i+1, a+1).
+QTMV_HD inline void cell_vertices(const Cell& c, int level, LonLat out[3]) {
+  const std::uint64_t i = c.row, a = c.col / 2;
+  out[0] = grid_vertex(c.octant, i, a, level);
+  if (is_up(c)) {
+    out[1] = grid_vertex(c.octant, i + 1, a, level);
+  } else {
+    out[1] = grid_vertex(c.octant, i, a + 1, level);
+  }
+  out[2] = grid_vertex(c.octant, i + 1, a + 1, level);
+}
+
+/// Most corners of a cell polygon.
+constexpr int kMaxPolygonCorners = 4;
+
+/// The cell as a ring in lon/lat (degrees), counter-clockwise, not closed; returns the number
+/// of corners (3, or 4 for the pole cell of an octant, which is drawn as a quadrilateral with
+/// two corners on latitude +-90). Edges are straight lines in lon/lat.
+QTMV_HD inline int cell_polygon(const Cell& c, int level, LonLat out[kMaxPolygonCorners]) {
+  if (c.row == 0) {
+    const LonLat row1_start = grid_vertex(c.octant, 1, 0, level);
+    const LonLat row1_end = grid_vertex(c.octant, 1, 1, level);
+    out[0] = {row1_start.lon, c.octant < 4 ? 90.0 : -90.0};
+    out[1] = row1_start;
+    out[2] = row1_end;
+    out[3] = {row1_end.lon, out[0].lat};
+    return 4;
+  }
+  LonLat v[3];
+  cell_vertices(c, level, v);
+  // The spec's order is counter-clockwise for up cells and clockwise for down cells.
+  out[0] = v[0];
+  out[1] = is_up(c) ? v[1] : v[2];
+  out[2] = is_up(c) ? v[2] : v[1];
+  return 3;
+}
+
+}  // namespace qtmv::grid

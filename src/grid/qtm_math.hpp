@@ -1,0 +1,86 @@
+// Deterministic elementary maths for the grid, identical on the CPU and on CUDA devices.
+//
+// The CUDA and C libraries' sin/cos differ in their last bits, so a cell centre computed
+// with them on the GPU need not equal the CPU's, and nearest-site decisions built on it
+// could differ. These functions use only +, -, *, / and sqrt, which IEEE 754 rounds
+// identically on both sides as long as FMA contraction is off (the build passes
+// -ffp-contract=off to the host compiler and --fmad=false to nvcc for every target that
+// links qtmv::grid).
+#pragma once
+
+#include "qtm_host_device.hpp"
+
+namespace qtmv::grid {
+
+/// A point of the unit sphere (or any 3-vector): x towards (0 E, 0 N), y towards (90 E, 0 N),
+/// z towards the north pole.
+struct Vec3 {
+  double x, y, z;
+};
+
+QTMV_HD inline double dot(const Vec3& a, const Vec3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+
+QTMV_HD inline Vec3 cross(const Vec3& a, const Vec3& b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+
+QTMV_HD inline Vec3 operator+(const Vec3& a, const Vec3& b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+QTMV_HD inline Vec3 operator-(const Vec3& a, const Vec3& b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+
+/// Squared chord length |a - b|^2 between two unit vectors: monotone in the great-circle
+/// distance and precise for short distances, so it is what nearest-site comparisons use.
+QTMV_HD inline double chord2(const Vec3& a, const Vec3& b) {
+  const Vec3 d = a - b;
+  return dot(d, d);
+}
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kDegree = kPi / 180.0;  ///< one degree (radians)
+
+/// sin and cos of an angle x (degrees), |x| <= 720, to within about one unit in the last
+/// place. The quadrant is taken off in degrees, where it is exact, and the remainder,
+/// at most 45 degrees, goes through Taylor series whose truncation error (< 1e-19) lies
+/// far below double precision.
+QTMV_HD inline void sincos_deg(double x, double* s, double* c) {
+  const double q = x / 90.0;
+  // Round to the nearest quadrant without depending on the math library's rint.
+  long long n = static_cast<long long>(q >= 0 ? q + 0.5 : q - 0.5);
+  const double r = (x - 90.0 * static_cast<double>(n)) * kDegree;  // |r| <= pi/4 (+rounding)
+  const double r2 = r * r;
+  // sin r = r (1 - r^2/(2*3) (1 - r^2/(4*5) (1 - ...))), Horner form to r^17.
+  double ps = 1.0 - r2 / 272.0;  // 16*17
+  ps = 1.0 - r2 / 210.0 * ps;    // 14*15
+  ps = 1.0 - r2 / 156.0 * ps;    // 12*13
+  ps = 1.0 - r2 / 110.0 * ps;    // 10*11
+  ps = 1.0 - r2 / 72.0 * ps;     // 8*9
+  ps = 1.0 - r2 / 42.0 * ps;     // 6*7
+  ps = 1.0 - r2 / 20.0 * ps;     // 4*5
+  ps = 1.0 - r2 / 6.0 * ps;      // 2*3
+  const double sr = r * ps;
+  // cos r = 1 - r^2/(1*2) (1 - r^2/(3*4) (1 - ...)), to r^18.
+  double pc = 1.0 - r2 / 306.0;  // 17*18
+  pc = 1.0 - r2 / 240.0 * pc;    // 15*16
+  pc = 1.0 - r2 / 182.0 * pc;    // 13*14
+  pc = 1.0 - r2 / 132.0 * pc;    // 11*12
+  pc = 1.0 - r2 / 90.0 * pc;     // 9*10
+  pc = 1.0 - r2 / 56.0 * pc;     // 7*8
+  pc = 1.0 - r2 / 30.0 * pc;     // 5*6
+  pc = 1.0 - r2 / 12.0 * pc;     // 3*4
+  const double cr = 1.0 - r2 / 2.0 * pc;
+  switch (static_cast<int>(((n % 4) + 4) % 4)) {
+    case 0: *s = sr; *c = cr; break;
+    case 1: *s = cr; *c = -sr; break;
+    case 2: *s = -sr; *c = -cr; break;
+    default: *s = -cr; *c = sr; break;
+  }
+}
+
+/// Unit vector of a point given by longitude and latitude (degrees).
+QTMV_HD inline Vec3 unit_vector(double lon, double lat) {
+  double slon, clon, slat, clat;
+  sincos_deg(lon, &slon, &clon);
+  sincos_deg(lat, &slat, &clat);
+  return {clat * clon, clat * slon, slat};
+}
+
+}  // namespace qtmv::grid

@@ -1,0 +1,209 @@
+// Exhaustive sweeps of the grid's invariants at levels 0 to 8, random sweeps at 9 to 24.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+#include <stdexcept>
+
+#include "grid/qtm.hpp"
+#include "grid/qtm_checks.hpp"
+#include "grid_cell_checks.hpp"
+
+namespace qtmv::grid {
+namespace {
+
+using test::check_cell;
+
+constexpr int kExhaustiveMaxLevel = 8;
+constexpr int kRandomCodesPerLevel = 20000;
+constexpr int kRandomPointsPerLevel = 20000;
+
+TEST(GridSweep, ExhaustiveLevels0To8) {
+  for (int level = 0; level <= kExhaustiveMaxLevel; ++level) {
+    std::uint64_t failures = 0;
+    Code first_failure = kInvalidCode;
+    unsigned first_bits = 0;
+    for (Code code = 0; code < cell_count(level); ++code) {
+      const unsigned bits = check_cell(code, level);
+      if (bits != 0 && failures++ == 0) {
+        first_failure = code;
+        first_bits = bits;
+      }
+    }
+    EXPECT_EQ(failures, 0u) << "level " << level << ", first failing code " << first_failure << " (failure bits "
+                            << first_bits << ")";
+  }
+}
+
+TEST(GridSweep, CellCountsAndCodeLayout) {
+  for (int level = 0; level <= kMaxLevel; ++level) {
+    EXPECT_EQ(cell_count(level), 8 * cells_per_octant(level));
+    const std::uint64_t last_row = rows_per_octant(level) - 1;
+    // The last cell of each octant is the last cell of its last row.
+    for (int octant = 0; octant < kOctants; ++octant) {
+      const Code last = code_of({octant, static_cast<std::uint32_t>(last_row), static_cast<std::uint32_t>(2 * last_row)},
+                                level);
+      EXPECT_EQ(last + 1, (octant + 1) * cells_per_octant(level));
+    }
+  }
+  EXPECT_GT(cell_count(15), std::uint64_t{1} << 32);  // codes need 64 bits from level 15
+}
+
+TEST(GridSweep, EveryCodeOfOneOctantRowIsItsRow) {
+  // Rows partition the codes: row i holds 2i + 1 consecutive codes starting at i^2.
+  const int level = 6;
+  Code expected = 0;
+  for (std::uint32_t i = 0; i < rows_per_octant(level); ++i) {
+    for (std::uint32_t j = 0; j <= 2 * i; ++j) {
+      const Cell c = cell_of(expected, level);
+      ASSERT_EQ(c.octant, 0);
+      ASSERT_EQ(c.row, i);
+      ASSERT_EQ(c.col, j);
+      ++expected;
+    }
+  }
+}
+
+TEST(GridSweep, RandomCodesLevels9To24) {
+  std::mt19937_64 rng(20261121);
+  for (int level = kExhaustiveMaxLevel + 1; level <= kMaxLevel; ++level) {
+    std::uniform_int_distribution<Code> pick(0, cell_count(level) - 1);
+    int failures = 0;
+    for (int n = 0; n < kRandomCodesPerLevel; ++n) {
+      const Code code = pick(rng);
+      const unsigned bits = check_cell(code, level);
+      if (bits != 0 && failures++ < 5) ADD_FAILURE() << "level " << level << " code " << code << " bits " << bits;
+    }
+    // The extreme codes of each level, where row and column arithmetic is most likely to overflow.
+    EXPECT_EQ(check_cell(0, level), 0u) << "level " << level;
+    EXPECT_EQ(check_cell(cell_count(level) - 1, level), 0u) << "level " << level;
+    EXPECT_EQ(failures, 0) << "level " << level;
+  }
+}
+
+TEST(GridSweep, RandomPointsNestAcrossLevels) {
+  // The planar subdivision nests, and the location arithmetic is exact at the points where it
+  // matters (scaling by 2 and subtracting a floor), so a point's cell at level L has the
+  // point's cell at L-1 as its parent.
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> lon(-180.0, 180.0), z(-1.0, 1.0);
+  for (int n = 0; n < kRandomPointsPerLevel; ++n) {
+    const double p_lon = lon(rng), p_lat = std::asin(z(rng)) / kDegree;
+    Code coarser = lonlat_to_code(p_lon, p_lat, 0);
+    for (int level = 1; level <= kMaxLevel; ++level) {
+      const Code code = lonlat_to_code(p_lon, p_lat, level);
+      ASSERT_TRUE(is_valid_code(code, level));
+      ASSERT_EQ(parent(code, level), coarser) << "lon " << p_lon << " lat " << p_lat << " level " << level;
+      coarser = code;
+    }
+  }
+}
+
+TEST(GridSweep, PointsOnEdgesAndSpecialPlaces) {
+  // Octant edges, poles, the equator and +-180 at every level: a valid code, in the octant
+  // the spec's table gives.
+  struct Place {
+    double lon, lat;
+    int octant;
+  };
+  const Place places[] = {{0, 90, 0},     {0, -90, 4},   {180, 0, 2},  {-180, 0, 2},  {90, 0, 1},
+                          {-90, 0, 3},    {0, 0, 0},     {0, -1e-300, 4}, {-0.0, 0, 0}, {179.9999999999, 45, 1},
+                          {-180, -45, 6}, {89.999999, -0.0, 0}, {45, -89.999999999, 4}};
+  for (int level = 0; level <= kMaxLevel; ++level) {
+    for (const Place& p : places) {
+      const Code code = lonlat_to_code(p.lon, p.lat, level);
+      ASSERT_TRUE(is_valid_code(code, level)) << p.lon << " " << p.lat;
+      EXPECT_EQ(cell_of(code, level).octant, p.octant) << p.lon << " " << p.lat << " level " << level;
+    }
+  }
+}
+
+TEST(GridSweep, PointsOnGridVerticesGoToTheUpCell) {
+  // On a vertex fw = fv = 0, and the spec's "up when fw <= fv" decides. Dyadic coordinates keep
+  // v and w exact, so these points really lie on vertices.
+  const double locals[] = {22.5, 45.0, 67.5};  // w is then a multiple of 1/16: a vertex from level 4
+  for (int level = 4; level <= 12; ++level) {
+    const double rows = static_cast<double>(rows_per_octant(level));
+    for (double lon_local : locals) {
+      for (double lat_local : locals) {
+        const double v = (90.0 - lat_local) / 90.0, w = lon_local / 90.0 * v;
+        const Cell expected{0, static_cast<std::uint32_t>(v * rows), static_cast<std::uint32_t>(2 * w * rows)};
+        ASSERT_TRUE(is_up(expected));
+        EXPECT_EQ(lonlat_to_code(lon_local, lat_local, level), code_of(expected, level))
+            << lon_local << " " << lat_local << " level " << level;
+      }
+    }
+  }
+}
+
+TEST(GridSweep, LongitudesAreNormalisedExactly) {
+  const int level = 12;
+  EXPECT_EQ(lonlat_to_code(540.0, 10.0, level), lonlat_to_code(180.0, 10.0, level));
+  EXPECT_EQ(lonlat_to_code(-190.25, 10.0, level), lonlat_to_code(169.75, 10.0, level));
+  EXPECT_EQ(lonlat_to_code(720.5, -33.0, level), lonlat_to_code(0.5, -33.0, level));
+  EXPECT_EQ(normalise_lon(180.0), -180.0);
+  EXPECT_EQ(normalise_lon(12.3456789), 12.3456789);  // in range: untouched, bit for bit
+}
+
+TEST(GridSweep, BadInputGivesInvalidCode) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(lonlat_to_code(nan, 0, 5), kInvalidCode);
+  EXPECT_EQ(lonlat_to_code(0, nan, 5), kInvalidCode);
+  EXPECT_EQ(lonlat_to_code(inf, 0, 5), kInvalidCode);
+  EXPECT_EQ(lonlat_to_code(0, 90.0000001, 5), kInvalidCode);
+  EXPECT_EQ(lonlat_to_code(0, -95, 5), kInvalidCode);
+  EXPECT_EQ(lonlat_to_code(0, 0, -1), kInvalidCode);
+  EXPECT_EQ(lonlat_to_code(0, 0, 25), kInvalidCode);
+  EXPECT_FALSE(is_valid_code(cell_count(3), 3));
+  EXPECT_FALSE(is_valid_level(25));
+}
+
+TEST(GridSweep, HostChecksNameTheBadValue) {
+  EXPECT_NO_THROW(require_level(0));
+  EXPECT_NO_THROW(require_level(24));
+  try {
+    require_level(25);
+    FAIL() << "level 25 accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("25"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(require_level(-1), std::invalid_argument);
+  try {
+    require_code(512, 2);
+    FAIL() << "code 512 accepted at level 2";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("512"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("0 to 127"), std::string::npos) << e.what();
+  }
+}
+
+TEST(GridSweep, PolygonsAreCounterClockwiseAndPoleCellsAreQuadrilaterals) {
+  for (int level = 0; level <= 5; ++level) {
+    for (Code code = 0; code < cell_count(level); ++code) {
+      const Cell cell = cell_of(code, level);
+      LonLat ring[kMaxPolygonCorners];
+      const int n = cell_polygon(cell, level, ring);
+      ASSERT_EQ(n, cell.row == 0 ? 4 : 3);
+      double twice_area = 0;  // shoelace, in lon/lat
+      for (int k = 0; k < n; ++k) {
+        const LonLat& p = ring[k];
+        const LonLat& q = ring[(k + 1) % n];
+        twice_area += p.lon * q.lat - q.lon * p.lat;
+      }
+      EXPECT_GT(twice_area, 0) << "level " << level << " code " << code;
+      if (n == 4) {
+        EXPECT_EQ(std::fabs(ring[0].lat), 90.0);
+        EXPECT_EQ(std::fabs(ring[3].lat), 90.0);
+      }
+      // The ring stays inside one octant's longitudes: nothing crosses +-180.
+      for (int k = 0; k < n; ++k) {
+        EXPECT_LE(std::fabs(ring[k].lon - ring[(k + 1) % n].lon), 90.0);
+      }
+    }
+  }
+}
+
+}  // namespace
+}  // namespace qtmv::grid

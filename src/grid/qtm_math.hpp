@@ -47,26 +47,27 @@ QTMV_HD inline void sincos_deg(double x, double* s, double* c) {
   long long n = static_cast<long long>(q >= 0 ? q + 0.5 : q - 0.5);
   const double r = (x - 90.0 * static_cast<double>(n)) * kDegree;  // |r| <= pi/4 (+rounding)
   const double r2 = r * r;
+  // The reciprocals are folded at compile time: multiplying is far faster than dividing.
   // sin r = r (1 - r^2/(2*3) (1 - r^2/(4*5) (1 - ...))), Horner form to r^17.
-  double ps = 1.0 - r2 / 272.0;  // 16*17
-  ps = 1.0 - r2 / 210.0 * ps;    // 14*15
-  ps = 1.0 - r2 / 156.0 * ps;    // 12*13
-  ps = 1.0 - r2 / 110.0 * ps;    // 10*11
-  ps = 1.0 - r2 / 72.0 * ps;     // 8*9
-  ps = 1.0 - r2 / 42.0 * ps;     // 6*7
-  ps = 1.0 - r2 / 20.0 * ps;     // 4*5
-  ps = 1.0 - r2 / 6.0 * ps;      // 2*3
+  double ps = 1.0 - r2 * (1.0 / 272.0);  // 16*17
+  ps = 1.0 - r2 * (1.0 / 210.0) * ps;    // 14*15
+  ps = 1.0 - r2 * (1.0 / 156.0) * ps;    // 12*13
+  ps = 1.0 - r2 * (1.0 / 110.0) * ps;    // 10*11
+  ps = 1.0 - r2 * (1.0 / 72.0) * ps;     // 8*9
+  ps = 1.0 - r2 * (1.0 / 42.0) * ps;     // 6*7
+  ps = 1.0 - r2 * (1.0 / 20.0) * ps;     // 4*5
+  ps = 1.0 - r2 * (1.0 / 6.0) * ps;      // 2*3
   const double sr = r * ps;
   // cos r = 1 - r^2/(1*2) (1 - r^2/(3*4) (1 - ...)), to r^18.
-  double pc = 1.0 - r2 / 306.0;  // 17*18
-  pc = 1.0 - r2 / 240.0 * pc;    // 15*16
-  pc = 1.0 - r2 / 182.0 * pc;    // 13*14
-  pc = 1.0 - r2 / 132.0 * pc;    // 11*12
-  pc = 1.0 - r2 / 90.0 * pc;     // 9*10
-  pc = 1.0 - r2 / 56.0 * pc;     // 7*8
-  pc = 1.0 - r2 / 30.0 * pc;     // 5*6
-  pc = 1.0 - r2 / 12.0 * pc;     // 3*4
-  const double cr = 1.0 - r2 / 2.0 * pc;
+  double pc = 1.0 - r2 * (1.0 / 306.0);  // 17*18
+  pc = 1.0 - r2 * (1.0 / 240.0) * pc;    // 15*16
+  pc = 1.0 - r2 * (1.0 / 182.0) * pc;    // 13*14
+  pc = 1.0 - r2 * (1.0 / 132.0) * pc;    // 11*12
+  pc = 1.0 - r2 * (1.0 / 90.0) * pc;     // 9*10
+  pc = 1.0 - r2 * (1.0 / 56.0) * pc;     // 7*8
+  pc = 1.0 - r2 * (1.0 / 30.0) * pc;     // 5*6
+  pc = 1.0 - r2 * (1.0 / 12.0) * pc;     // 3*4
+  const double cr = 1.0 - r2 * (1.0 / 2.0) * pc;
   switch (static_cast<int>(((n % 4) + 4) % 4)) {
     case 0: *s = sr; *c = cr; break;
     case 1: *s = cr; *c = -sr; break;

@@ -1,0 +1,228 @@
+#include "write/region_tracer.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "grid/qtm_checks.hpp"
+
+namespace qtmv::write {
+namespace {
+
+using grid::Cell;
+using grid::Code;
+
+/// One directed boundary edge of a region, with the region on its left.
+struct Edge {
+  LonLat from, to;
+};
+
+bool same_point(const LonLat& a, const LonLat& b) { return a.lon == b.lon && a.lat == b.lat; }
+
+bool point_less(const LonLat& a, const LonLat& b) { return a.lon < b.lon || (a.lon == b.lon && a.lat < b.lat); }
+
+/// Marks an edge that lies on the border of the lon/lat rectangle (latitude +-90).
+constexpr int kAcrossBorder = -1;
+
+/// The cell as drawn (counter-clockwise ring) and, for each edge k (ring[k] -> ring[k+1]),
+/// the neighbour slot across it. Returns the number of corners.
+int drawn_ring(const Cell& c, int level, LonLat ring[grid::kMaxPolygonCorners], int across[grid::kMaxPolygonCorners]) {
+  const int n = grid::cell_polygon(c, level, ring);
+  if (n == 4) {  // the pole quadrilateral: left side, bottom, right side, the pole line
+    across[0] = grid::kNeighbourLeft;
+    across[1] = grid::kNeighbourVertical;
+    across[2] = grid::kNeighbourRight;
+    across[3] = kAcrossBorder;
+  } else if (grid::is_up(c)) {  // apex, lower left, lower right
+    across[0] = grid::kNeighbourLeft;
+    across[1] = grid::kNeighbourVertical;
+    across[2] = grid::kNeighbourRight;
+  } else {  // upper left, bottom, upper right
+    across[0] = grid::kNeighbourLeft;
+    across[1] = grid::kNeighbourRight;
+    across[2] = grid::kNeighbourVertical;
+  }
+  return n;
+}
+
+/// Angle (radians, in (0, 2 pi]) turned clockwise from direction d to direction t.
+double clockwise_angle(double dx, double dy, double tx, double ty) {
+  double a = std::atan2(dy, dx) - std::atan2(ty, tx);
+  while (a <= 0) a += 2 * grid::kPi;
+  while (a > 2 * grid::kPi) a -= 2 * grid::kPi;
+  return a;
+}
+
+/// Drops vertices in the middle of straight runs along a parallel or a meridian (exactly
+/// equal latitudes or longitudes): rows of cells make long runs of them.
+std::vector<LonLat> drop_straight_runs(const std::vector<LonLat>& ring) {
+  const std::size_t n = ring.size();
+  std::vector<LonLat> out;
+  out.reserve(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    const LonLat& prev = ring[(k + n - 1) % n];
+    const LonLat& here = ring[k];
+    const LonLat& next = ring[(k + 1) % n];
+    const bool along_parallel = prev.lat == here.lat && here.lat == next.lat;
+    const bool along_meridian = prev.lon == here.lon && here.lon == next.lon;
+    if (!along_parallel && !along_meridian) out.push_back(here);
+  }
+  return out;
+}
+
+/// Even-odd test of a point against a ring that does not pass through it.
+bool ring_contains(const std::vector<LonLat>& ring, const LonLat& p) {
+  bool inside = false;
+  const std::size_t n = ring.size();
+  for (std::size_t k = 0, m = n - 1; k < n; m = k++) {
+    const LonLat& a = ring[k];
+    const LonLat& b = ring[m];
+    if ((a.lat > p.lat) != (b.lat > p.lat)) {
+      const double lon_at = a.lon + (p.lat - a.lat) / (b.lat - a.lat) * (b.lon - a.lon);
+      if (p.lon < lon_at) inside = !inside;
+    }
+  }
+  return inside;
+}
+
+struct Box {
+  double lon_min = 1e9, lon_max = -1e9, lat_min = 1e9, lat_max = -1e9;
+  void add(const LonLat& p) {
+    lon_min = std::min(lon_min, p.lon);
+    lon_max = std::max(lon_max, p.lon);
+    lat_min = std::min(lat_min, p.lat);
+    lat_max = std::max(lat_max, p.lat);
+  }
+  bool contains(const LonLat& p) const {
+    return p.lon >= lon_min && p.lon <= lon_max && p.lat >= lat_min && p.lat <= lat_max;
+  }
+};
+
+/// Links one site's boundary edges into rings and groups them into polygons.
+Region link_rings(std::vector<Edge>& edges) {
+  // Sorted by both ends, so that the rings come out the same whatever order the edges came in.
+  std::sort(edges.begin(), edges.end(), [](const Edge& a, const Edge& b) {
+    return point_less(a.from, b.from) || (same_point(a.from, b.from) && point_less(a.to, b.to));
+  });
+  std::vector<char> used(edges.size(), 0);
+  auto next_edge = [&](std::size_t e) {
+    const LonLat at = edges[e].to;
+    auto first = std::lower_bound(edges.begin(), edges.end(), at,
+                                  [](const Edge& x, const LonLat& p) { return point_less(x.from, p); });
+    std::size_t best = edges.size();
+    double best_angle = 1e300;
+    // Reverse of the incoming edge; the region lies clockwise from it, so the outgoing edge of
+    // the same wedge is the first one met turning clockwise.
+    const double dx = edges[e].from.lon - at.lon, dy = edges[e].from.lat - at.lat;
+    for (auto it = first; it != edges.end() && same_point(it->from, at); ++it) {
+      const std::size_t k = static_cast<std::size_t>(it - edges.begin());
+      if (used[k]) continue;
+      const double angle = clockwise_angle(dx, dy, it->to.lon - at.lon, it->to.lat - at.lat);
+      if (angle < best_angle) {
+        best_angle = angle;
+        best = k;
+      }
+    }
+    return best;
+  };
+
+  std::vector<std::vector<LonLat>> shells, holes;
+  for (std::size_t start = 0; start < edges.size(); ++start) {
+    if (used[start]) continue;
+    std::vector<LonLat> ring;
+    std::size_t e = start;
+    while (e < edges.size() && !used[e]) {
+      used[e] = 1;
+      ring.push_back(edges[e].from);
+      e = next_edge(e);
+    }
+    ring = drop_straight_runs(ring);
+    if (ring.size() < 3) continue;
+    (planar_ring_area(ring) > 0 ? shells : holes).push_back(std::move(ring));
+  }
+
+  Region region(shells.size());
+  std::vector<Box> boxes(shells.size());
+  std::vector<double> areas(shells.size());
+  for (std::size_t s = 0; s < shells.size(); ++s) {
+    for (const LonLat& p : shells[s]) boxes[s].add(p);
+    areas[s] = planar_ring_area(shells[s]);
+    region[s].shell = std::move(shells[s]);
+  }
+  for (auto& hole : holes) {
+    // The middle of an edge of the hole is on no other ring, so it is strictly inside or
+    // outside each shell; the smallest shell around it owns the hole.
+    const LonLat probe{0.5 * (hole[0].lon + hole[1].lon), 0.5 * (hole[0].lat + hole[1].lat)};
+    std::size_t owner = region.size();
+    for (std::size_t s = 0; s < region.size(); ++s) {
+      if (boxes[s].contains(probe) && ring_contains(region[s].shell, probe) &&
+          (owner == region.size() || areas[s] < areas[owner])) {
+        owner = s;
+      }
+    }
+    if (owner == region.size()) throw std::logic_error("region tracer: a hole lies in no shell of its region");
+    region[owner].holes.push_back(std::move(hole));
+  }
+  return region;
+}
+
+}  // namespace
+
+double planar_ring_area(const std::vector<LonLat>& ring) {
+  double twice = 0;
+  const std::size_t n = ring.size();
+  for (std::size_t k = 0; k < n; ++k) {
+    const LonLat& p = ring[k];
+    const LonLat& q = ring[(k + 1) % n];
+    twice += (p.lon - q.lon) * (p.lat + q.lat);
+  }
+  return 0.5 * twice;
+}
+
+std::vector<Region> trace_regions(int level, const std::int32_t* labels, std::int32_t site_count) {
+  grid::require_level(level);
+  const Code cells = grid::cell_count(level);
+  const std::int64_t n = static_cast<std::int64_t>(cells);
+  for (std::int64_t code = 0; code < n; ++code) {
+    if (labels[code] < 0 || labels[code] >= site_count) {
+      throw std::invalid_argument("label " + std::to_string(labels[code]) + " of cell " + std::to_string(code) +
+                                  " is not a site id (0 to " + std::to_string(site_count - 1) + ")");
+    }
+  }
+
+  // Boundary edges of every region, gathered per site.
+  std::vector<std::vector<Edge>> edges_of(static_cast<std::size_t>(site_count));
+#pragma omp parallel
+  {
+    std::vector<std::pair<std::int32_t, Edge>> local;
+#pragma omp for schedule(static)
+    for (std::int64_t code = 0; code < n; ++code) {
+      const Cell cell = grid::cell_of(static_cast<Code>(code), level);
+      const std::int32_t site = labels[code];
+      LonLat ring[grid::kMaxPolygonCorners];
+      int across[grid::kMaxPolygonCorners];
+      const int corners = drawn_ring(cell, level, ring, across);
+      Code nb[3];
+      grid::neighbours(static_cast<Code>(code), level, nb);
+      for (int k = 0; k < corners; ++k) {
+        const LonLat& from = ring[k];
+        const LonLat& to = ring[(k + 1) % corners];
+        const bool on_border = across[k] == kAcrossBorder ||
+                               (std::fabs(from.lon) == 180.0 && std::fabs(to.lon) == 180.0);  // cut at +-180
+        if (on_border || labels[nb[across[k]]] != site) local.push_back({site, {from, to}});
+      }
+    }
+#pragma omp critical
+    for (const auto& [site, edge] : local) edges_of[static_cast<std::size_t>(site)].push_back(edge);
+  }
+
+  std::vector<Region> regions(static_cast<std::size_t>(site_count));
+#pragma omp parallel for schedule(dynamic, 1)
+  for (std::int32_t site = 0; site < site_count; ++site) {
+    regions[static_cast<std::size_t>(site)] = link_rings(edges_of[static_cast<std::size_t>(site)]);
+  }
+  return regions;
+}
+
+}  // namespace qtmv::write

@@ -1,0 +1,44 @@
+// Voronoi regions as polygons, traced from the grid's topology.
+//
+// The cells, drawn in lon/lat as the grid draws them (straight edges between vertices, the
+// pole cell of each octant a quadrilateral on latitude +-90), tile the rectangle
+// [-180, 180] x [-90, 90] exactly: vertices on octant edges and on the equator are computed to
+// the same bits from either side. A site's region is the union of its drawn cells, so its
+// boundary is made of the cell edges that separate it from another site, plus the edges on
+// the rectangle's border (latitude +-90 and longitude +-180), where every region is cut.
+// Those edges are linked into rings instead of uniting millions of triangles.
+//
+// Rings are counter-clockwise (shells) or clockwise (holes) in lon/lat. Where a region meets
+// itself at a single vertex the walk turns off along the tightest wedge, so no ring touches
+// itself: the pieces come out as separate polygons (or holes) touching at a point, which is
+// valid in the OGC simple-features sense.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "grid/qtm.hpp"
+
+namespace qtmv::write {
+
+using grid::LonLat;
+
+/// One polygon of a region: a counter-clockwise shell and its clockwise holes (degrees), rings
+/// not closed (the first vertex is not repeated).
+struct RegionPolygon {
+  std::vector<LonLat> shell;
+  std::vector<std::vector<LonLat>> holes;
+};
+
+/// The region of one site: its polygons (empty when the site has no cell).
+using Region = std::vector<RegionPolygon>;
+
+/// Traces the regions of all sites from dense labels: labels[code] is the site id of cell
+/// `code` of `level` (0 .. site_count - 1). Returns site_count regions. Throws
+/// std::invalid_argument for a label out of range.
+std::vector<Region> trace_regions(int level, const std::int32_t* labels, std::int32_t site_count);
+
+/// Area of a ring in lon/lat (square degrees): positive when counter-clockwise.
+double planar_ring_area(const std::vector<LonLat>& ring);
+
+}  // namespace qtmv::write

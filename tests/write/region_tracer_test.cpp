@@ -1,0 +1,153 @@
+// Regions traced from the grid's topology, checked with GEOS (through OGR): valid polygons,
+// and each region covers exactly its cells.
+#include <gtest/gtest.h>
+
+#include <ogr_geometry.h>
+
+#include <cmath>
+#include <memory>
+#include <random>
+#include <vector>
+
+#include "grid/qtm.hpp"
+#include "write/region_tracer.hpp"
+
+namespace qtmv::write {
+namespace {
+
+using grid::Code;
+
+constexpr double kGlobeSquareDegrees = 360.0 * 180.0;
+
+std::unique_ptr<OGRMultiPolygon> to_ogr(const Region& region) {
+  auto multi = std::make_unique<OGRMultiPolygon>();
+  for (const RegionPolygon& part : region) {
+    OGRPolygon polygon;
+    auto add_ring = [&](const std::vector<LonLat>& ring) {
+      OGRLinearRing r;
+      for (const LonLat& p : ring) r.addPoint(p.lon, p.lat);
+      r.closeRings();
+      polygon.addRing(&r);
+    };
+    add_ring(part.shell);
+    for (const auto& hole : part.holes) add_ring(hole);
+    multi->addGeometry(&polygon);
+  }
+  return multi;
+}
+
+/// Area of the cell as drawn in lon/lat (square degrees).
+double drawn_cell_area(Code code, int level) {
+  LonLat ring[grid::kMaxPolygonCorners];
+  const int n = grid::cell_polygon(grid::cell_of(code, level), level, ring);
+  return planar_ring_area(std::vector<LonLat>(ring, ring + n));
+}
+
+/// Checks every region: valid by GEOS, its area equal to its cells' area, all areas adding up
+/// to the whole lon/lat rectangle, and a sample of cell centres inside their own region.
+void check_regions(int level, const std::vector<std::int32_t>& labels, std::int32_t sites) {
+  const std::vector<Region> regions = trace_regions(level, labels.data(), sites);
+  ASSERT_EQ(regions.size(), static_cast<std::size_t>(sites));
+  std::vector<double> cell_area(static_cast<std::size_t>(sites), 0.0);
+  for (Code code = 0; code < grid::cell_count(level); ++code) cell_area[labels[code]] += drawn_cell_area(code, level);
+
+  std::vector<std::unique_ptr<OGRMultiPolygon>> shapes;
+  double total = 0;
+  for (std::int32_t s = 0; s < sites; ++s) {
+    shapes.push_back(to_ogr(regions[s]));
+    EXPECT_TRUE(shapes.back()->IsValid()) << "site " << s << ": " << shapes.back()->exportToWkt();
+    const double area = shapes.back()->get_Area();
+    EXPECT_NEAR(area, cell_area[s], 1e-9 * kGlobeSquareDegrees) << "site " << s;
+    for (const RegionPolygon& part : regions[s]) {
+      for (const LonLat& p : part.shell) {
+        EXPECT_LE(std::fabs(p.lon), 180.0);
+        EXPECT_LE(std::fabs(p.lat), 90.0);
+      }
+    }
+    total += area;
+  }
+  EXPECT_NEAR(total, kGlobeSquareDegrees, 1e-9 * kGlobeSquareDegrees);
+
+  std::mt19937_64 rng(11);
+  std::uniform_int_distribution<Code> pick(0, grid::cell_count(level) - 1);
+  for (int k = 0; k < 300; ++k) {
+    const Code code = pick(rng);
+    const LonLat c = grid::cell_centre(code, level);
+    OGRPoint point(c.lon, c.lat);
+    EXPECT_TRUE(shapes[labels[code]]->Contains(&point)) << "cell " << code << " of site " << labels[code];
+  }
+}
+
+std::vector<std::int32_t> nearest_point_labels(int level, int sites, unsigned seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> lon(-180, 180), z(-1, 1);
+  std::vector<grid::Vec3> points;
+  for (int s = 0; s < sites; ++s) points.push_back(grid::unit_vector(lon(rng), std::asin(z(rng)) / grid::kDegree));
+  std::vector<std::int32_t> labels(grid::cell_count(level));
+  for (Code code = 0; code < labels.size(); ++code) {
+    const grid::Vec3 x = grid::cell_centre_vector(code, level);
+    int best = 0;
+    for (int s = 1; s < sites; ++s)
+      if (grid::chord2(x, points[s]) < grid::chord2(x, points[best])) best = s;
+    labels[code] = best;
+  }
+  return labels;
+}
+
+TEST(RegionTracer, OneSiteIsTheWholeRectangle) {
+  const int level = 3;
+  std::vector<std::int32_t> labels(grid::cell_count(level), 0);
+  const auto regions = trace_regions(level, labels.data(), 1);
+  ASSERT_EQ(regions[0].size(), 1u);
+  EXPECT_TRUE(regions[0][0].holes.empty());
+  // Straight runs are dropped: the rectangle's four corners (and the octant corners on the
+  // pole lines and on +-180, which are collinear too) leave just the rectangle.
+  EXPECT_EQ(regions[0][0].shell.size(), 4u);
+  check_regions(level, labels, 1);
+}
+
+TEST(RegionTracer, NearestPointRegions) {
+  for (int level : {2, 5}) {
+    SCOPED_TRACE("level " + std::to_string(level));
+    check_regions(level, nearest_point_labels(level, 25, 5), 25);
+  }
+}
+
+TEST(RegionTracer, RandomLabelsPinchAtVertices) {
+  // Every cell a random one of three sites: regions meet themselves at single vertices
+  // everywhere, the hardest case for ring linking.
+  for (int level : {1, 3, 4}) {
+    SCOPED_TRACE("level " + std::to_string(level));
+    std::mt19937_64 rng(level);
+    std::uniform_int_distribution<std::int32_t> site(0, 2);
+    std::vector<std::int32_t> labels(grid::cell_count(level));
+    for (auto& l : labels) l = site(rng);
+    check_regions(level, labels, 3);
+  }
+}
+
+TEST(RegionTracer, IslandInALakeInAnIsland) {
+  // Site 0 everywhere, site 1 in a cap around (10, 10), site 0 again in a smaller cap inside:
+  // a polygon with a hole, and a second polygon inside that hole.
+  const int level = 6;
+  const grid::Vec3 centre = grid::unit_vector(10, 10);
+  std::vector<std::int32_t> labels(grid::cell_count(level));
+  for (Code code = 0; code < labels.size(); ++code) {
+    const double d = grid::chord2(grid::cell_centre_vector(code, level), centre);
+    labels[code] = (d < 0.01 || d > 0.05) ? 0 : 1;
+  }
+  const auto regions = trace_regions(level, labels.data(), 2);
+  ASSERT_EQ(regions[0].size(), 2u);
+  ASSERT_EQ(regions[1].size(), 1u);
+  EXPECT_EQ(regions[1][0].holes.size(), 1u);
+  check_regions(level, labels, 2);
+}
+
+TEST(RegionTracer, RejectsLabelsThatAreNotSites) {
+  std::vector<std::int32_t> labels(grid::cell_count(1), 0);
+  labels[5] = 7;
+  EXPECT_THROW(trace_regions(1, labels.data(), 2), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace qtmv::write

@@ -1,0 +1,62 @@
+// The labeller's CUDA back end, as the host code sees it (plain C++; the kernels are in
+// cuda/label_cuda.cu). Without CUDA the build links label_cuda_stub.cpp, which reports no
+// device and throws on use.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "grid/qtm.hpp"
+#include "label/label_math.hpp"
+
+namespace qtmv::label {
+struct Tree;
+}
+
+namespace qtmv::label::cuda {
+
+/// Number of CUDA devices the runtime can use (0 when there is no driver or no device).
+int device_count();
+
+struct DeviceInfo {
+  std::string name;
+  std::size_t free_bytes = 0;
+  std::size_t total_bytes = 0;
+};
+DeviceInfo device_info(int device);
+
+/// One labelling job on one GPU: the candidates (and for `hier` the tree) live on the device;
+/// run() computes a range of codes into device buffers, download() brings them to the host.
+class Labeller {
+ public:
+  /// tree == nullptr: brute force over all candidates. Throws std::runtime_error on CUDA errors.
+  Labeller(int device, const std::vector<Piece>& candidates, const Tree* tree, int level);
+  ~Labeller();
+  Labeller(const Labeller&) = delete;
+  Labeller& operator=(const Labeller&) = delete;
+
+  /// Makes room on the device for the outputs of up to max_cells cells.
+  void reserve(std::uint64_t max_cells, bool want_distance, bool want_boundary);
+  /// Labels codes [first, first + count) (count <= reserved); returns the kernels' time
+  /// (milliseconds, CUDA events). Outputs stay on the device until download().
+  float run(grid::Code first, std::uint64_t count, bool want_distance, bool want_boundary);
+  /// Copies cells [offset, offset + count) of the last run to host arrays (null: skipped).
+  /// Returns the copy's time (milliseconds).
+  float download(std::uint64_t offset, std::uint64_t count, std::int32_t* site, float* distance_m,
+                 std::uint8_t* boundary);
+  /// Bytes this object holds on the device now.
+  std::size_t device_bytes() const;
+  /// The float64 brute-force labels of the given codes (the reference of the benchmark's check).
+  std::vector<std::int32_t> brute_sites(const std::vector<grid::Code>& codes);
+  /// Device address of the last run's labels (for checks that stay on the device).
+  const std::int32_t* device_sites() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace qtmv::label::cuda

@@ -1,0 +1,192 @@
+// The pruned hierarchy that the `hier` algorithm builds, and the per-cell look-up in it, one
+// body for the CPU and the CUDA kernels (QTMV_HD).
+//
+// The tree follows the QTM quadtrees: node indices 0..7 are the octants (level 0), and an
+// internal node's four children are stored at consecutive indices in the order of
+// grid::children(). Each node kept the candidates (piece indices) that can be nearest to
+// some point of it (label_math.hpp, prune_threshold); a node stops being split when
+//   - all its candidates belong to one site and no distances are asked for (kUniform), or
+//   - it is at the labelling level, or its candidate list is short enough that the cells
+//     below it may as well test it directly (a "list leaf").
+// A cell's label is then: walk from the root (or from the jump table) to the leaf holding it
+// and, for a list leaf, take the best of the leaf's few candidates.
+#pragma once
+
+#include <cstdint>
+
+#include "label/label_math.hpp"
+
+namespace qtmv::label {
+
+/// Values of TreeNode::count below zero.
+enum TreeNodeKind : std::int32_t {
+  kInternal = -1,  ///< value: index of the first of the four children
+  kUniform = -2,   ///< value: the site of every cell below
+};
+
+/// One node: kind (count < 0) or the length of its candidate list (count >= 1, value: offset of
+/// the list in TreeView::lists).
+struct TreeNode {
+  std::int32_t count;
+  std::int32_t value;
+};
+
+/// Where the walk of a cell of the jump level starts: a node and its level.
+struct JumpEntry {
+  std::int32_t node;
+  std::int32_t level;
+};
+
+/// The tree as plain pointers, valid on the side (host or device) that owns them.
+struct TreeView {
+  const TreeNode* nodes;
+  const std::int32_t* lists;   ///< candidate lists of the list leaves (piece indices)
+  const Piece* pieces;
+  const JumpEntry* jump;        ///< per cell of jump_level: the node to start the walk from
+  int jump_level;
+  int level;                   ///< the labelling level L
+};
+
+/// Cell of a code, as grid::cell_of but with shifts in place of 64-bit divisions (which are
+/// slow on GPUs). Same result: the tests compare the two.
+QTMV_HD inline grid::Cell fast_cell_of(grid::Code code, int level) {
+  const int octant = static_cast<int>(code >> (2 * level));
+  const std::uint64_t k = code & (grid::cells_per_octant(level) - 1);
+  std::uint64_t row = static_cast<std::uint64_t>(sqrt(static_cast<double>(k)));
+  while (row * row > k) --row;
+  while ((row + 1) * (row + 1) <= k) ++row;
+  return {octant, static_cast<std::uint32_t>(row), static_cast<std::uint32_t>(k - row * row)};
+}
+
+/// The ancestor at level `to` (<= from) of cell c of level `from`: the cell of level `to`
+/// that holds c's centre, decided in exact integer arithmetic from the planar centroid.
+QTMV_HD inline grid::Cell ancestor(const grid::Cell& c, int from, int to) {
+  if (to == from) return c;
+  const std::uint32_t a = c.col / 2;
+  // Centroid in units of 1/(3 * 2^from) of the octant's plane (< 2^27 up to level 24).
+  const std::uint32_t ww = grid::is_up(c) ? 3 * a + 1 : 3 * a + 2;
+  const std::uint32_t vv = grid::is_up(c) ? 3 * c.row + 2 : 3 * c.row + 1;
+  const int shift = from - to;
+  // floor(x / (3 * 2^shift)) = floor(x / 3) >> shift, with a division by a constant.
+  const std::uint32_t i = (vv / 3) >> shift, pa = (ww / 3) >> shift;
+  const std::uint32_t side = 3u << shift;
+  const std::uint32_t fw = ww - pa * side, fv = vv - i * side;
+  std::uint32_t j = fw <= fv ? 2 * pa : 2 * pa + 1;
+  if (j > 2 * i) j = 2 * i;
+  return {c.octant, i, j};
+}
+
+/// Position (0..3) of cell c among its parent's children, in grid::children() order.
+QTMV_HD inline int child_digit(const grid::Cell& c) {
+  const std::uint32_t m = c.col & 3u;
+  if ((c.row & 1u) == 0) return m == 0 ? 0 : static_cast<int>(m) - 1;
+  return m == 3 ? 3 : static_cast<int>(m) + 1;
+}
+
+/// Index of the leaf that holds cell c (of the labelling level); its level in *leaf_level.
+QTMV_HD inline std::int32_t find_leaf(const TreeView& t, const grid::Cell& c, int* leaf_level) {
+  const grid::Cell start = ancestor(c, t.level, t.jump_level);
+  const JumpEntry jump = t.jump[grid::code_of(start, t.jump_level)];
+  std::int32_t node = jump.node;
+  int level = jump.level;
+  TreeNode n = t.nodes[node];
+  while (n.count == kInternal) {
+    node = n.value + child_digit(ancestor(c, t.level, level + 1));
+    n = t.nodes[node];
+    ++level;
+  }
+  *leaf_level = level;
+  return node;
+}
+
+/// True when all three edge neighbours of cell c (level `level`) lie in c's ancestor at
+/// `leaf_level`, so that a uniform leaf settles c's boundary flag without looking further.
+/// Within an up ancestor, row r (from its top, 0..2^k - 1) holds columns base .. base + 2r;
+/// within a down ancestor, base + 2r + 1 .. base + 2^(k+1) - 1, with base = 2 a 2^k. The first and
+/// last cell of a row have a neighbour outside, and so do the up cells of an up ancestor's
+/// last row (below) and the down cells of a down ancestor's first row (above).
+QTMV_HD inline bool interior_of_ancestor(const grid::Cell& c, int level, int leaf_level) {
+  const int k = level - leaf_level;
+  const grid::Cell anc = ancestor(c, level, leaf_level);
+  const std::uint32_t r = c.row - (anc.row << k);
+  const std::uint32_t base = (anc.col / 2) << (k + 1);
+  const std::uint32_t last_row = (1u << k) - 1;
+  if (grid::is_up(anc)) {
+    return c.col > base && c.col < base + 2 * r && !(grid::is_up(c) && r == last_row);
+  }
+  return c.col > base + 2 * r + 1 && c.col < base + (2u << k) - 1 && !(!grid::is_up(c) && r == 0);
+}
+
+/// The walk that builds the jump table: from the octant's root down to jump_level or a leaf.
+QTMV_HD inline JumpEntry walk_to_jump_level(const TreeNode* nodes, const grid::Cell& c, int jump_level) {
+  std::int32_t node = c.octant;
+  int level = 0;
+  for (; level < jump_level && nodes[node].count == kInternal; ++level) {
+    node = nodes[node].value + child_digit(ancestor(c, jump_level, level + 1));
+  }
+  return {node, level};
+}
+
+/// The best candidate of a list leaf for the point x (unit vector).
+QTMV_HD inline Best best_of_list(const TreeView& t, const TreeNode& leaf, const Vec3& x) {
+  Best best = no_best();
+  for (std::int32_t k = 0; k < leaf.count; ++k) {
+    const Piece& p = t.pieces[t.lists[leaf.value + k]];
+    consider(best, piece_chord2(x, p), p);
+  }
+  return best;
+}
+
+/// The site of cell c (of the labelling level).
+QTMV_HD inline std::int32_t tree_label(const TreeView& t, const grid::Cell& c) {
+  int leaf_level;
+  const TreeNode leaf = t.nodes[find_leaf(t, c, &leaf_level)];
+  if (leaf.count == kUniform) return leaf.value;
+  return best_of_list(t, leaf, grid::cell_centre_vector(grid::code_of(c, t.level), t.level)).site;
+}
+
+/// Label, optional distance and optional boundary flag of one cell. A cell is a boundary cell
+/// when one of its three edge neighbours has another site; the neighbours' labels are looked
+/// up in the tree, so this needs no label array and works on any range of codes.
+/// *candidates_out (when not null) gets the number of candidates tested for the cell's own label.
+QTMV_HD inline void tree_label_cell(const TreeView& t, grid::Code code, std::int32_t* site_out, float* metres_out,
+                                    std::uint8_t* boundary_out) {
+  const grid::Cell c = fast_cell_of(code, t.level);
+  int leaf_level;
+  const std::int32_t leaf_index = find_leaf(t, c, &leaf_level);
+  const TreeNode leaf = t.nodes[leaf_index];
+  std::int32_t site;
+  if (leaf.count == kUniform) {
+    site = leaf.value;
+  } else {
+    const Best best = best_of_list(t, leaf, grid::cell_centre_vector(code, t.level));
+    site = best.site;
+    if (metres_out) *metres_out = static_cast<float>(chord2_to_metres(best.chord2));
+  }
+  *site_out = site;
+  if (!boundary_out) return;
+  if (leaf.count == kUniform && interior_of_ancestor(c, t.level, leaf_level)) {
+    *boundary_out = 0;
+    return;
+  }
+  grid::Cell nb[3];
+  grid::neighbours(c, t.level, nb);
+  std::uint8_t boundary = 0;
+  for (int k = 0; k < 3 && !boundary; ++k) {
+    int other_level;
+    const std::int32_t other_leaf = find_leaf(t, nb[k], &other_level);
+    // Cells of one uniform leaf share its site.
+    if (other_leaf == leaf_index && leaf.count == kUniform) continue;
+    const TreeNode other = t.nodes[other_leaf];
+    std::int32_t other_site;
+    if (other.count == kUniform) {
+      other_site = other.value;
+    } else {
+      other_site = best_of_list(t, other, grid::cell_centre_vector(grid::code_of(nb[k], t.level), t.level)).site;
+    }
+    boundary = other_site != site;
+  }
+  *boundary_out = boundary;
+}
+
+}  // namespace qtmv::label

@@ -1,0 +1,697 @@
+// The labeller's host side: input checks, candidates, the pruned tree, the CPU paths (OpenMP),
+// device choice, tiling, and the hand-over to the CUDA back end.
+#include "label/labeller.hpp"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+
+#include "grid/qtm_checks.hpp"
+#include "label/label_cuda.hpp"
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+namespace qtmv::label {
+
+namespace {
+
+int thread_count(int requested) {
+#ifdef _OPENMP
+  return requested > 0 ? requested : omp_get_max_threads();
+#else
+  (void)requested;
+  return 1;
+#endif
+}
+
+double now_seconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+std::uint64_t host_ram_bytes() {
+  const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
+  return pages > 0 && page > 0 ? static_cast<std::uint64_t>(pages) * static_cast<std::uint64_t>(page)
+                               : std::uint64_t{8} << 30;
+}
+
+std::string gib(double bytes) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%.2f GiB", bytes / double(std::uint64_t{1} << 30));
+  return text;
+}
+
+bool is_unit(const Vec3& v) {
+  const double n = grid::dot(v, v);
+  return std::isfinite(n) && std::fabs(n - 1.0) < 1e-9;
+}
+
+void validate(const LabelInput& in, Rule rule) {
+  grid::require_level(in.level);
+  if (in.site_count <= 0) throw std::invalid_argument("there are no sites to label with");
+  auto check_site = [&](std::int32_t site, const char* what) {
+    if (site < 0 || site >= in.site_count) {
+      throw std::invalid_argument(std::string(what) + " has site id " + std::to_string(site) +
+                                  ", outside 0.." + std::to_string(in.site_count - 1));
+    }
+  };
+  for (std::size_t k = 0; k < in.piece_count; ++k) {
+    const SitePiece& p = in.pieces[k];
+    check_site(p.site, "a site piece");
+    if (!is_unit(p.a) || !is_unit(p.b)) {
+      throw std::invalid_argument("site piece " + std::to_string(k) + " has an end that is not a unit vector");
+    }
+    if (grid::dot(p.a, p.b) < 0.0) {
+      throw std::invalid_argument("site piece " + std::to_string(k) + " is longer than a quarter circle");
+    }
+  }
+  for (std::size_t k = 0; k < in.site_cell_count; ++k) {
+    check_site(in.site_cells[k].site, "a site cell");
+    grid::require_code(in.site_cells[k].code, in.level);
+  }
+  for (std::size_t k = 0; k < in.fixed_cell_count; ++k) {
+    check_site(in.fixed_cells[k].site, "a fixed cell");
+    grid::require_code(in.fixed_cells[k].code, in.level);
+  }
+  if (rule == Rule::exact && in.piece_count == 0 && in.fixed_cell_count == 0) {
+    throw std::invalid_argument("the exact rule needs site pieces (points or arcs) or fixed cells");
+  }
+  if (rule == Rule::cell && in.site_cell_count == 0 && in.fixed_cell_count == 0) {
+    throw std::invalid_argument("the cell rule needs site cells or fixed cells");
+  }
+}
+
+struct DeviceChoice {
+  bool cuda = false;
+  int index = 0;
+};
+
+DeviceChoice choose_device(const std::string& name) {
+  if (name == "cpu") return {};
+  const int count = cuda::device_count();
+  if (name == "auto") return count > 0 ? DeviceChoice{true, 0} : DeviceChoice{};
+  int index = 0;
+  if (name == "cuda") {
+    index = 0;
+  } else if (name.rfind("cuda:", 0) == 0 && name.size() > 5 &&
+             name.find_first_not_of("0123456789", 5) == std::string::npos) {
+    index = std::stoi(name.substr(5));
+  } else {
+    throw std::invalid_argument("unknown device '" + name + "': use auto, cpu, cuda or cuda:N");
+  }
+  if (count == 0) throw std::runtime_error("device '" + name + "' was asked for, but no usable CUDA GPU was found");
+  if (index >= count) {
+    throw std::runtime_error("device '" + name + "' was asked for, but there are only " + std::to_string(count) +
+                             " CUDA device(s)");
+  }
+  return {true, index};
+}
+
+// --- CPU per-range work ---------------------------------------------------------------------
+
+constexpr std::uint64_t kCpuBlock = 4096;  // cells per OpenMP work item
+constexpr std::uint64_t kMinTileCells = 4096;  // below this, tiling is pointless: refuse
+
+/// Boundary flags of [first, first + count) from its labels; neighbours outside the range are
+/// labelled by `outside(code)`.
+template <typename Outside>
+void boundary_from_labels(int level, grid::Code first, std::uint64_t count, const std::int32_t* site,
+                          std::uint8_t* boundary, int threads, const Outside& outside) {
+  const std::int64_t blocks = static_cast<std::int64_t>((count + kCpuBlock - 1) / kCpuBlock);
+#pragma omp parallel for schedule(dynamic, 4) num_threads(threads)
+  for (std::int64_t b = 0; b < blocks; ++b) {
+    const std::uint64_t begin = static_cast<std::uint64_t>(b) * kCpuBlock;
+    const std::uint64_t end = std::min(count, begin + kCpuBlock);
+    grid::Cell c = grid::cell_of(first + begin, level);
+    for (std::uint64_t k = begin; k < end; ++k) {
+      grid::Cell nb[3];
+      grid::neighbours(c, level, nb);
+      std::uint8_t flag = 0;
+      for (int s = 0; s < 3 && !flag; ++s) {
+        const grid::Code code = grid::code_of(nb[s], level);
+        const std::int32_t other = code >= first && code - first < count ? site[code - first] : outside(code);
+        flag = other != site[k];
+      }
+      boundary[k] = flag;
+      // Next cell in code order.
+      if (c.col < 2 * c.row) {
+        ++c.col;
+      } else if (c.row + 1 < grid::rows_per_octant(level)) {
+        ++c.row;
+        c.col = 0;
+      } else {
+        ++c.octant;
+        c.row = 0;
+        c.col = 0;
+      }
+    }
+  }
+}
+
+/// The CPU's hier pass over [first, first + count): every leaf paints its cells, row run by row
+/// run (a uniform leaf writes its site; a list leaf tests its candidates per cell), then the
+/// boundary flags come from the labels.
+void cpu_tree_range(const Tree& tree, const TreeView& tv, grid::Code first, std::uint64_t count,
+                    std::int32_t* site, float* metres, std::uint8_t* boundary, int threads) {
+  const int level = tree.level;
+  const std::uint64_t end_code = first + count;
+  const std::int64_t leaves = static_cast<std::int64_t>(tree.leaves.size());
+#pragma omp parallel for schedule(dynamic, 16) num_threads(threads)
+  for (std::int64_t q = 0; q < leaves; ++q) {
+    const TreeLeaf& leaf = tree.leaves[q];
+    const TreeNode node = tree.nodes[leaf.node];
+    const int k = level - leaf.level;
+    const std::uint64_t octant_base = static_cast<std::uint64_t>(leaf.cell.octant) * grid::cells_per_octant(level);
+    const std::uint64_t row0 = std::uint64_t{leaf.cell.row} << k;
+    const std::uint64_t base = std::uint64_t{leaf.cell.col / 2} << (k + 1);
+    const bool up = grid::is_up(leaf.cell);
+    const std::uint64_t rows = std::uint64_t{1} << k;
+    // Quick rejection by the leaf's code span.
+    const std::uint64_t span_first = octant_base + row0 * row0 + (up ? base : base + 1);
+    const std::uint64_t last_row = row0 + rows - 1;
+    const std::uint64_t span_last =
+        octant_base + last_row * last_row + (up ? base + 2 * (rows - 1) : base + 2 * rows - 1);
+    if (span_last < first || span_first >= end_code) continue;
+    for (std::uint64_t r = 0; r < rows; ++r) {
+      const std::uint64_t row = row0 + r;
+      const std::uint64_t c0 = up ? base : base + 2 * r + 1;
+      const std::uint64_t c1 = up ? base + 2 * r : base + 2 * rows - 1;
+      std::uint64_t lo = octant_base + row * row + c0, hi = octant_base + row * row + c1 + 1;
+      lo = std::max(lo, first);
+      hi = std::min(hi, end_code);
+      if (lo >= hi) continue;
+      if (node.count == kUniform) {
+        std::fill(site + (lo - first), site + (hi - first), node.value);
+      } else {
+        for (std::uint64_t code = lo; code < hi; ++code) {
+          const Best best = best_of_list(tv, node, grid::cell_centre_vector(code, level));
+          site[code - first] = best.site;
+          if (metres) metres[code - first] = static_cast<float>(chord2_to_metres(best.chord2));
+        }
+      }
+    }
+  }
+  if (boundary) {
+    boundary_from_labels(level, first, count, site, boundary, threads,
+                         [&](grid::Code code) { return tree_label(tv, grid::cell_of(code, level)); });
+  }
+}
+
+void cpu_brute_range(const std::vector<Piece>& candidates, int level, grid::Code first, std::uint64_t count,
+                     std::int32_t* site, float* metres, std::uint8_t* boundary, int threads) {
+  const std::int64_t n = static_cast<std::int64_t>(count);
+#pragma omp parallel for schedule(dynamic, 256) num_threads(threads)
+  for (std::int64_t k = 0; k < n; ++k) {
+    const Best best = reference_best(candidates, first + static_cast<std::uint64_t>(k), level);
+    site[k] = best.site;
+    if (metres) metres[k] = static_cast<float>(chord2_to_metres(best.chord2));
+  }
+  if (!boundary) return;
+  boundary_from_labels(level, first, count, site, boundary, threads,
+                       [&](grid::Code code) { return reference_best(candidates, code, level).site; });
+}
+
+}  // namespace
+
+// --- candidates -----------------------------------------------------------------------------
+
+std::vector<Piece> make_candidates(const LabelInput& in, Rule rule) {
+  std::vector<Piece> out;
+  if (rule == Rule::exact) {
+    out.reserve(in.piece_count + in.fixed_cell_count);
+    for (std::size_t k = 0; k < in.piece_count; ++k) {
+      const SitePiece& p = in.pieces[k];
+      const bool point = p.a.x == p.b.x && p.a.y == p.b.y && p.a.z == p.b.z;
+      out.push_back(point ? make_point_piece(p.a, p.site) : make_arc_piece(p.a, p.b, p.site));
+    }
+  } else {
+    // One point per distinct (cell, site): duplicates change nothing but the work.
+    std::vector<std::pair<grid::Code, std::int32_t>> cells;
+    cells.reserve(in.site_cell_count);
+    for (std::size_t k = 0; k < in.site_cell_count; ++k) cells.emplace_back(in.site_cells[k].code, in.site_cells[k].site);
+    std::sort(cells.begin(), cells.end());
+    cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
+    out.reserve(cells.size() + in.fixed_cell_count);
+    for (const auto& [code, site] : cells) out.push_back(make_point_piece(grid::cell_centre_vector(code, in.level), site));
+  }
+  // Fixed cells in both rules: a point at the cell's centre that wins that cell at distance 0.
+  // Under the exact rule it is a point of the polygon site, so it never brings the site nearer
+  // than its own geometry would.
+  for (std::size_t k = 0; k < in.fixed_cell_count; ++k) {
+    const FixedCell& f = in.fixed_cells[k];
+    out.push_back(make_point_piece(grid::cell_centre_vector(f.code, in.level), f.site, kPieceFixed));
+  }
+  return out;
+}
+
+Best reference_best(const std::vector<Piece>& candidates, grid::Code code, int level) {
+  const Vec3 x = grid::cell_centre_vector(code, level);
+  Best best = no_best();
+  for (const Piece& p : candidates) consider(best, piece_chord2(x, p), p);
+  return best;
+}
+
+// --- the tree -------------------------------------------------------------------------------
+
+namespace {
+
+// Levels above the labelling level at which mixed nodes stop being split (see build_tree).
+constexpr int kListDepth = 3;
+// A mixed node with more candidates than this goes on being split (down to the level, where
+// each cell's winner is settled in the build): dense line sites keep the lists short.
+constexpr std::uint32_t kMaxLeafList = 12;
+
+/// A node of the level being built, with the list its parent kept (the node filters it).
+struct Pending {
+  grid::Cell cell;
+  std::int32_t node;
+  std::uint64_t parent_offset;
+  std::uint32_t parent_count;
+};
+
+/// What the filter decided for one node.
+struct Decision {
+  std::int32_t kind;        // kUniform, kInternal, or 1 for a list leaf
+  std::int32_t site;        // for kUniform
+  std::uint64_t offset;     // of its kept list in its thread's buffer
+  std::uint32_t count;      // kept candidates
+};
+
+
+}  // namespace
+
+Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_distance, int threads_requested) {
+  grid::require_level(level);
+  if (candidates.empty()) throw std::invalid_argument("build_tree: no candidates");
+  if (candidates.size() > 0x7fffffffu) throw std::invalid_argument("build_tree: more than 2^31 candidates");
+  const int threads = thread_count(threads_requested);
+  Tree tree;
+  tree.level = level;
+  // Nodes still mixed at this level become list leaves: their cells test the few candidates
+  // left rather than the tree going on down (the last levels hold most of the nodes).
+  const int list_level = std::max(0, level - kListDepth);
+  tree.jump_level = std::max(0, std::min(level - 4, 9));
+  tree.nodes.resize(grid::kOctants);
+
+  std::vector<std::int32_t> parent_lists(candidates.size());
+  for (std::size_t k = 0; k < candidates.size(); ++k) parent_lists[k] = static_cast<std::int32_t>(k);
+  std::vector<Pending> pending;
+  for (int o = 0; o < grid::kOctants; ++o) {
+    pending.push_back({grid::Cell{o, 0, 0}, o, 0, static_cast<std::uint32_t>(candidates.size())});
+  }
+  // Candidate evaluations: in the build, and by the cells of list leaves afterwards.
+  double weighted_candidates = 0;
+
+  // Each level's nodes are cut into parts, several per thread for balance; a part's kept lists
+  // go to its own buffer and are concatenated in order afterwards.
+  std::vector<std::vector<std::int32_t>> kept;
+  std::vector<std::vector<double>> scratch(threads);
+  for (int l = 0; l <= level && !pending.empty(); ++l) {
+    const std::int64_t n = static_cast<std::int64_t>(pending.size());
+    std::vector<Decision> decisions(pending.size());
+    const int parts = static_cast<int>(std::min<std::int64_t>(n, std::int64_t{threads} * 16));
+    if (static_cast<int>(kept.size()) < parts) kept.resize(parts);
+    std::vector<std::uint64_t> leaf_total(parts + 1, 0), internal_total(parts + 1, 0), internal_count(parts + 1, 0),
+        leaf_count(parts + 1, 0);
+    std::vector<std::pair<std::int64_t, std::int64_t>> chunk(parts);
+    const double cells_below = std::ldexp(1.0, 2 * (level - l));
+    double evaluations = 0;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads) reduction(+ : evaluations)
+    for (int t = 0; t < parts; ++t) {
+      const std::int64_t begin = n * t / parts, end = n * (t + 1) / parts;
+      chunk[t] = {begin, end};
+      std::vector<std::int32_t>& out = kept[t];
+#ifdef _OPENMP
+      std::vector<double>& d2 = scratch[omp_get_thread_num()];
+#else
+      std::vector<double>& d2 = scratch[0];
+#endif
+      out.clear();
+      std::uint64_t leaf_entries = 0, internal_entries = 0, internals = 0, leaves = 0;
+      for (std::int64_t q = begin; q < end; ++q) {
+        const Pending& p = pending[q];
+        evaluations += p.parent_count;
+        const Vec3 c = grid::cell_centre_vector(grid::code_of(p.cell, l), l);
+        const std::int32_t* list = parent_lists.data() + p.parent_offset;
+        d2.resize(p.parent_count);
+        double min_d2 = 1e300;
+        for (std::uint32_t k = 0; k < p.parent_count; ++k) {
+          d2[k] = piece_chord2(c, candidates[list[k]]);
+          min_d2 = std::min(min_d2, d2[k]);
+        }
+        Decision dec{0, -1, out.size(), 0};
+        if (l == level) {
+          // The node is one cell of the level: its label is the best candidate at its centre,
+          // settled here once rather than by every look-up.
+          Best best = no_best();
+          std::int32_t winner = -1;
+          for (std::uint32_t k = 0; k < p.parent_count; ++k) {
+            const Best before = best;
+            consider(best, d2[k], candidates[list[k]]);
+            if (best.site != before.site || best.chord2 != before.chord2 || best.rank != before.rank) winner = list[k];
+          }
+          dec.site = best.site;
+          if (with_distance) {
+            out.push_back(winner);
+            dec.count = 1;
+            dec.kind = 1;
+            ++leaf_entries;
+          } else {
+            dec.kind = kUniform;
+          }
+          ++leaves;
+          decisions[q] = dec;
+          continue;
+        }
+        const double threshold = prune_threshold(min_d2, node_radius(l, p.cell));
+        bool uniform = true;
+        for (std::uint32_t k = 0; k < p.parent_count; ++k) {
+          if (d2[k] <= threshold) {
+            const std::int32_t site = candidates[list[k]].site;
+            if (dec.site < 0) dec.site = site;
+            uniform = uniform && site == dec.site;
+            out.push_back(list[k]);
+          }
+        }
+        dec.count = static_cast<std::uint32_t>(out.size() - dec.offset);
+        if (uniform && !with_distance) {
+          dec.kind = kUniform;
+          out.resize(dec.offset);
+          ++leaves;
+        } else if ((uniform && dec.count == 1) || (l >= list_level && dec.count <= kMaxLeafList)) {
+          dec.kind = 1;
+          leaf_entries += dec.count;
+          ++leaves;
+        } else {
+          dec.kind = kInternal;
+          internal_entries += dec.count;
+          ++internals;
+        }
+        decisions[q] = dec;
+      }
+      leaf_total[t + 1] = leaf_entries;
+      internal_total[t + 1] = internal_entries;
+      internal_count[t + 1] = internals;
+      leaf_count[t + 1] = leaves;
+    }
+    for (int t = 0; t < parts; ++t) {
+      leaf_total[t + 1] += leaf_total[t];
+      internal_total[t + 1] += internal_total[t];
+      internal_count[t + 1] += internal_count[t];
+      leaf_count[t + 1] += leaf_count[t];
+    }
+    // Allocate the next level's nodes, lists and pending entries; then fill them in parallel.
+    const std::uint64_t lists_base = tree.lists.size();
+    const std::size_t nodes_base = tree.nodes.size();
+    const std::uint64_t n_internal = internal_count[parts];
+    if (nodes_base + 4 * n_internal > 0x7fffffffu || lists_base + leaf_total[parts] > 0x7fffffffu) {
+      throw std::runtime_error("the labeller's tree outgrew 2^31 nodes or list entries");
+    }
+    tree.lists.resize(lists_base + leaf_total[parts]);
+    tree.nodes.resize(nodes_base + 4 * n_internal);
+    const std::size_t leaves_base = tree.leaves.size();
+    tree.leaves.resize(leaves_base + leaf_count[parts]);
+    std::vector<std::int32_t> next_lists(internal_total[parts]);
+    std::vector<Pending> next(4 * n_internal);
+    double weighted = 0;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads) reduction(+ : weighted)
+    for (int t = 0; t < parts; ++t) {
+      {
+        std::uint64_t leaf_at = lists_base + leaf_total[t], internal_at = internal_total[t];
+        std::uint64_t rank = internal_count[t];
+        std::size_t leaf_rank = leaves_base + leaf_count[t];
+        const std::vector<std::int32_t>& out = kept[t];
+        for (std::int64_t q = chunk[t].first; q < chunk[t].second; ++q) {
+          const Pending& p = pending[q];
+          const Decision& dec = decisions[q];
+          TreeNode& node = tree.nodes[p.node];
+          if (dec.kind != kInternal) tree.leaves[leaf_rank++] = {p.cell, l, p.node};
+          if (dec.kind == kUniform) {
+            node = {kUniform, dec.site};
+          } else if (dec.kind == 1) {
+            node = {static_cast<std::int32_t>(dec.count), static_cast<std::int32_t>(leaf_at)};
+            std::copy(out.begin() + dec.offset, out.begin() + dec.offset + dec.count, tree.lists.begin() + leaf_at);
+            leaf_at += dec.count;
+            weighted += dec.count * cells_below;
+          } else {
+            const std::int32_t first_child = static_cast<std::int32_t>(nodes_base + 4 * rank);
+            node = {kInternal, first_child};
+            std::copy(out.begin() + dec.offset, out.begin() + dec.offset + dec.count, next_lists.begin() + internal_at);
+            grid::Cell kids[4];
+            grid::children(p.cell, kids);
+            for (int k = 0; k < 4; ++k) next[4 * rank + k] = {kids[k], first_child + k, internal_at, dec.count};
+            internal_at += dec.count;
+            ++rank;
+          }
+        }
+      }
+    }
+    weighted_candidates += weighted + evaluations;
+    parent_lists.swap(next_lists);
+    pending.swap(next);
+  }
+  tree.mean_candidates = weighted_candidates / static_cast<double>(grid::cell_count(level));
+
+  // The jump table: where each cell of jump_level starts its walk.
+  const std::uint64_t jump_cells = grid::cell_count(tree.jump_level);
+  tree.jump.resize(jump_cells);
+  const std::int64_t jn = static_cast<std::int64_t>(jump_cells);
+#pragma omp parallel for schedule(static) num_threads(threads)
+  for (std::int64_t k = 0; k < jn; ++k) {
+    tree.jump[k] = walk_to_jump_level(tree.nodes.data(), grid::cell_of(static_cast<grid::Code>(k), tree.jump_level),
+                                      tree.jump_level);
+  }
+  return tree;
+}
+
+// --- the run --------------------------------------------------------------------------------
+
+MemoryEstimate estimate_output_memory(int level, const LabelOptions& options) {
+  grid::require_level(level);
+  MemoryEstimate e;
+  e.cells = grid::cell_count(level);
+  e.bytes_per_cell = sizeof(std::int32_t) + (options.want_distance ? sizeof(float) : 0) + (options.want_boundary ? 1 : 0);
+  e.output_bytes = e.cells * e.bytes_per_cell;
+  return e;
+}
+
+LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
+                       const std::function<void(const LabelTile&)>& sink) {
+  validate(input, options.rule);
+  const int threads = thread_count(options.threads);
+  const DeviceChoice device = choose_device(options.device);
+  LabelStats stats;
+  auto say = [&](const std::string& message) {
+    if (options.log) options.log(message);
+  };
+  auto progress = [&](double fraction, const char* stage) {
+    if (options.progress) options.progress(fraction, stage);
+  };
+  if (device.cuda) {
+    const cuda::DeviceInfo info = cuda::device_info(device.index);
+    stats.device = "cuda:" + std::to_string(device.index) + " (" + info.name + ")";
+  } else {
+    stats.device = "cpu (" + std::to_string(threads) + " threads)";
+  }
+  say("labelling on " + stats.device);
+
+  const double t0 = now_seconds();
+  progress(0.0, "prepare");
+  const std::vector<Piece> candidates = make_candidates(input, options.rule);
+  const bool hier = options.algorithm == Algorithm::hier;
+  Tree tree;
+  if (hier) {
+    tree = build_tree(candidates, input.level, options.want_distance, threads);
+    stats.tree_nodes = tree.nodes.size();
+    stats.tree_list_entries = tree.lists.size();
+    stats.mean_candidates = tree.mean_candidates;
+  } else {
+    stats.mean_candidates = static_cast<double>(candidates.size());
+  }
+  stats.prepare_seconds = now_seconds() - t0;
+
+  const MemoryEstimate need = estimate_output_memory(input.level, options);
+  const std::uint64_t total = need.cells;
+  // Host tiles are bounded so that a whole-globe run does not double the caller's memory.
+  const std::uint64_t host_limit = options.memory_limit_bytes ? options.memory_limit_bytes : host_ram_bytes() / 4;
+  std::uint64_t host_tile = std::min<std::uint64_t>(total, std::max<std::uint64_t>(1, host_limit / need.bytes_per_cell));
+  host_tile = std::min<std::uint64_t>(host_tile, std::uint64_t{1} << 28);
+  if (host_tile < std::min<std::uint64_t>(total, kMinTileCells)) {
+    throw std::runtime_error("level " + std::to_string(input.level) + " needs " + gib(double(need.output_bytes)) +
+                             " of outputs; not even a tile of 4096 cells fits in the " + gib(double(host_limit)) +
+                             " allowed");
+  }
+  std::vector<std::int32_t> site(host_tile);
+  std::vector<float> metres(options.want_distance ? host_tile : 0);
+  std::vector<std::uint8_t> boundary(options.want_boundary ? host_tile : 0);
+  float* metres_ptr = options.want_distance ? metres.data() : nullptr;
+  std::uint8_t* boundary_ptr = options.want_boundary ? boundary.data() : nullptr;
+
+  if (!device.cuda) {
+    const TreeView tv = tree.view(candidates.data());
+    for (std::uint64_t first = 0; first < total; first += host_tile) {
+      const std::uint64_t count = std::min(host_tile, total - first);
+      const double start = now_seconds();
+      if (hier) {
+        cpu_tree_range(tree, tv, first, count, site.data(), metres_ptr, boundary_ptr, threads);
+      } else {
+        cpu_brute_range(candidates, input.level, first, count, site.data(), metres_ptr, boundary_ptr, threads);
+      }
+      stats.label_seconds += now_seconds() - start;
+      ++stats.tiles;
+      sink({first, count, site.data(), metres_ptr, boundary_ptr});
+      progress(double(first + count) / double(total), "label");
+    }
+    return stats;
+  }
+
+  cuda::Labeller gpu(device.index, candidates, hier ? &tree : nullptr, input.level);
+  const cuda::DeviceInfo info = cuda::device_info(device.index);
+  const std::uint64_t device_limit =
+      options.memory_limit_bytes ? options.memory_limit_bytes : static_cast<std::uint64_t>(info.free_bytes * 0.8);
+  const std::uint64_t device_tile = std::min<std::uint64_t>(total, device_limit / need.bytes_per_cell);
+  if (device_tile < std::min<std::uint64_t>(total, kMinTileCells)) {
+    throw std::runtime_error("level " + std::to_string(input.level) + " needs " + gib(double(need.output_bytes)) +
+                             " of outputs on the GPU; not even a tile of 4096 cells fits in the " +
+                             gib(double(device_limit)) + " available");
+  }
+  if (device_tile < total) {
+    say("level " + std::to_string(input.level) + " outputs take " + gib(double(need.output_bytes)) +
+        "; labelling in tiles of " + std::to_string(device_tile) + " cells");
+  }
+  gpu.reserve(device_tile, options.want_distance, options.want_boundary);
+  stats.device_bytes = gpu.device_bytes();
+  for (std::uint64_t first = 0; first < total; first += device_tile) {
+    const std::uint64_t count = std::min(device_tile, total - first);
+    stats.label_seconds += gpu.run(first, count, options.want_distance, options.want_boundary) / 1e3;
+    ++stats.tiles;
+    for (std::uint64_t offset = 0; offset < count; offset += host_tile) {
+      const std::uint64_t part = std::min(host_tile, count - offset);
+      stats.copy_seconds += gpu.download(offset, part, site.data(), metres_ptr, boundary_ptr) / 1e3;
+      sink({first + offset, part, site.data(), metres_ptr, boundary_ptr});
+    }
+    progress(double(first + count) / double(total), "label");
+  }
+  return stats;
+}
+
+LabelResult label_all(const LabelInput& input, const LabelOptions& options) {
+  grid::require_level(input.level);
+  const MemoryEstimate need = estimate_output_memory(input.level, options);
+  const std::uint64_t ram = host_ram_bytes();
+  if (need.output_bytes > ram / 2) {
+    throw std::runtime_error("level " + std::to_string(input.level) + " needs " + gib(double(need.output_bytes)) +
+                             " for its dense outputs, more than half of this host's " + gib(double(ram)) +
+                             "; use label_cells() to stream tiles instead");
+  }
+  LabelResult result;
+  result.site.resize(need.cells);
+  if (options.want_distance) result.distance_m.resize(need.cells);
+  if (options.want_boundary) result.boundary.resize(need.cells);
+  result.stats = label_cells(input, options, [&](const LabelTile& tile) {
+    std::memcpy(result.site.data() + tile.first, tile.site, tile.count * sizeof(std::int32_t));
+    if (tile.distance_m) std::memcpy(result.distance_m.data() + tile.first, tile.distance_m, tile.count * sizeof(float));
+    if (tile.boundary) std::memcpy(result.boundary.data() + tile.first, tile.boundary, tile.count);
+  });
+  return result;
+}
+
+int cuda_device_count() { return cuda::device_count(); }
+
+// --- geometry helpers -----------------------------------------------------------------------
+
+LabelInput SiteGeometry::input() const {
+  LabelInput in;
+  in.level = level;
+  in.site_count = site_count;
+  in.pieces = pieces.data();
+  in.piece_count = pieces.size();
+  in.site_cells = site_cells.data();
+  in.site_cell_count = site_cells.size();
+  in.fixed_cells = fixed_cells.data();
+  in.fixed_cell_count = fixed_cells.size();
+  return in;
+}
+
+namespace {
+
+grid::Code code_of_vector(const Vec3& v, int level) {
+  const double lon = std::atan2(v.y, v.x) / grid::kDegree;
+  const double lat = std::asin(std::max(-1.0, std::min(1.0, v.z))) / grid::kDegree;
+  return grid::lonlat_to_code(lon, lat, level);
+}
+
+void add_site_cell(SiteGeometry& g, grid::Code code, std::int32_t site, std::uint32_t piece) {
+  if (!g.site_cells.empty()) {
+    SiteCell& last = g.site_cells.back();
+    if (last.code == code && last.site == site && last.piece_end >= piece) {
+      last.piece_end = std::max(last.piece_end, piece + 1);
+      return;
+    }
+  }
+  g.site_cells.push_back({code, site, piece, piece + 1});
+}
+
+void note_site(SiteGeometry& g, std::int32_t site) {
+  if (site < 0) throw std::invalid_argument("site ids must not be negative");
+  g.site_count = std::max(g.site_count, site + 1);
+}
+
+}  // namespace
+
+void add_point(SiteGeometry& g, double lon, double lat, std::int32_t site) {
+  note_site(g, site);
+  const grid::Code code = grid::lonlat_to_code(lon, lat, g.level);
+  if (code == grid::kInvalidCode) throw std::invalid_argument("a point site has an invalid coordinate");
+  const Vec3 p = grid::unit_vector(lon, lat);
+  const auto piece = static_cast<std::uint32_t>(g.pieces.size());
+  g.pieces.push_back({p, p, site});
+  add_site_cell(g, code, site, piece);
+}
+
+void add_arc(SiteGeometry& g, double lon1, double lat1, double lon2, double lat2, std::int32_t site) {
+  note_site(g, site);
+  const Vec3 a = grid::unit_vector(lon1, lat1), b = grid::unit_vector(lon2, lat2);
+  const double angle = chord2_to_angle(grid::chord2(a, b));
+  if (!(angle < grid::kPi * (1.0 - 1e-9))) throw std::invalid_argument("an arc site spans 180 degrees or more");
+  // A quarter of the shortest cell edge of the level, (pi/2) / 2^L along a meridian.
+  const double max_piece = grid::kPi / 2.0 / std::ldexp(1.0, g.level) / 4.0;
+  const int pieces = std::max(1, static_cast<int>(std::ceil(angle / max_piece)));
+  const double sin_angle = std::sin(angle);
+  auto at = [&](int k) -> Vec3 {
+    if (k == 0) return a;
+    if (k == pieces) return b;
+    const double t = static_cast<double>(k) / pieces;
+    const double wa = std::sin((1.0 - t) * angle) / sin_angle, wb = std::sin(t * angle) / sin_angle;
+    Vec3 p{wa * a.x + wb * b.x, wa * a.y + wb * b.y, wa * a.z + wb * b.z};
+    const double norm = std::sqrt(grid::dot(p, p));
+    return {p.x / norm, p.y / norm, p.z / norm};
+  };
+  Vec3 from = a;
+  for (int k = 1; k <= pieces; ++k) {
+    const Vec3 to = at(k);
+    const auto piece = static_cast<std::uint32_t>(g.pieces.size());
+    g.pieces.push_back({from, to, site});
+    Vec3 mid = from + to;
+    const double norm = std::sqrt(grid::dot(mid, mid));
+    mid = {mid.x / norm, mid.y / norm, mid.z / norm};
+    add_site_cell(g, code_of_vector(from, g.level), site, piece);
+    add_site_cell(g, code_of_vector(mid, g.level), site, piece);
+    add_site_cell(g, code_of_vector(to, g.level), site, piece);
+    from = to;
+  }
+}
+
+void add_fixed_cell(SiteGeometry& g, grid::Code code, std::int32_t site) {
+  note_site(g, site);
+  grid::require_code(code, g.level);
+  g.fixed_cells.push_back({code, site});
+}
+
+}  // namespace qtmv::label

@@ -1,0 +1,181 @@
+// The labeller: for every cell of a QTM level, the nearest site, the distance to it and
+// whether the cell lies on a boundary between sites. Plain arrays in and out; no GDAL.
+//
+//   exact rule (default): nearest by great-circle distance from the cell's centre to the
+//       sites' geometry: points, and the short great-circle arcs that lines and rings are cut
+//       into; cells inside polygons ("fixed cells") keep their site at distance 0.
+//   cell rule: the seed paper's rule: distance from the cell's centre to the centres of the
+//       site cells (and fixed cells).
+// Exact ties go to the lower site id. Both algorithms (brute force, hierarchical pruning) give
+// the labels of a float64 brute-force reference on every cell, on the CPU and on CUDA alike.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "grid/qtm.hpp"
+#include "label/label_math.hpp"
+#include "label/label_tree.hpp"
+
+namespace qtmv::label {
+
+enum class Rule { exact, cell };
+enum class Algorithm { hier, brute };
+
+/// One piece of a site's geometry: a point (a == b) or a great-circle arc from a to b, both unit
+/// vectors. Arcs should be short (a quarter of the level's cell edge, as make_arc_pieces cuts
+/// them): any length below a quarter circle is correct, but long arcs prune badly.
+struct SitePiece {
+  Vec3 a, b;
+  std::int32_t site;
+};
+
+/// A cell that a site passes through, with the pieces of that site in it (for the cell rule,
+/// only the code and the site are used).
+struct SiteCell {
+  grid::Code code;
+  std::int32_t site;
+  std::uint32_t piece_begin, piece_end;  ///< range in the piece array
+};
+
+/// A cell inside a polygon site: it keeps that site at distance 0 (the lower id when two
+/// polygons claim it).
+struct FixedCell {
+  grid::Code code;
+  std::int32_t site;
+};
+
+struct LabelInput {
+  int level = 0;                      ///< QTM level to label (0..24)
+  std::int32_t site_count = 0;        ///< site ids run from 0 to site_count - 1
+  const SitePiece* pieces = nullptr;  ///< for the exact rule
+  std::size_t piece_count = 0;
+  const SiteCell* site_cells = nullptr;  ///< for the cell rule
+  std::size_t site_cell_count = 0;
+  const FixedCell* fixed_cells = nullptr;  ///< both rules
+  std::size_t fixed_cell_count = 0;
+};
+
+struct LabelOptions {
+  Rule rule = Rule::exact;
+  Algorithm algorithm = Algorithm::hier;
+  std::string device = "auto";  ///< auto | cpu | cuda | cuda:N
+  bool want_distance = true;    ///< fill LabelTile::distance_m
+  bool want_boundary = true;    ///< fill LabelTile::boundary
+  int threads = 0;              ///< CPU threads; 0: all (OpenMP's default)
+  /// Memory (bytes) the dense outputs of one tile may take on the device that computes them
+  /// (and on the host that receives them); 0: from the device's free memory / the host's RAM.
+  std::size_t memory_limit_bytes = 0;
+  /// Called with a fraction done (0..1) and the stage's name.
+  std::function<void(double fraction, const char* stage)> progress;
+  /// Called with one-line messages for the user (which device was chosen, tiling).
+  std::function<void(const std::string& message)> log;
+};
+
+/// A contiguous range of codes with its outputs (host memory, valid during the sink call).
+struct LabelTile {
+  grid::Code first = 0;
+  std::uint64_t count = 0;
+  const std::int32_t* site = nullptr;
+  const float* distance_m = nullptr;     ///< metres; null when not asked for
+  const std::uint8_t* boundary = nullptr;  ///< 0/1; null when not asked for
+};
+
+struct LabelStats {
+  std::string device;          ///< "cpu (N threads)" or "cuda:N (name)"
+  double prepare_seconds = 0;  ///< pieces, tree (host wall time)
+  double label_seconds = 0;    ///< the per-cell work: CUDA event time on a GPU, wall time on the CPU
+  double copy_seconds = 0;     ///< device-to-host copies of the outputs
+  double mean_candidates = 0;  ///< mean candidates tested per cell (own label only)
+  std::size_t tree_nodes = 0;
+  std::size_t tree_list_entries = 0;
+  std::size_t device_bytes = 0;  ///< peak memory the labeller allocated on the device
+  std::size_t tiles = 0;
+};
+
+/// Memory needed by the dense outputs of a level.
+struct MemoryEstimate {
+  std::uint64_t cells = 0;
+  std::uint64_t output_bytes = 0;     ///< all cells' outputs
+  std::uint64_t bytes_per_cell = 0;
+};
+MemoryEstimate estimate_output_memory(int level, const LabelOptions& options);
+
+/// Labels every cell of input.level and hands the results to `sink` tile by tile, in code
+/// order; tiles are as large as the memory allows. Throws std::invalid_argument for bad input,
+/// std::runtime_error when the device is unusable or not even one tile fits (the message gives
+/// the estimate).
+LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
+                       const std::function<void(const LabelTile&)>& sink);
+
+/// All cells' outputs in dense arrays indexed by code.
+struct LabelResult {
+  std::vector<std::int32_t> site;
+  std::vector<float> distance_m;
+  std::vector<std::uint8_t> boundary;
+  LabelStats stats;
+};
+LabelResult label_all(const LabelInput& input, const LabelOptions& options);
+
+// --- helpers that turn coordinates into pieces, as the readers will ---------------------------
+
+/// Pieces, site cells and fixed cells being gathered for one level.
+struct SiteGeometry {
+  int level = 0;
+  std::int32_t site_count = 0;
+  std::vector<SitePiece> pieces;
+  std::vector<SiteCell> site_cells;
+  std::vector<FixedCell> fixed_cells;
+  LabelInput input() const;
+};
+
+/// Adds a point site piece (lon, lat in degrees) and its site cell; site_count grows to cover site.
+void add_point(SiteGeometry& g, double lon, double lat, std::int32_t site);
+/// Adds the great-circle arc from (lon1, lat1) to (lon2, lat2) (degrees; shorter than 180
+/// degrees) cut into pieces no longer than a quarter of the level's cell edge, and the cells
+/// the pieces' ends and middles fall in.
+void add_arc(SiteGeometry& g, double lon1, double lat1, double lon2, double lat2, std::int32_t site);
+/// Adds a fixed cell.
+void add_fixed_cell(SiteGeometry& g, grid::Code code, std::int32_t site);
+
+// --- lower-level entry points, for the tests and the benchmark ----------------------------------
+
+/// The candidates of a rule as kernel pieces (fixed cells become fixed point pieces at their
+/// centres in both rules).
+std::vector<Piece> make_candidates(const LabelInput& input, Rule rule);
+
+/// The float64 brute-force label of one cell (the reference): best over all candidates.
+Best reference_best(const std::vector<Piece>& candidates, grid::Code code, int level);
+
+/// A leaf of the tree: its cell, level and node index (for painting its cells on the CPU).
+struct TreeLeaf {
+  grid::Cell cell;
+  std::int32_t level;
+  std::int32_t node;
+};
+
+/// The hierarchy, on the host. Leaves are kUniform (no distances asked for) or hold one
+/// candidate: the site's only piece near the leaf, or at the labelling level the winner.
+struct Tree {
+  int level = 0;
+  int jump_level = 0;
+  std::vector<TreeNode> nodes;
+  std::vector<std::int32_t> lists;
+  std::vector<JumpEntry> jump;
+  std::vector<TreeLeaf> leaves;
+  double mean_candidates = 0;  ///< candidates a cell of the level tests, on average
+  TreeView view(const Piece* pieces) const {
+    return {nodes.data(), lists.data(), pieces, jump.data(), jump_level, level};
+  }
+};
+/// Builds the pruned tree over `candidates` for `level`; with_distance keeps candidate lists
+/// where all candidates share one site, so that distances can be computed.
+Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_distance, int threads = 0);
+
+/// Number of usable CUDA devices (0 when built without CUDA or none is present).
+int cuda_device_count();
+
+}  // namespace qtmv::label

@@ -1,0 +1,627 @@
+// Tests of the labeller. One body for both devices: the suites are instantiated for "cpu" and
+// for "cuda"; the CUDA ones are skipped when no GPU is usable.
+//
+// The reference is written here, independently of the labeller's own brute force: it builds
+// its candidates from the raw input and orders them with its own key. Only the float64 distance
+// of one cell centre to one piece is shared (piece_chord2), and that is tested on its own
+// against a long-double geometric construction.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "grid/qtm.hpp"
+#include "label/label_math.hpp"
+#include "label/label_tree.hpp"
+#include "label/labeller.hpp"
+
+namespace qtmv::label {
+namespace {
+
+using grid::Cell;
+using grid::Code;
+
+// --- the maths ------------------------------------------------------------------------------
+
+struct LVec {
+  long double x, y, z;
+};
+LVec lv(const Vec3& v) { return {v.x, v.y, v.z}; }
+long double ldot(const LVec& a, const LVec& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+LVec lcross(const LVec& a, const LVec& b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+long double langle(const LVec& a, const LVec& b) {
+  const LVec c = lcross(a, b);
+  return std::atan2(std::sqrt(ldot(c, c)), ldot(a, b));
+}
+
+// Angle from x to the arc a-b: project x on the arc's plane; if the projection lies between
+// a and b (the angles add up), the angle to the plane, else the nearer endpoint.
+long double reference_arc_angle(const Vec3& x64, const Vec3& a64, const Vec3& b64) {
+  const LVec x = lv(x64), a = lv(a64), b = lv(b64);
+  LVec n = lcross(a, b);
+  const long double nn = std::sqrt(ldot(n, n));
+  n = {n.x / nn, n.y / nn, n.z / nn};
+  const long double h = ldot(x, n);
+  LVec p{x.x - h * n.x, x.y - h * n.y, x.z - h * n.z};
+  const long double pn = std::sqrt(ldot(p, p));
+  const long double ends = std::min(langle(x, a), langle(x, b));
+  if (pn < 1e-15L) return ends;
+  p = {p.x / pn, p.y / pn, p.z / pn};
+  const long double ab = langle(a, b), ap = langle(a, p), pb = langle(p, b);
+  if (std::fabs(ap + pb - ab) < 1e-12L) return std::min(ends, std::asin(std::min(1.0L, std::fabs(h))));
+  return ends;
+}
+
+Vec3 random_unit(std::mt19937_64& rng) {
+  std::normal_distribution<double> g;
+  Vec3 v{g(rng), g(rng), g(rng)};
+  const double n = std::sqrt(grid::dot(v, v));
+  return {v.x / n, v.y / n, v.z / n};
+}
+
+Vec3 slerp_towards(const Vec3& a, const Vec3& dir, double angle) {
+  // Rotate a towards dir (projected to a's tangent plane) by angle (radians).
+  const double d = grid::dot(a, dir);
+  Vec3 t{dir.x - d * a.x, dir.y - d * a.y, dir.z - d * a.z};
+  const double tn = std::sqrt(grid::dot(t, t));
+  t = {t.x / tn, t.y / tn, t.z / tn};
+  Vec3 r{std::cos(angle) * a.x + std::sin(angle) * t.x, std::cos(angle) * a.y + std::sin(angle) * t.y,
+         std::cos(angle) * a.z + std::sin(angle) * t.z};
+  const double rn = std::sqrt(grid::dot(r, r));
+  return {r.x / rn, r.y / rn, r.z / rn};
+}
+
+TEST(LabelMath, PointToArcDistanceMatchesGeometry) {
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(0, 1);
+  for (int trial = 0; trial < 20000; ++trial) {
+    const Vec3 a = random_unit(rng);
+    const double length = std::pow(10.0, -7.0 + 7.0 * u(rng)) * 1.5;  // 1.5e-7 .. 1.5 rad
+    const Vec3 b = slerp_towards(a, random_unit(rng), length);
+    // Points near the arc, and anywhere.
+    Vec3 x = trial % 2 ? random_unit(rng) : slerp_towards(a, random_unit(rng), length * 3 * u(rng));
+    const Piece p = make_arc_piece(a, b, 0);
+    const double got = chord2_to_angle(piece_chord2(x, p));
+    const long double want = reference_arc_angle(x, a, b);
+    ASSERT_NEAR(got, static_cast<double>(want), 1e-12 + 1e-9 * static_cast<double>(want))
+        << "trial " << trial << " length " << length;
+  }
+}
+
+TEST(LabelMath, PointDistanceIsSquaredChord) {
+  const Vec3 a = grid::unit_vector(10, 20), x = grid::unit_vector(11, 21);
+  EXPECT_EQ(piece_chord2(x, make_point_piece(a, 0)), grid::chord2(x, a));
+}
+
+TEST(LabelMath, BetterOrdersByDistanceThenFixedThenSite) {
+  const Piece p5 = make_point_piece({1, 0, 0}, 5), p3 = make_point_piece({1, 0, 0}, 3);
+  const Piece f7 = make_point_piece({1, 0, 0}, 7, kPieceFixed);
+  Best b = no_best();
+  consider(b, 0.5, p5);
+  consider(b, 0.5, p3);
+  EXPECT_EQ(b.site, 3);  // tie: lower id
+  consider(b, 0.4, p5);
+  EXPECT_EQ(b.site, 5);  // nearer
+  consider(b, 0.0, p3);
+  consider(b, 0.0, f7);
+  EXPECT_EQ(b.site, 7);  // a fixed cell's own centre beats a lower id at distance 0
+  Best c = no_best();
+  consider(c, 0.2, f7);
+  consider(c, 0.2, p3);
+  EXPECT_EQ(c.site, 3);  // away from distance 0, fixed pieces are ordinary points
+}
+
+TEST(LabelTree, FastCellOfAndAncestorAgreeWithTheGrid) {
+  std::mt19937_64 rng(3);
+  for (int level = 0; level <= 24; ++level) {
+    std::uniform_int_distribution<Code> pick(0, grid::cell_count(level) - 1);
+    for (int trial = 0; trial < 2000; ++trial) {
+      const Code code = trial < 8 ? std::min<Code>(trial, grid::cell_count(level) - 1) : pick(rng);
+      const Cell c = fast_cell_of(code, level);
+      const Cell g = grid::cell_of(code, level);
+      ASSERT_TRUE(c.octant == g.octant && c.row == g.row && c.col == g.col) << code << " at level " << level;
+      Cell up = c;
+      for (int to = level - 1; to >= 0 && to >= level - 8; --to) {
+        const Cell child = up;
+        up = grid::parent(up);
+        const Cell anc = ancestor(c, level, to);
+        ASSERT_TRUE(anc.octant == up.octant && anc.row == up.row && anc.col == up.col)
+            << code << " level " << level << " to " << to;
+        Cell kids[4];
+        grid::children(up, kids);
+        const int d = child_digit(child);
+        ASSERT_TRUE(kids[d].row == child.row && kids[d].col == child.col);
+      }
+    }
+  }
+}
+
+TEST(LabelTree, InteriorTestMatchesNeighbourAncestors) {
+  for (int level = 1; level <= 7; ++level) {
+    for (Code code = 0; code < grid::cell_count(level); code += (level > 5 ? 7 : 1)) {
+      const Cell c = grid::cell_of(code, level);
+      Cell nb[3];
+      grid::neighbours(c, level, nb);
+      for (int to = 0; to <= level; ++to) {
+        const Cell a = ancestor(c, level, to);
+        bool all_inside = true;
+        for (const Cell& n : nb) {
+          const Cell na = ancestor(n, level, to);
+          all_inside = all_inside && na.octant == a.octant && na.row == a.row && na.col == a.col;
+        }
+        ASSERT_EQ(interior_of_ancestor(c, level, to), all_inside) << code << " level " << level << " to " << to;
+      }
+    }
+  }
+}
+
+// The node bound: every cell centre of a subtree lies within node_radius of the node's centre.
+TEST(LabelTree, NodeRadiusBoundsEveryCellCentreOfTheSubtree) {
+  const int deepest = 8;
+  double worst_ratio = 0;
+  for (int level = 1; level <= deepest; ++level) {
+    for (Code code = 0; code < grid::cell_count(level); ++code) {
+      const Cell c = grid::cell_of(code, level);
+      const Vec3 x = grid::cell_centre_vector(code, level);
+      for (int to = std::max(0, level - 6); to < level; ++to) {
+        const Cell a = ancestor(c, level, to);
+        const double r = node_radius(to, a);
+        const double d = static_cast<double>(langle(lv(x), lv(grid::cell_centre_vector(grid::code_of(a, to), to))));
+        ASSERT_LE(d, r) << "cell " << code << " of level " << level << ", node level " << to;
+        worst_ratio = std::max(worst_ratio, d / r);
+      }
+    }
+  }
+  // The bound should not be absurdly loose either (it drives the pruning).
+  EXPECT_GT(worst_ratio, 0.3);
+  RecordProperty("worst_ratio", std::to_string(worst_ratio));
+}
+
+// --- the labelling ----------------------------------------------------------------------------
+
+/// The reference: float64 brute force over the raw input, its own candidate list and ordering.
+struct Reference {
+  struct Cand {
+    Piece piece;
+    bool fixed;
+  };
+  std::vector<Cand> cands;
+  int level;
+
+  Reference(const SiteGeometry& g, Rule rule) : level(g.level) {
+    if (rule == Rule::exact) {
+      for (const SitePiece& p : g.pieces) {
+        const bool point = p.a.x == p.b.x && p.a.y == p.b.y && p.a.z == p.b.z;
+        cands.push_back({point ? make_point_piece(p.a, p.site) : make_arc_piece(p.a, p.b, p.site), false});
+      }
+    } else {
+      for (const SiteCell& s : g.site_cells) {
+        cands.push_back({make_point_piece(grid::cell_centre_vector(s.code, level), s.site), false});
+      }
+    }
+    for (const FixedCell& f : g.fixed_cells) {
+      cands.push_back({make_point_piece(grid::cell_centre_vector(f.code, level), f.site), true});
+    }
+  }
+
+  /// (site, squared chord) of a cell.
+  std::pair<std::int32_t, double> label(Code code) const {
+    const Vec3 x = grid::cell_centre_vector(code, level);
+    double best = 1e300;
+    std::int32_t site = -1;
+    bool best_fixed = false;
+    for (const Cand& c : cands) {
+      const double d = piece_chord2(x, c.piece);
+      const bool fixed_here = c.fixed && d == 0.0;
+      bool take;
+      if (d != best) {
+        take = d < best;
+      } else if (fixed_here != best_fixed) {
+        take = fixed_here;
+      } else {
+        take = c.piece.site < site;
+      }
+      if (take) {
+        best = d;
+        site = c.piece.site;
+        best_fixed = fixed_here;
+      }
+    }
+    return {site, best};
+  }
+};
+
+struct SiteSet {
+  std::string name;
+  SiteGeometry geometry;
+};
+
+SiteGeometry random_points(int level, int n, std::uint64_t seed, double lat_min = -90, double lat_max = 90) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> lon(-180, 180);
+  const double zmin = std::sin(lat_min * grid::kDegree), zmax = std::sin(lat_max * grid::kDegree);
+  std::uniform_real_distribution<double> z(zmin, zmax);
+  SiteGeometry g;
+  g.level = level;
+  for (int k = 0; k < n; ++k) add_point(g, lon(rng), std::asin(z(rng)) / grid::kDegree, k);
+  return g;
+}
+
+SiteGeometry duplicates(int level) {
+  SiteGeometry g;
+  g.level = level;
+  const double pts[][2] = {{10, 10}, {-50, 30}, {120, -40}, {10, 10}, {10, 10}, {-50, 30}, {0, 0}, {120, -40}};
+  // Ids in an order where the duplicates' lower id comes later in the input.
+  int ids[] = {5, 7, 3, 1, 6, 2, 4, 0};
+  for (int k = 0; k < 8; ++k) add_point(g, pts[k][0], pts[k][1], ids[k]);
+  return g;
+}
+
+SiteGeometry poles_and_dateline(int level) {
+  SiteGeometry g;
+  g.level = level;
+  const double pts[][2] = {{0, 90},    {77, 90},  {0, -90},      {-180, 0},   {180, 10},   {179.9999, -5},
+                           {-179.9999, -5}, {90, 0}, {-90, 0.0001}, {45, 89.999}, {-135, -89.99}};
+  int id = 0;
+  for (const auto& p : pts) add_point(g, p[0], p[1], id++);
+  return g;
+}
+
+SiteGeometry antipodal(int level) {
+  SiteGeometry g;
+  g.level = level;
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> lon(-180, 180), lat(-89, 89);
+  for (int k = 0; k < 6; ++k) {
+    const double lo = lon(rng), la = lat(rng);
+    add_point(g, lo, la, 2 * k + 1);
+    add_point(g, lo >= 0 ? lo - 180 : lo + 180, -la, 2 * k);
+  }
+  return g;
+}
+
+SiteGeometry single_site(int level) {
+  SiteGeometry g;
+  g.level = level;
+  add_point(g, 33.3, -12.1, 0);
+  return g;
+}
+
+/// Pairs of sites straddling cell centres at exactly equal squared chords (the higher id
+/// listed first), plus a few random points.
+SiteGeometry exact_ties(int level) {
+  SiteGeometry g = random_points(level, 6, 5);
+  std::mt19937_64 rng(13);
+  std::uniform_int_distribution<Code> pick(0, grid::cell_count(level) - 1);
+  const double e = std::ldexp(1.0, -40);
+  for (int k = 0; k < 8; ++k) {
+    const Vec3 c = grid::cell_centre_vector(pick(rng), level);
+    // c.z +- e are exact, and so are the differences: both chords are exactly e^2.
+    const Vec3 below{c.x, c.y, c.z - e}, above{c.x, c.y, c.z + e};
+    const std::int32_t high = 100 + 2 * k, low = 100 + 2 * k - 1 - (k % 2) * 50;
+    g.pieces.push_back({above, above, high});
+    g.pieces.push_back({below, below, low});
+    g.site_count = std::max(g.site_count, high + 1);
+  }
+  // Site ids not used by any piece are allowed.
+  return g;
+}
+
+SiteGeometry arcs(int level, int n, double max_degrees, std::uint64_t seed) {
+  SiteGeometry g;
+  g.level = level;
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> lon(-180, 180), z(-1, 1), len(0.5, max_degrees), dir(0, 360);
+  for (int k = 0; k < n; ++k) {
+    const double lo = lon(rng), la = std::asin(z(rng)) / grid::kDegree;
+    // End point: go `len` degrees from (lo, la) in a random direction (small-angle approximation
+    // is fine: any end point will do).
+    const double d = len(rng), az = dir(rng) * grid::kDegree;
+    double la2 = la + d * std::cos(az);
+    la2 = std::max(-89.9, std::min(89.9, la2));
+    const double lo2 = lo + d * std::sin(az) / std::max(0.1, std::cos(la * grid::kDegree));
+    add_arc(g, lo, la, grid::normalise_lon(lo2), la2, k);
+  }
+  // An arc across the dateline, one over a pole, and a point site.
+  add_arc(g, 175, 5, -170, -3, n);
+  add_arc(g, 10, 85, -170, 87, n + 1);
+  add_point(g, 60, -30, n + 2);
+  return g;
+}
+
+/// A "polygon": the cells below one level-2 cell are fixed to a site, with its triangle's edges
+/// as arcs of that site; a point of a lower site inside it; a second polygon overlapping the
+/// first on some cells with a lower id; and point sites around.
+SiteGeometry polygons(int level) {
+  SiteGeometry g = random_points(level, 10, 21);
+  const int poly = 20, other_poly = 15, inside_point = 3;
+  const int shift = std::max(0, level - 2);
+  const Code node = 37 % grid::cell_count(2);
+  const Cell nc = grid::cell_of(node, 2);
+  for (Code code = 0; code < grid::cell_count(level); ++code) {
+    const Cell c = grid::cell_of(code, level);
+    const Cell a = level >= 2 ? ancestor(c, level, 2) : Cell{-1, 0, 0};
+    if (a.octant == nc.octant && a.row == nc.row && a.col == nc.col) {
+      add_fixed_cell(g, code, poly);
+      if (code % 5 == 0) add_fixed_cell(g, code, other_poly);  // overlap: the lower id wins
+    }
+  }
+  (void)shift;
+  grid::LonLat v[3];
+  grid::cell_vertices(nc, 2, v);
+  for (int k = 0; k < 3; ++k) add_arc(g, v[k].lon, v[k].lat, v[(k + 1) % 3].lon, v[(k + 1) % 3].lat, poly);
+  const grid::LonLat centre = grid::cell_centre(nc, 2);
+  add_point(g, centre.lon, centre.lat, inside_point);
+  return g;
+}
+
+struct RunCase {
+  Algorithm algorithm;
+  Rule rule;
+};
+
+std::string describe(const RunCase& rc) {
+  return std::string(rc.algorithm == Algorithm::hier ? "hier" : "brute") + "/" +
+         (rc.rule == Rule::exact ? "exact" : "cell");
+}
+
+class LabelDevice : public ::testing::TestWithParam<std::string> {
+ protected:
+  void SetUp() override {
+    if (GetParam().rfind("cuda", 0) == 0 && cuda_device_count() == 0) GTEST_SKIP() << "no CUDA GPU";
+  }
+
+  /// Labels g with every algorithm and rule, and checks labels and distances against the
+  /// reference (on every cell, or on `sample` random cells plus every cell of the first
+  /// octant row band when sample > 0) and the boundary flags against the neighbours' labels.
+  void check_all(const SiteGeometry& g, const std::string& name, std::uint64_t sample = 0,
+                 std::vector<RunCase> cases = {{Algorithm::brute, Rule::exact},
+                                               {Algorithm::hier, Rule::exact},
+                                               {Algorithm::brute, Rule::cell},
+                                               {Algorithm::hier, Rule::cell}}) {
+    const std::uint64_t cells = grid::cell_count(g.level);
+    std::vector<Code> codes;
+    if (sample == 0 || sample >= cells) {
+      for (Code c = 0; c < cells; ++c) codes.push_back(c);
+    } else {
+      std::mt19937_64 rng(g.level * 1000 + 17);
+      std::uniform_int_distribution<Code> pick(0, cells - 1);
+      for (std::uint64_t k = 0; k < sample; ++k) codes.push_back(pick(rng));
+    }
+    for (const Rule rule : {Rule::exact, Rule::cell}) {
+      const Reference ref(g, rule);
+      if (rule == Rule::exact && g.pieces.empty() && g.fixed_cells.empty()) continue;
+      std::vector<std::pair<std::int32_t, double>> want(codes.size());
+      for (std::size_t k = 0; k < codes.size(); ++k) want[k] = ref.label(codes[k]);
+      for (const RunCase& rc : cases) {
+        if (rc.rule != rule) continue;
+        LabelOptions options;
+        options.rule = rc.rule;
+        options.algorithm = rc.algorithm;
+        options.device = GetParam();
+        const LabelResult got = label_all(g.input(), options);
+        SCOPED_TRACE(name + " level " + std::to_string(g.level) + " " + describe(rc) + " on " + GetParam());
+        std::uint64_t wrong = 0;
+        for (std::size_t k = 0; k < codes.size(); ++k) {
+          const Code code = codes[k];
+          if (got.site[code] != want[k].first) {
+            if (++wrong <= 5) {
+              ADD_FAILURE() << "cell " << code << ": got site " << got.site[code] << ", reference "
+                            << want[k].first;
+            }
+            continue;
+          }
+          const double metres = chord2_to_metres(want[k].second);
+          if (!(std::fabs(got.distance_m[code] - metres) <= 1e-3 + 1e-6 * metres)) {
+            if (++wrong <= 5) {
+              ADD_FAILURE() << "cell " << code << ": distance " << got.distance_m[code] << " m, reference " << metres;
+            }
+          }
+        }
+        EXPECT_EQ(wrong, 0u);
+        // Boundary flags: a direct check against the three neighbours' labels, on every cell.
+        std::uint64_t bad_boundary = 0;
+        for (Code code = 0; code < cells; ++code) {
+          Code nb[3];
+          grid::neighbours(code, g.level, nb);
+          const std::uint8_t flag = got.site[nb[0]] != got.site[code] || got.site[nb[1]] != got.site[code] ||
+                                    got.site[nb[2]] != got.site[code];
+          if (got.boundary[code] != flag && ++bad_boundary <= 5) {
+            ADD_FAILURE() << "cell " << code << ": boundary " << int(got.boundary[code]) << ", neighbours say "
+                          << int(flag);
+          }
+        }
+        EXPECT_EQ(bad_boundary, 0u);
+      }
+    }
+  }
+};
+
+TEST_P(LabelDevice, RandomPointsAllLevels) {
+  for (int level = 0; level <= 9; ++level) {
+    const int n = level < 3 ? 7 : 60;
+    std::vector<RunCase> cases = {{Algorithm::hier, Rule::exact}, {Algorithm::hier, Rule::cell}};
+    if (level <= 7 || GetParam() != "cpu") {
+      cases.push_back({Algorithm::brute, Rule::exact});
+      cases.push_back({Algorithm::brute, Rule::cell});
+    }
+    check_all(random_points(level, n, 100 + level), "random", level >= 8 ? 200000 : 0, cases);
+  }
+}
+
+TEST_P(LabelDevice, ManyPoints) { check_all(random_points(8, 2000, 42), "2000 points", 30000); }
+
+TEST_P(LabelDevice, Duplicates) {
+  for (int level : {0, 1, 4, 7}) check_all(duplicates(level), "duplicates");
+}
+
+TEST_P(LabelDevice, PolesAndDateline) {
+  for (int level : {0, 2, 5, 8}) check_all(poles_and_dateline(level), "poles", level == 8 ? 100000 : 0);
+}
+
+TEST_P(LabelDevice, AntipodalPairs) {
+  for (int level : {0, 3, 6}) check_all(antipodal(level), "antipodal");
+}
+
+TEST_P(LabelDevice, OneHemisphere) {
+  for (int level : {2, 6, 9}) {
+    check_all(random_points(level, 40, 77, 5, 80), "hemisphere", level == 9 ? 100000 : 0,
+              {{Algorithm::hier, Rule::exact}, {Algorithm::hier, Rule::cell}});
+  }
+}
+
+TEST_P(LabelDevice, SingleSite) {
+  for (int level : {0, 1, 5, 9}) {
+    check_all(single_site(level), "single", level == 9 ? 50000 : 0);
+  }
+}
+
+TEST_P(LabelDevice, ExactTies) {
+  for (int level : {3, 6, 9}) {
+    const SiteGeometry g = exact_ties(level);
+    check_all(g, "ties", level == 9 ? 100000 : 0,
+              {{Algorithm::hier, Rule::exact}, {Algorithm::brute, Rule::exact}});
+    // Every tie cell goes to the lower id.
+    LabelOptions options;
+    options.device = GetParam();
+    const LabelResult got = label_all(g.input(), options);
+    for (std::size_t k = 6; k < g.pieces.size(); k += 2) {
+      const Code code = grid::lonlat_to_code(
+          std::atan2(g.pieces[k].a.y, g.pieces[k].a.x) / grid::kDegree,
+          std::asin(std::max(-1.0, std::min(1.0, g.pieces[k].a.z))) / grid::kDegree, level);
+      EXPECT_EQ(got.site[code], std::min(g.pieces[k].site, g.pieces[k + 1].site)) << "tie cell " << code;
+    }
+  }
+}
+
+TEST_P(LabelDevice, Arcs) {
+  for (int level : {1, 4, 6}) check_all(arcs(level, 6, 30, 300 + level), "arcs");
+  check_all(arcs(8, 4, 6, 388), "arcs", 40000, {{Algorithm::hier, Rule::exact}, {Algorithm::hier, Rule::cell}});
+}
+
+TEST_P(LabelDevice, FixedCellsKeepTheirSite) {
+  for (int level : {2, 4, 6}) {
+    const SiteGeometry g = polygons(level);
+    check_all(g, "polygons");
+    LabelOptions options;
+    options.device = GetParam();
+    const LabelResult got = label_all(g.input(), options);
+    for (const FixedCell& f : g.fixed_cells) {
+      EXPECT_TRUE(got.site[f.code] == 15 || got.site[f.code] == 20) << f.code;
+      EXPECT_EQ(got.distance_m[f.code], 0.0f);
+    }
+  }
+}
+
+TEST_P(LabelDevice, TilesMatchOneRun) {
+  const SiteGeometry g = arcs(8, 5, 20, 808);
+  LabelOptions options;
+  options.device = GetParam();
+  const LabelResult whole = label_all(g.input(), options);
+  for (const Algorithm algorithm : {Algorithm::hier, Algorithm::brute}) {
+    options.algorithm = algorithm;
+    options.memory_limit_bytes = 9 * 50000;  // tiles of 50000 cells
+    std::uint64_t next = 0, mismatches = 0;
+    const LabelStats stats = label_cells(g.input(), options, [&](const LabelTile& tile) {
+      ASSERT_EQ(tile.first, next);
+      for (std::uint64_t k = 0; k < tile.count; ++k) {
+        mismatches += tile.site[k] != whole.site[tile.first + k] || tile.boundary[k] != whole.boundary[tile.first + k] ||
+                      std::fabs(tile.distance_m[k] - whole.distance_m[tile.first + k]) > 1e-3f;
+      }
+      next += tile.count;
+    });
+    EXPECT_EQ(next, grid::cell_count(8));
+    EXPECT_GT(stats.tiles, 5u);
+    EXPECT_EQ(mismatches, 0u);
+  }
+}
+
+TEST_P(LabelDevice, WithoutDistanceOrBoundary) {
+  const SiteGeometry g = random_points(7, 100, 9);
+  LabelOptions options;
+  options.device = GetParam();
+  const LabelResult full = label_all(g.input(), options);
+  options.want_distance = false;
+  options.want_boundary = false;
+  const LabelResult bare = label_all(g.input(), options);
+  EXPECT_TRUE(bare.distance_m.empty());
+  EXPECT_TRUE(bare.boundary.empty());
+  EXPECT_EQ(bare.site, full.site);
+}
+
+INSTANTIATE_TEST_SUITE_P(Cpu, LabelDevice, ::testing::Values(std::string("cpu")));
+INSTANTIATE_TEST_SUITE_P(Cuda, LabelDevice, ::testing::Values(std::string("cuda")));
+
+// --- the interface ----------------------------------------------------------------------------
+
+TEST(LabelInterface, RejectsBadInput) {
+  SiteGeometry g = random_points(3, 5, 1);
+  LabelOptions options;
+  options.device = "cpu";
+  LabelInput in = g.input();
+  in.site_count = 3;  // ids 3 and 4 out of range
+  EXPECT_THROW(label_all(in, options), std::invalid_argument);
+  in = g.input();
+  in.level = 25;
+  EXPECT_THROW(label_all(in, options), std::invalid_argument);
+  options.device = "gpu";
+  EXPECT_THROW(label_all(g.input(), options), std::invalid_argument);
+  options.device = "cuda:99";
+  EXPECT_THROW(label_all(g.input(), options), std::runtime_error);
+  if (cuda_device_count() == 0) {
+    options.device = "cuda";
+    EXPECT_THROW(label_all(g.input(), options), std::runtime_error);
+  }
+  SiteGeometry empty;
+  empty.level = 2;
+  options.device = "cpu";
+  EXPECT_THROW(label_all(empty.input(), options), std::invalid_argument);
+}
+
+TEST(LabelInterface, AutoSaysWhichDevice) {
+  const SiteGeometry g = random_points(2, 5, 1);
+  LabelOptions options;
+  std::string said;
+  options.log = [&](const std::string& m) { said += m; };
+  double last_progress = -1;
+  options.progress = [&](double f, const char*) { last_progress = f; };
+  const LabelResult r = label_all(g.input(), options);
+  EXPECT_NE(said.find(cuda_device_count() > 0 ? "cuda:0" : "cpu"), std::string::npos) << said;
+  EXPECT_EQ(last_progress, 1.0);
+}
+
+TEST(LabelInterface, TooLittleMemoryIsAClearError) {
+  const SiteGeometry g = random_points(6, 5, 1);
+  LabelOptions options;
+  options.device = "cpu";
+  options.memory_limit_bytes = 1000;
+  try {
+    label_cells(g.input(), options, [](const LabelTile&) {});
+    FAIL() << "expected an error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("GiB"), std::string::npos) << e.what();
+  }
+}
+
+TEST(LabelInterface, ArcsAreCutIntoQuarterEdgePieces) {
+  SiteGeometry g;
+  g.level = 6;
+  add_arc(g, 0, 0, 10, 10, 0);
+  const double limit = grid::kPi / 2 / 64 / 4 * (1 + 1e-9);
+  EXPECT_GT(g.pieces.size(), 10u);
+  for (const SitePiece& p : g.pieces) EXPECT_LE(chord2_to_angle(grid::chord2(p.a, p.b)), limit);
+  // Consecutive pieces join.
+  for (std::size_t k = 1; k < g.pieces.size(); ++k) {
+    EXPECT_EQ(g.pieces[k].a.x, g.pieces[k - 1].b.x);
+  }
+  EXPECT_FALSE(g.site_cells.empty());
+}
+
+}  // namespace
+}  // namespace qtmv::label

@@ -1,0 +1,421 @@
+#include "sites/ogr_site_reader.hpp"
+
+#include <cpl_conv.h>
+#include <cpl_error.h>
+#include <cpl_vsi.h>
+#include <gdal_priv.h>
+#include <ogr_geometry.h>
+#include <ogr_spatialref.h>
+#include <ogrsf_frmts.h>
+
+#include <cmath>
+#include <memory>
+#include <sstream>
+#include <utility>
+#include <vector>
+
+#include "grid/qtm_checks.hpp"
+#include "sites/site_builder.hpp"
+#include "sites/site_cells.hpp"
+
+namespace qtmv::sites {
+
+EdgeShape parse_edge_shape(const std::string& text) {
+  if (text == "lonlat") return EdgeShape::lonlat;
+  if (text == "geodesic") return EdgeShape::geodesic;
+  throw ReadError("-edges: '" + text + "' is not one of lonlat, geodesic");
+}
+
+WrapMode parse_wrap_mode(const std::string& text) {
+  if (text == "auto") return WrapMode::automatic;
+  if (text == "none") return WrapMode::none;
+  throw ReadError("-wrap: '" + text + "' is not one of auto, none");
+}
+
+DistanceRule parse_distance_rule(const std::string& text) {
+  if (text == "exact") return DistanceRule::exact;
+  if (text == "cell") return DistanceRule::cell;
+  throw ReadError("-distance: '" + text + "' is not one of exact, cell");
+}
+
+namespace {
+
+/// Collects GDAL's error messages while alive, instead of printing them.
+class GdalErrorCapture {
+ public:
+  GdalErrorCapture() {
+    CPLErrorReset();
+    CPLPushErrorHandlerEx(&GdalErrorCapture::handle, this);
+  }
+  ~GdalErrorCapture() { CPLPopErrorHandler(); }
+  GdalErrorCapture(const GdalErrorCapture&) = delete;
+  GdalErrorCapture& operator=(const GdalErrorCapture&) = delete;
+
+  /// The messages so far, joined, and forgets them.
+  std::string take() {
+    std::string out;
+    for (const auto& m : messages_) out += (out.empty() ? "" : "; ") + m;
+    messages_.clear();
+    failed_ = false;
+    return out;
+  }
+  /// Whether an error (not a warning) came since the last take().
+  bool failed() const { return failed_; }
+
+ private:
+  static void CPL_STDCALL handle(CPLErr error_class, CPLErrorNum, const char* message) {
+    auto* self = static_cast<GdalErrorCapture*>(CPLGetErrorHandlerUserData());
+    self->messages_.emplace_back(message ? message : "");
+    if (error_class >= CE_Failure) self->failed_ = true;
+  }
+  std::vector<std::string> messages_;
+  bool failed_ = false;
+};
+
+std::string with_gdal_message(std::string text, const std::string& gdal) {
+  if (!gdal.empty()) text += " (GDAL: " + gdal + ")";
+  return text;
+}
+
+struct OgrDeleter {
+  void operator()(OGRCoordinateTransformation* t) const { OGRCoordinateTransformation::DestroyCT(t); }
+};
+
+/// A feature's geometry as coordinate runs in the source CRS, before any transformation.
+struct FeatureParts {
+  enum Kind { kPoint, kLine, kRing };
+  struct Part {
+    Kind kind;
+    std::size_t begin, end;  // range in x, y
+    int polygon;             // rings: index of their polygon
+  };
+  std::vector<double> x, y;
+  std::vector<Part> parts;
+  int polygons = 0;
+
+  void add_curve(const OGRSimpleCurve& curve, Kind kind, int polygon) {
+    const int n = curve.getNumPoints();
+    if (n == 0) return;
+    const std::size_t begin = x.size();
+    for (int k = 0; k < n; ++k) {
+      x.push_back(curve.getX(k));
+      y.push_back(curve.getY(k));
+    }
+    parts.push_back({kind, begin, x.size(), polygon});
+  }
+};
+
+/// Gathers the parts of a (linear) geometry; false with `reason` for an unsupported type.
+bool gather_parts(const OGRGeometry& geometry, FeatureParts& out, std::string& reason) {
+  if (geometry.IsEmpty()) return true;
+  switch (wkbFlatten(geometry.getGeometryType())) {
+    case wkbPoint: {
+      const auto& p = *geometry.toPoint();
+      out.x.push_back(p.getX());
+      out.y.push_back(p.getY());
+      out.parts.push_back({FeatureParts::kPoint, out.x.size() - 1, out.x.size(), -1});
+      return true;
+    }
+    case wkbLineString:
+      out.add_curve(*geometry.toLineString(), FeatureParts::kLine, -1);
+      return true;
+    case wkbPolygon:
+    case wkbTriangle: {
+      const auto& polygon = *geometry.toPolygon();
+      const int index = out.polygons++;
+      if (const OGRLinearRing* ring = polygon.getExteriorRing()) out.add_curve(*ring, FeatureParts::kRing, index);
+      for (int k = 0; k < polygon.getNumInteriorRings(); ++k) {
+        out.add_curve(*polygon.getInteriorRing(k), FeatureParts::kRing, index);
+      }
+      return true;
+    }
+    case wkbMultiPoint:
+    case wkbMultiLineString:
+    case wkbMultiPolygon:
+    case wkbGeometryCollection: {
+      const auto& collection = *geometry.toGeometryCollection();
+      for (int k = 0; k < collection.getNumGeometries(); ++k) {
+        if (!gather_parts(*collection.getGeometryRef(k), out, reason)) return false;
+      }
+      return true;
+    }
+    default:
+      reason = std::string("unsupported geometry type ") + OGRGeometryTypeToName(geometry.getGeometryType());
+      return false;
+  }
+}
+
+/// Bounds (in the source CRS's units) beyond which coordinates are not handed to PROJ.
+struct CoordinateRange {
+  double limit_x = 0, limit_y = 0;
+  std::string describe;  // for messages
+};
+
+CoordinateRange coordinate_range(const OGRSpatialReference& srs) {
+  CoordinateRange range;
+  if (srs.IsGeographic()) {
+    // Degrees, wherever latitude sits: a longitude may go round more than once when unwrapped.
+    const double degrees_per_unit = srs.GetAngularUnits(nullptr) / (M_PI / 180.0);
+    range.limit_x = range.limit_y = 540.0 / degrees_per_unit;
+    range.describe = "+-540 degrees";
+  } else {
+    // Projected, geocentric or other: 1e8 metres is 2.5 times round the Earth.
+    const double metres_per_unit = srs.GetLinearUnits(nullptr);
+    range.limit_x = range.limit_y = 1e8 / (metres_per_unit > 0 ? metres_per_unit : 1.0);
+    range.describe = "+-1e8 metres";
+  }
+  return range;
+}
+
+std::string format_coordinate(double x, double y) {
+  std::ostringstream s;
+  s.precision(15);
+  s << "(" << x << ", " << y << ")";
+  return s.str();
+}
+
+}  // namespace
+
+SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) {
+  grid::require_level(options.level);
+  GDALAllRegister();
+  auto say = [&](Severity severity, const std::string& message) {
+    if (options.messages) options.messages(severity, message);
+  };
+
+  // --- the dataset and the layer ----------------------------------------------------------------
+  GdalErrorCapture errors;
+  GDALDatasetUniquePtr dataset(GDALDataset::Open(dataset_name.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY));
+  if (!dataset) {
+    VSIStatBufL stat;
+    if (VSIStatL(dataset_name.c_str(), &stat) != 0) throw ReadError("cannot open '" + dataset_name + "': no such file");
+    throw ReadError(with_gdal_message("cannot open '" + dataset_name + "' as a vector dataset", errors.take()));
+  }
+  OGRLayer* layer = nullptr;
+  std::string layer_name;
+  std::shared_ptr<OGRLayer> sql_result;  // released through the dataset
+  if (!options.sql.empty()) {
+    errors.take();
+    layer = dataset->ExecuteSQL(options.sql.c_str(), nullptr, options.dialect.empty() ? nullptr : options.dialect.c_str());
+    if (!layer) {
+      throw ReadError(with_gdal_message("'" + dataset_name + "': -sql failed: " + options.sql, errors.take()));
+    }
+    sql_result.reset(layer, [ds = dataset.get()](OGRLayer* l) { ds->ReleaseResultSet(l); });
+    layer_name = "(-sql result)";
+  } else if (!options.layer.empty()) {
+    layer = dataset->GetLayerByName(options.layer.c_str());
+    if (!layer) {
+      std::string names;
+      for (int k = 0; k < dataset->GetLayerCount(); ++k) names += std::string(k ? ", " : "") + dataset->GetLayer(k)->GetName();
+      throw ReadError("'" + dataset_name + "' has no layer '" + options.layer + "'; its layers: " +
+                      (names.empty() ? "(none)" : names));
+    }
+  } else {
+    if (dataset->GetLayerCount() == 0) throw ReadError("'" + dataset_name + "' has no layer");
+    layer = dataset->GetLayer(0);
+  }
+  if (layer_name.empty()) layer_name = layer->GetName();
+  const std::string where_from = "'" + dataset_name + "', layer '" + layer_name + "'";
+  if (!options.where.empty()) {
+    errors.take();
+    if (layer->SetAttributeFilter(options.where.c_str()) != OGRERR_NONE) {
+      throw ReadError(with_gdal_message(where_from + ": bad -where: " + options.where, errors.take()));
+    }
+  }
+
+  // --- CRS ------------------------------------------------------------------------------------------
+  OGRSpatialReference wgs84;
+  wgs84.importFromEPSG(4326);
+  wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  OGRSpatialReference source;
+  if (!options.source_srs.empty()) {
+    errors.take();
+    if (source.SetFromUserInput(options.source_srs.c_str()) != OGRERR_NONE) {
+      throw ReadError(with_gdal_message("-s_srs: cannot read '" + options.source_srs + "'", errors.take()));
+    }
+    source.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  } else if (const OGRSpatialReference* layer_srs = layer->GetSpatialRef()) {
+    source = *layer_srs;  // keeps the layer's data axis order
+  } else {
+    say(Severity::warning, where_from + ": the layer has no CRS; its coordinates are taken as EPSG:4326 (WGS84 lon/lat)");
+    source = wgs84;
+  }
+  std::unique_ptr<OGRCoordinateTransformation, OgrDeleter> transform;
+  if (!(source.IsSame(&wgs84) && source.GetDataAxisToSRSAxisMapping() == wgs84.GetDataAxisToSRSAxisMapping())) {
+    errors.take();
+    transform.reset(OGRCreateCoordinateTransformation(&source, &wgs84));
+    if (!transform) {
+      throw ReadError(with_gdal_message(where_from + ": no transformation from its CRS (" +
+                                            std::string(source.GetName() ? source.GetName() : "?") + ") to WGS84",
+                                        errors.take()));
+    }
+  }
+  const CoordinateRange range = coordinate_range(source);
+
+  // --- features --------------------------------------------------------------------------------------
+  SiteSet out;
+  out.table.set_source(layer->GetLayerDefn(), dataset_name, layer_name);
+  ReadSummary& summary = out.summary;
+  SiteBuilder builder(options.level, options.edges, options.wrap);
+  const GIntBig feature_count = layer->GetFeatureCount(FALSE);
+  if (options.progress && !options.progress(0.0, "reading sites")) throw ReadError("interrupted");
+
+  auto skip = [&](GIntBig fid, const std::string& reason, std::uint64_t& counter) {
+    const std::string message = where_from + ", FID " + std::to_string(fid) + ": " + reason;
+    if (options.strict) throw ReadError(message + " (-strict)");
+    say(Severity::warning, message + "; feature skipped");
+    ++summary.skipped;
+    ++counter;
+  };
+
+  std::vector<grid::LonLat> lonlat;
+  std::vector<int> transformed_ok;
+  errors.take();
+  layer->ResetReading();
+  for (OGRFeatureUniquePtr feature(layer->GetNextFeature()); feature; feature.reset(layer->GetNextFeature())) {
+    ++summary.features;
+    if (options.progress && feature_count > 0 && summary.features % 256 == 0 &&
+        !options.progress(std::min(1.0, static_cast<double>(summary.features) / feature_count), "reading sites")) {
+      throw ReadError("interrupted");
+    }
+    const GIntBig fid = feature->GetFID();
+    std::unique_ptr<OGRGeometry> geometry(feature->StealGeometry());
+    if (!geometry || geometry->IsEmpty()) {
+      skip(fid, "empty geometry", summary.skipped_empty);
+      continue;
+    }
+    if (geometry->hasCurveGeometry()) geometry.reset(geometry->getLinearGeometry());
+    FeatureParts parts;
+    std::string reason;
+    if (!gather_parts(*geometry, parts, reason)) {
+      skip(fid, reason, summary.skipped_type);
+      continue;
+    }
+    if (parts.parts.empty()) {
+      skip(fid, "empty geometry", summary.skipped_empty);
+      continue;
+    }
+    // Checked before PROJ sees them (GDAL 3.6 hangs on EPSG:3857 coordinates near +-1e20).
+    const std::size_t n = parts.x.size();
+    bool usable = true;
+    for (std::size_t k = 0; k < n && usable; ++k) {
+      const double x = parts.x[k], y = parts.y[k];
+      if (!std::isfinite(x) || !std::isfinite(y)) {
+        skip(fid, "NaN or infinite coordinate " + format_coordinate(x, y), summary.skipped_coordinate);
+        usable = false;
+      } else if (std::fabs(x) > range.limit_x || std::fabs(y) > range.limit_y) {
+        skip(fid, "coordinate " + format_coordinate(x, y) + " beyond " + range.describe + " of its CRS",
+             summary.skipped_coordinate);
+        usable = false;
+      }
+    }
+    if (!usable) continue;
+    if (transform) {
+      transformed_ok.assign(n, FALSE);
+      GdalErrorCapture transform_errors;
+      const std::vector<double> x0 = parts.x, y0 = parts.y;
+      transform->Transform(static_cast<int>(n), parts.x.data(), parts.y.data(), nullptr, transformed_ok.data());
+      for (std::size_t k = 0; k < n && usable; ++k) {
+        if (!transformed_ok[k] || !std::isfinite(parts.x[k]) || !std::isfinite(parts.y[k])) {
+          skip(fid, with_gdal_message("coordinate " + format_coordinate(x0[k], y0[k]) + " fails to transform to WGS84",
+                                      transform_errors.take()),
+               summary.skipped_transform);
+          usable = false;
+        }
+      }
+      if (!usable) continue;
+    }
+    lonlat.resize(n);
+    for (std::size_t k = 0; k < n && usable; ++k) {
+      double lat = parts.y[k];
+      if (std::fabs(lat) > 90.0) {
+        if (std::fabs(lat) > 90.0 + 1e-9) {
+          skip(fid, "latitude beyond +-90 after transformation at " + format_coordinate(parts.x[k], lat),
+               summary.skipped_coordinate);
+          usable = false;
+          break;
+        }
+        lat = lat > 0 ? 90.0 : -90.0;  // rounding in the transformation
+      }
+      lonlat[k] = {parts.x[k], lat};
+    }
+    if (!usable) continue;
+
+    // --- one site ---
+    builder.begin_site();
+    SiteRecord record;
+    record.fid = fid;
+    for (std::size_t p = 0; p < parts.parts.size();) {
+      const FeatureParts::Part& part = parts.parts[p];
+      if (part.kind == FeatureParts::kPoint) {
+        builder.add_point(lonlat[part.begin]);
+        record.kind |= kPointSite;
+        ++p;
+      } else if (part.kind == FeatureParts::kLine) {
+        builder.add_line(lonlat.data() + part.begin, part.end - part.begin);
+        record.kind |= kLineSite;
+        ++p;
+      } else {
+        std::vector<LonLatPath> rings;
+        const int polygon = part.polygon;
+        for (; p < parts.parts.size() && parts.parts[p].kind == FeatureParts::kRing && parts.parts[p].polygon == polygon; ++p) {
+          rings.emplace_back(lonlat.begin() + parts.parts[p].begin, lonlat.begin() + parts.parts[p].end);
+        }
+        builder.add_polygon(rings);
+        record.kind |= kPolygonSite;
+      }
+    }
+    builder.end_site();
+    record.attributes.reset(feature.release());
+    out.table.sites.push_back(std::move(record));
+    ++summary.sites;
+  }
+  // Drivers report a bad filter or a broken file while reading (GeoPackage's -where, say).
+  if (errors.failed()) {
+    throw ReadError(with_gdal_message(
+        where_from + (options.where.empty() ? ": reading failed" : ": bad -where: " + options.where), errors.take()));
+  }
+  if (const std::string pending = errors.take(); !pending.empty()) say(Severity::warning, where_from + ": GDAL: " + pending);
+  if (options.progress && !options.progress(1.0, "reading sites")) throw ReadError("interrupted");
+
+  if (summary.sites == 0) {
+    throw ReadError(where_from + ": no usable site (" + std::to_string(summary.features) + " features read, " +
+                    std::to_string(summary.skipped) + " skipped)");
+  }
+
+  // --- claims, counts, summary --------------------------------------------------------------------
+  summary.vertex_steps = builder.vertex_steps();
+  out.geometry = builder.take_geometry();
+  const SiteCellCounts counts = resolve_claims(out.geometry, options.distance);
+  std::string without_cell_fids;
+  for (std::size_t s = 0; s < out.table.sites.size(); ++s) {
+    SiteRecord& r = out.table.sites[s];
+    r.site_cells = counts.site_cells[s];
+    r.fixed_cells = counts.fixed_cells[s];
+    r.has_own_cell = counts.has_own_cell[s];
+    if (!r.has_own_cell) {
+      if (++summary.sites_without_own_cell <= 10) without_cell_fids += (without_cell_fids.empty() ? "" : ", ") + std::to_string(r.fid);
+    }
+  }
+  if (summary.sites_without_own_cell > 0) {
+    say(Severity::warning, where_from + ": " + std::to_string(summary.sites_without_own_cell) +
+                               " site(s) have no cell of their own at level " + std::to_string(options.level) +
+                               " (FIDs " + without_cell_fids + (summary.sites_without_own_cell > 10 ? ", ..." : "") +
+                               "); they are still written");
+  }
+  std::string line = where_from + ": " + std::to_string(summary.features) + " features, " +
+                     std::to_string(summary.sites) + " sites, " + std::to_string(out.geometry.pieces.size()) +
+                     " pieces, " + std::to_string(out.geometry.site_cells.size()) + " site cells, " +
+                     std::to_string(out.geometry.fixed_cells.size()) + " fixed cells at level " +
+                     std::to_string(options.level);
+  if (summary.skipped > 0) {
+    line += "; " + std::to_string(summary.skipped) + " features skipped (" + std::to_string(summary.skipped_empty) +
+            " empty, " + std::to_string(summary.skipped_type) + " unsupported type, " +
+            std::to_string(summary.skipped_coordinate) + " bad coordinate, " +
+            std::to_string(summary.skipped_transform) + " failed transformation)";
+  }
+  say(summary.skipped > 0 ? Severity::warning : Severity::info, line);
+  return out;
+}
+
+}  // namespace qtmv::sites

@@ -1,0 +1,147 @@
+#include "sites/polygon_fill.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
+#include "grid/qtm_checks.hpp"
+
+namespace qtmv::sites {
+
+PolygonFiller::PolygonFiller(int level) : level_(level) {
+  grid::require_level(level);
+  const std::uint64_t rows = grid::rows_per_octant(level);
+  // Latitudes come from cell_centre itself so that they are the bits the centres have.
+  for (int first_octant : {0, 4}) {
+    for (std::uint64_t i = 0; i < rows; ++i) {
+      const auto row = static_cast<std::uint32_t>(i);
+      scanlines_.push_back({grid::cell_centre(grid::Cell{first_octant, row, 0}, level).lat, first_octant, row, true});
+      if (i > 0) {
+        scanlines_.push_back({grid::cell_centre(grid::Cell{first_octant, row, 1}, level).lat, first_octant, row, false});
+      }
+    }
+  }
+  std::sort(scanlines_.begin(), scanlines_.end(), [](const Scanline& a, const Scanline& b) { return a.lat < b.lat; });
+  for (const auto& s : scanlines_) scan_lats_.push_back(s.lat);
+}
+
+namespace {
+
+struct Crossing {
+  std::uint32_t scan;
+  double lon;
+  bool operator<(const Crossing& o) const { return scan != o.scan ? scan < o.scan : lon < o.lon; }
+};
+
+// Local longitude range [0, 90] of octant o against a longitude interval, as an interval of lon'.
+bool local_interval(int octant, double lo, double hi, double& local_lo, double& local_hi) {
+  if (octant < 4) {
+    static const double base[4] = {0.0, 90.0, -180.0, -90.0};  // lon = lon' + base
+    local_lo = lo - base[octant];
+    local_hi = hi - base[octant];
+  } else {
+    static const double base[4] = {90.0, 180.0, -90.0, 0.0};  // lon = base - lon'
+    local_lo = base[octant - 4] - hi;
+    local_hi = base[octant - 4] - lo;
+  }
+  local_lo = std::max(local_lo, 0.0);
+  local_hi = std::min(local_hi, 90.0);
+  return local_lo < local_hi;
+}
+
+}  // namespace
+
+void PolygonFiller::emit_interval(const Scanline& line, double lo, double hi, std::vector<grid::Code>& cells) const {
+  const double i = line.row;
+  // Up centres: lon' = 90 (3a + 1) / (3i + 2), a = 0..i; down: lon' = 90 (3a + 2) / (3i + 1), a = 0..i-1.
+  const double denominator = line.up ? 3.0 * i + 2.0 : 3.0 * i + 1.0;
+  const double offset = line.up ? 1.0 : 2.0;
+  const std::int64_t a_max = line.up ? line.row : static_cast<std::int64_t>(line.row) - 1;
+  for (int octant = line.first_octant; octant < line.first_octant + 4; ++octant) {
+    double local_lo, local_hi;
+    if (!local_interval(octant, lo, hi, local_lo, local_hi)) continue;
+    // A candidate range one wider on each side; the exact test is on the centre's own longitude.
+    std::int64_t a0 = static_cast<std::int64_t>(std::floor((local_lo * denominator / 90.0 - offset) / 3.0));
+    std::int64_t a1 = static_cast<std::int64_t>(std::ceil((local_hi * denominator / 90.0 - offset) / 3.0));
+    a0 = std::max<std::int64_t>(a0, 0);
+    a1 = std::min<std::int64_t>(a1, a_max);
+    for (std::int64_t a = a0; a <= a1; ++a) {
+      const grid::Cell cell{octant, line.row, static_cast<std::uint32_t>(line.up ? 2 * a : 2 * a + 1)};
+      const double lon = grid::cell_centre(cell, level_).lon;
+      if (lo < lon && lon < hi) cells.push_back(grid::code_of(cell, level_));
+    }
+  }
+}
+
+void PolygonFiller::fill(const std::vector<FillRing>& rings, std::vector<grid::Code>& cells) const {
+  std::vector<Crossing> toggles;    // ends of the rings' inside intervals, longitudes in [-180, 180]
+  std::vector<Crossing> crossings;  // one ring's crossings, unwrapped longitudes
+  std::vector<grid::LonLat> closed;
+  for (const FillRing& ring : rings) {
+    if (ring.vertices.size() < 3) continue;
+    const std::vector<grid::LonLat>* vertices = &ring.vertices;
+    if (ring.winding != 0) {
+      // Close the ring through the pole on its side of the equator.
+      double lat_sum = 0;
+      for (const auto& v : ring.vertices) lat_sum += v.lat;
+      const double pole = lat_sum >= 0 ? 90.0 : -90.0;
+      closed = ring.vertices;
+      closed.push_back({ring.vertices.back().lon, pole});
+      closed.push_back({ring.vertices.front().lon, pole});
+      closed.push_back(ring.vertices.front());
+      vertices = &closed;
+    }
+    crossings.clear();
+    const auto& v = *vertices;
+    for (std::size_t k = 1; k < v.size(); ++k) {
+      const grid::LonLat& p = v[k - 1];
+      const grid::LonLat& q = v[k];
+      if (p.lat == q.lat) continue;
+      // Scanlines y with (p.lat > y) != (q.lat > y): y in [min, max).
+      const double y0 = std::min(p.lat, q.lat), y1 = std::max(p.lat, q.lat);
+      auto s = std::lower_bound(scan_lats_.begin(), scan_lats_.end(), y0) - scan_lats_.begin();
+      const auto s_end = std::lower_bound(scan_lats_.begin(), scan_lats_.end(), y1) - scan_lats_.begin();
+      for (; s < s_end; ++s) {
+        const double y = scan_lats_[s];
+        crossings.push_back({static_cast<std::uint32_t>(s), p.lon + (y - p.lat) * (q.lon - p.lon) / (q.lat - p.lat)});
+      }
+    }
+    std::sort(crossings.begin(), crossings.end());
+    for (std::size_t k = 0; k + 1 < crossings.size(); k += 2) {
+      const std::uint32_t scan = crossings[k].scan;
+      if (crossings[k + 1].scan != scan) {  // cannot happen for a closed ring; resynchronise
+        --k;
+        continue;
+      }
+      double lo = crossings[k].lon, hi = crossings[k + 1].lon;
+      if (hi - lo >= 360.0) {  // the whole parallel
+        toggles.push_back({scan, -180.0});
+        toggles.push_back({scan, 180.0});
+        continue;
+      }
+      const double shift = 360.0 * std::floor((lo + 180.0) / 360.0);
+      lo -= shift;
+      hi -= shift;  // lo in [-180, 180)
+      if (hi <= 180.0) {
+        toggles.push_back({scan, lo});
+        toggles.push_back({scan, hi});
+      } else {
+        toggles.push_back({scan, lo});
+        toggles.push_back({scan, 180.0});
+        toggles.push_back({scan, -180.0});
+        toggles.push_back({scan, hi - 360.0});
+      }
+    }
+  }
+  // Even-odd over all rings: between the 2k-th and (2k+1)-th toggle of a parallel is inside.
+  std::sort(toggles.begin(), toggles.end());
+  for (std::size_t k = 0; k + 1 < toggles.size(); k += 2) {
+    if (toggles[k + 1].scan != toggles[k].scan) {
+      --k;
+      continue;
+    }
+    if (toggles[k].lon < toggles[k + 1].lon) emit_interval(scanlines_[toggles[k].scan], toggles[k].lon, toggles[k + 1].lon, cells);
+  }
+}
+
+}  // namespace qtmv::sites

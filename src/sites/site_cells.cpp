@@ -1,0 +1,64 @@
+#include "sites/site_cells.hpp"
+
+#include <algorithm>
+
+namespace qtmv::sites {
+
+void append_site_cells(std::vector<CellHit>& hits, std::int32_t site, std::vector<SiteCell>& out) {
+  std::sort(hits.begin(), hits.end(), [](const CellHit& a, const CellHit& b) {
+    return a.code != b.code ? a.code < b.code : a.piece < b.piece;
+  });
+  for (std::size_t k = 0; k < hits.size(); ++k) {
+    const CellHit& h = hits[k];
+    if (!out.empty() && out.back().site == site && out.back().code == h.code && out.back().piece_end >= h.piece) {
+      out.back().piece_end = std::max(out.back().piece_end, h.piece + 1);
+    } else {
+      out.push_back({h.code, site, h.piece, h.piece + 1});
+    }
+  }
+}
+
+SiteCellCounts resolve_claims(SiteGeometry& g, DistanceRule rule) {
+  const auto sites = static_cast<std::size_t>(g.site_count);
+  SiteCellCounts counts;
+  counts.site_cells.assign(sites, 0);
+  counts.fixed_cells.assign(sites, 0);
+  counts.has_own_cell.assign(sites, false);
+
+  auto by_code_site = [](const auto& a, const auto& b) { return a.code != b.code ? a.code < b.code : a.site < b.site; };
+  std::sort(g.fixed_cells.begin(), g.fixed_cells.end(), by_code_site);
+  g.fixed_cells.erase(std::unique(g.fixed_cells.begin(), g.fixed_cells.end(),
+                                  [](const FixedCell& a, const FixedCell& b) { return a.code == b.code; }),
+                      g.fixed_cells.end());
+  for (const FixedCell& f : g.fixed_cells) {
+    ++counts.fixed_cells[f.site];
+    counts.has_own_cell[f.site] = true;
+  }
+
+  if (rule == DistanceRule::cell) {
+    std::stable_sort(g.site_cells.begin(), g.site_cells.end(), by_code_site);
+    std::size_t kept = 0;
+    for (std::size_t k = 0; k < g.site_cells.size(); ++k) {
+      const SiteCell& c = g.site_cells[k];
+      if (kept > 0 && g.site_cells[kept - 1].code == c.code && g.site_cells[kept - 1].site != c.site) continue;
+      g.site_cells[kept++] = c;
+    }
+    g.site_cells.resize(kept);
+  }
+  // Distinct codes per site; a site cell is the site's own unless another site's interior holds it.
+  std::vector<std::pair<std::int32_t, grid::Code>> site_codes;
+  site_codes.reserve(g.site_cells.size());
+  for (const SiteCell& c : g.site_cells) site_codes.emplace_back(c.site, c.code);
+  std::sort(site_codes.begin(), site_codes.end());
+  site_codes.erase(std::unique(site_codes.begin(), site_codes.end()), site_codes.end());
+  for (const auto& [site, code] : site_codes) {
+    ++counts.site_cells[site];
+    if (counts.has_own_cell[site]) continue;
+    auto f = std::lower_bound(g.fixed_cells.begin(), g.fixed_cells.end(), code,
+                              [](const FixedCell& a, grid::Code c) { return a.code < c; });
+    if (f == g.fixed_cells.end() || f->code != code || f->site == site) counts.has_own_cell[site] = true;
+  }
+  return counts;
+}
+
+}  // namespace qtmv::sites

@@ -1,0 +1,63 @@
+// Options, messages and errors of the readers (GDAL-utility style: an options struct, a progress
+// callback and a message sink; errors are exceptions naming the file, layer and FID, never exit()).
+#pragma once
+
+#include <functional>
+#include <stdexcept>
+#include <string>
+
+namespace qtmv::sites {
+
+/// Shape of a segment between two consecutive vertices of a line or ring.
+enum class EdgeShape {
+  lonlat,    ///< straight in lon/lat (how GIS software draws EPSG:4326 data)
+  geodesic,  ///< shortest path on the WGS84 ellipsoid (GeographicLib)
+};
+
+/// How longitude jumps across +-180 are read.
+enum class WrapMode {
+  automatic,  ///< vertices more than 180 degrees apart are joined the short way across +-180
+  none,       ///< coordinates are flat lon/lat
+};
+
+/// Who gets a site cell that two sites pass through.
+enum class DistanceRule {
+  exact,  ///< both keep it; the labeller decides by distance to the pieces
+  cell,   ///< the paper's rule: the lower site id
+};
+
+enum class Severity { info, warning };
+
+/// Receives one-line messages for the user (warnings and the summary).
+using MessageSink = std::function<void(Severity severity, const std::string& message)>;
+
+/// Called with the fraction done (0..1) and the stage; return false to stop reading.
+using ProgressFunc = std::function<bool(double fraction, const char* stage)>;
+
+struct ReadOptions {
+  int level = 8;                 ///< QTM level (0..24)
+  std::string layer;             ///< -l: layer name; empty: the first layer
+  std::string where;             ///< -where: attribute filter (OGR SQL expression)
+  std::string sql;               ///< -sql: statement whose result set is read instead of a layer
+  std::string dialect;           ///< -dialect: SQL dialect of -sql ("OGRSQL", "SQLITE", ...)
+  std::string source_srs;        ///< -s_srs: overrides the layer's CRS (any OGRSpatialReference input)
+  EdgeShape edges = EdgeShape::lonlat;       ///< -edges lonlat|geodesic
+  WrapMode wrap = WrapMode::automatic;       ///< -wrap auto|none
+  DistanceRule distance = DistanceRule::exact;  ///< -distance exact|cell
+  bool strict = false;           ///< -strict: a skipped feature is an error
+  ProgressFunc progress;         ///< may be empty
+  MessageSink messages;          ///< may be empty (messages are then dropped)
+};
+
+/// A reading error: unreadable input, a bad option, -strict and a bad feature, no usable site.
+/// The command line reports what() and exits with status 1.
+class ReadError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+EdgeShape parse_edge_shape(const std::string& text);    ///< "lonlat" | "geodesic"; throws ReadError
+WrapMode parse_wrap_mode(const std::string& text);      ///< "auto" | "none"; throws ReadError
+DistanceRule parse_distance_rule(const std::string& text);  ///< "exact" | "cell"; throws ReadError
+
+}  // namespace qtmv::sites

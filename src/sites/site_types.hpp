@@ -1,0 +1,15 @@
+// The readers' output types: the labeller's plain input structs (SitePiece, SiteCell, FixedCell,
+// SiteGeometry), taken from its header so that what the readers produce is what it reads.
+#pragma once
+
+#include "label/labeller.hpp"
+
+namespace qtmv::sites {
+
+using label::FixedCell;
+using label::SiteCell;
+using label::SiteGeometry;
+using label::SitePiece;
+using grid::Vec3;
+
+}  // namespace qtmv::sites

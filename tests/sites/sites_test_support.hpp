@@ -1,0 +1,128 @@
+// Helpers for the readers' tests: datasets made through the GDAL API, options that collect
+// messages, GEOS references.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <cpl_vsi.h>
+#include <gdal_priv.h>
+#include <ogr_api.h>
+#include <ogr_geometry.h>
+#include <ogrsf_frmts.h>
+
+#include <algorithm>
+#include <map>
+#include <memory>
+#include <set>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "grid/qtm.hpp"
+#include "sites/ogr_site_reader.hpp"
+
+namespace qtmv::sites::test {
+
+/// A feature to write: geometry as WKT (empty: no geometry) and a name field.
+struct TestFeature {
+  std::string wkt;
+  std::string name;
+  std::shared_ptr<OGRGeometry> geometry = nullptr;  ///< used instead of wkt when set (NaN coordinates)
+};
+
+/// A fresh path in the test's temporary directory (what a previous run left there is removed).
+inline std::string temp_path(const std::string& name) {
+  static int counter = 0;
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  const std::string path = ::testing::TempDir() + "qtmv_sites_" + info->test_suite_name() + "_" + info->name() + "_" +
+                           std::to_string(counter++) + "_" + name;
+  VSIUnlink(path.c_str());
+  for (const char* ext : {".shp", ".shx", ".dbf", ".prj", ".cpg"}) VSIUnlink((path + ext).c_str());
+  return path;
+}
+
+/// Writes a one-layer dataset. srs: any SetFromUserInput text, or empty for a layer without CRS.
+inline std::string make_dataset(const std::string& path, const std::string& driver_name, const std::string& layer_name,
+                                const std::string& srs_text, const std::vector<TestFeature>& features) {
+  GDALAllRegister();
+  GDALDriver* driver = GetGDALDriverManager()->GetDriverByName(driver_name.c_str());
+  if (!driver) throw std::runtime_error("no GDAL driver " + driver_name);
+  GDALDatasetUniquePtr ds(driver->Create(path.c_str(), 0, 0, 0, GDT_Unknown, nullptr));
+  if (!ds) throw std::runtime_error("cannot create " + path);
+  std::unique_ptr<OGRSpatialReference> srs;
+  if (!srs_text.empty()) {
+    srs = std::make_unique<OGRSpatialReference>();
+    srs->SetFromUserInput(srs_text.c_str());
+    srs->SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  }
+  OGRLayer* layer = ds->CreateLayer(layer_name.c_str(), srs.get(), wkbUnknown, nullptr);
+  if (!layer) throw std::runtime_error("cannot create layer " + layer_name + " in " + path);
+  OGRFieldDefn field("name", OFTString);
+  layer->CreateField(&field);
+  for (const TestFeature& f : features) {
+    OGRFeatureUniquePtr feature(OGRFeature::CreateFeature(layer->GetLayerDefn()));
+    feature->SetField("name", f.name.c_str());
+    if (f.geometry) {
+      feature->SetGeometry(f.geometry.get());
+    } else if (!f.wkt.empty()) {
+      OGRGeometry* geometry = nullptr;
+      if (OGRGeometryFactory::createFromWkt(f.wkt.c_str(), nullptr, &geometry) != OGRERR_NONE) {
+        throw std::runtime_error("bad WKT " + f.wkt);
+      }
+      feature->SetGeometryDirectly(geometry);
+    }
+    if (layer->CreateFeature(feature.get()) != OGRERR_NONE) throw std::runtime_error("cannot write " + f.wkt);
+  }
+  return path;
+}
+
+/// Options at a level whose messages are kept in `messages`.
+inline ReadOptions options_at(int level, std::vector<std::string>* messages) {
+  ReadOptions o;
+  o.level = level;
+  if (messages) o.messages = [messages](Severity, const std::string& m) { messages->push_back(m); };
+  return o;
+}
+
+inline bool any_contains(const std::vector<std::string>& messages, const std::string& part) {
+  return std::any_of(messages.begin(), messages.end(), [&](const std::string& m) { return m.find(part) != std::string::npos; });
+}
+
+/// Distinct site-cell codes per site.
+inline std::vector<std::set<grid::Code>> site_cells_by_site(const SiteGeometry& g) {
+  std::vector<std::set<grid::Code>> out(g.site_count);
+  for (const auto& c : g.site_cells) out[c.site].insert(c.code);
+  return out;
+}
+
+/// Fixed-cell codes per site.
+inline std::vector<std::set<grid::Code>> fixed_cells_by_site(const SiteGeometry& g) {
+  std::vector<std::set<grid::Code>> out(g.site_count);
+  for (const auto& c : g.fixed_cells) out[c.site].insert(c.code);
+  return out;
+}
+
+/// Cells of a level whose centres GEOS puts inside (strictly) a polygon given as lon/lat WKT.
+inline std::set<grid::Code> geos_inside(const OGRGeometry& polygon, int level) {
+  std::set<grid::Code> out;
+  OGREnvelope env;
+  polygon.getEnvelope(&env);
+  OGRPreparedGeometryH prepared = OGRCreatePreparedGeometry(OGRGeometry::ToHandle(const_cast<OGRGeometry*>(&polygon)));
+  const grid::Code n = grid::cell_count(level);
+  for (grid::Code code = 0; code < n; ++code) {
+    const grid::LonLat c = grid::cell_centre(code, level);
+    if (c.lon < env.MinX || c.lon > env.MaxX || c.lat < env.MinY || c.lat > env.MaxY) continue;
+    OGRPoint p(c.lon, c.lat);
+    if (OGRPreparedGeometryContains(prepared, OGRGeometry::ToHandle(&p))) out.insert(code);
+  }
+  OGRDestroyPreparedGeometry(prepared);
+  return out;
+}
+
+inline std::unique_ptr<OGRGeometry> from_wkt(const std::string& wkt) {
+  OGRGeometry* g = nullptr;
+  if (OGRGeometryFactory::createFromWkt(wkt.c_str(), nullptr, &g) != OGRERR_NONE) throw std::runtime_error("bad WKT " + wkt);
+  return std::unique_ptr<OGRGeometry>(g);
+}
+
+}  // namespace qtmv::sites::test

@@ -1,0 +1,109 @@
+// The readers' benchmark: reading and rasterising sites at a level, on one core (the readers are
+// single-threaded). Wall time of read_sites, median of several runs.
+//
+//   sites_bench [--level L] [--points N] [--repeat R] [--edges lonlat|geodesic] [LINES_DATASET [LAYER]]
+//
+// --points N: N points spread uniformly over the sphere (seeded), written to a temporary
+// GeoPackage first (not timed). LINES_DATASET: any OGR dataset, e.g. the Natural Earth 50m
+// coastlines:
+//   npm pack world-atlas && tar xzf world-atlas-2.0.2.tgz
+//   ogr2ogr -f GPKG coast50.gpkg package/land-50m.json land -a_srs EPSG:4326
+//           -explodecollections -nlt MULTILINESTRING -nln coastlines   (one line)
+#include <gdal_priv.h>
+#include <ogrsf_frmts.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "sites/ogr_site_reader.hpp"
+
+namespace {
+
+std::string make_points(int count) {
+  const std::string path = "/tmp/qtmv_sites_bench_points_" + std::to_string(count) + ".gpkg";
+  GDALAllRegister();
+  VSIUnlink(path.c_str());
+  GDALDatasetUniquePtr ds(
+      GetGDALDriverManager()->GetDriverByName("GPKG")->Create(path.c_str(), 0, 0, 0, GDT_Unknown, nullptr));
+  OGRSpatialReference srs;
+  srs.importFromEPSG(4326);
+  OGRLayer* layer = ds->CreateLayer("points", &srs, wkbPoint, nullptr);
+  OGRFieldDefn field("name", OFTString);
+  if (layer->CreateField(&field) != OGRERR_NONE) throw std::runtime_error("cannot write " + path);
+  std::mt19937_64 random(12345);
+  std::uniform_real_distribution<double> uniform(-1.0, 1.0);
+  if (layer->StartTransaction() != OGRERR_NONE) throw std::runtime_error("cannot write " + path);
+  for (int k = 0; k < count; ++k) {
+    const double lon = 180.0 * uniform(random), lat = std::asin(uniform(random)) * 180.0 / M_PI;
+    OGRFeatureUniquePtr f(OGRFeature::CreateFeature(layer->GetLayerDefn()));
+    f->SetField("name", ("p" + std::to_string(k)).c_str());
+    f->SetGeometryDirectly(new OGRPoint(lon, lat));
+    if (layer->CreateFeature(f.get()) != OGRERR_NONE) throw std::runtime_error("cannot write " + path);
+  }
+  if (layer->CommitTransaction() != OGRERR_NONE) throw std::runtime_error("cannot write " + path);
+  return path;
+}
+
+double median_seconds(const std::string& path, const qtmv::sites::ReadOptions& options, int repeat,
+                      qtmv::sites::ReadSummary* summary, std::size_t* pieces, std::size_t* site_cells,
+                      std::size_t* fixed_cells) {
+  std::vector<double> seconds;
+  for (int r = 0; r < repeat; ++r) {
+    const auto start = std::chrono::steady_clock::now();
+    const qtmv::sites::SiteSet set = qtmv::sites::read_sites(path, options);
+    seconds.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    *summary = set.summary;
+    *pieces = set.geometry.pieces.size();
+    *site_cells = set.geometry.site_cells.size();
+    *fixed_cells = set.geometry.fixed_cells.size();
+  }
+  std::sort(seconds.begin(), seconds.end());
+  return seconds[seconds.size() / 2];
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  qtmv::sites::ReadOptions options;
+  options.level = 12;
+  int points = 135000, repeat = 5;
+  std::string lines, layer;
+  for (int k = 1; k < argc; ++k) {
+    const std::string a = argv[k];
+    if (a == "--level" && k + 1 < argc) options.level = std::atoi(argv[++k]);
+    else if (a == "--points" && k + 1 < argc) points = std::atoi(argv[++k]);
+    else if (a == "--repeat" && k + 1 < argc) repeat = std::max(1, std::atoi(argv[++k]));
+    else if (a == "--edges" && k + 1 < argc) options.edges = qtmv::sites::parse_edge_shape(argv[++k]);
+    else if (lines.empty()) lines = a;
+    else layer = a;
+  }
+  try {
+    qtmv::sites::ReadSummary summary;
+    std::size_t pieces = 0, site_cells = 0, fixed_cells = 0;
+    if (points > 0) {
+      const std::string path = make_points(points);
+      const double s = median_seconds(path, options, repeat, &summary, &pieces, &site_cells, &fixed_cells);
+      std::printf("points     level %d: %llu sites, %zu site cells: median %.3f s of %d runs\n", options.level,
+                  static_cast<unsigned long long>(summary.sites), site_cells, s, repeat);
+      VSIUnlink(path.c_str());
+    }
+    if (!lines.empty()) {
+      options.layer = layer;
+      const double s = median_seconds(lines, options, repeat, &summary, &pieces, &site_cells, &fixed_cells);
+      std::printf("dataset    level %d: %llu sites, %zu pieces, %zu site cells, %zu fixed cells: median %.3f s of %d runs\n",
+                  options.level, static_cast<unsigned long long>(summary.sites), pieces, site_cells, fixed_cells, s,
+                  repeat);
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "sites_bench: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

@@ -265,7 +265,7 @@ namespace {
 constexpr int kListDepth = 3;
 // A mixed node with more candidates than this goes on being split (down to the level, where
 // each cell's winner is settled in the build): dense line sites keep the lists short.
-constexpr std::uint32_t kMaxLeafList = 12;
+constexpr std::uint32_t kMaxLeafList = 64;
 
 /// A node of the level being built, with the list its parent kept (the node filters it).
 struct Pending {

@@ -425,7 +425,10 @@ TEST(QtmcellManPage, IsMadeFromTheSamePod) {
   ASSERT_FALSE(page.empty()) << QTMCELL_MAN_PAGE;
   EXPECT_NE(page.find(".TH QTMCELL 1"), std::string::npos);
   for (const char* section : {"NAME", "SYNOPSIS", "DESCRIPTION", "COMMANDS", "OPTIONS", "EXIT STATUS", "EXAMPLES", "SEE ALSO"}) {
-    EXPECT_NE(page.find(std::string(".SH \"") + section + "\""), std::string::npos) << section;
+    // Older pod2man quotes every heading (.SH "NAME"), newer ones only those with spaces.
+    const bool quoted = page.find(std::string(".SH \"") + section + "\"") != std::string::npos;
+    const bool plain = page.find(std::string(".SH ") + section + "\n") != std::string::npos;
+    EXPECT_TRUE(quoted || plain) << section;
   }
   EXPECT_EQ(page.find("POD ERRORS"), std::string::npos);
 }

@@ -23,6 +23,9 @@ struct UnwrappedPath {
 ///   - a seam edge, both ends on the meridian +-180 (Antarctica's ring in world-atlas steps from
 ///     +180 to -180): it runs along that meridian, so its longitude change is 0;
 ///   - an edge with an end at a pole: the longitude of a pole means nothing, the edge is kept flat.
+/// A path with no edge across +-180 (data cut there) is read flat, unless its seam edges make it
+/// a ring that winds round a pole: a ring from (-180, -60) to (180, -60) to (180, 60) to
+/// (-180, 60) is a band round the globe, as GEOS reads it.
 /// WrapMode::none copies the coordinates. `closed`: the sequence is a ring whose last vertex
 /// repeats the first; its winding is then counted.
 UnwrappedPath unwrap_longitudes(const grid::LonLat* vertices, std::size_t count, bool closed, WrapMode mode);

@@ -171,6 +171,9 @@ TEST(LonUnwrap, ShortWayAcrossTheAntimeridianSeamEdgesAndPoles) {
   // Natural Earth's Antarctica detours through the pole: kept flat, no winding.
   const LonLat ne[] = {{-180, -84}, {0, -70}, {180, -84}, {180, -90}, {-180, -90}, {-180, -84}};
   EXPECT_EQ(unwrap_longitudes(ne, 6, true, WrapMode::automatic).winding, 0);
+  // A line from -180 to +180 along the equator with no crossing edge: read flat, all round.
+  const LonLat equator[] = {{-180, 0}, {180, 0}};
+  EXPECT_DOUBLE_EQ(unwrap_longitudes(equator, 2, false, WrapMode::automatic).vertices[1].lon, 180);
   // world-atlas's Antarctica closes with a seam edge: winds once.
   const LonLat wa[] = {{-180, -84}, {0, -70}, {180, -84}, {-180, -84}};
   EXPECT_EQ(std::abs(unwrap_longitudes(wa, 4, true, WrapMode::automatic).winding), 1);

@@ -73,6 +73,24 @@ TEST(PolygonFill, EqualsGeosForPolygonsThatDoNotCrossTheAntimeridian) {
   }
 }
 
+TEST(PolygonFill, BandsRoundTheGlobeCutAtTheAntimeridianEqualGeos) {
+  // Edges from -180 to +180 along a parallel: cut data spanning every longitude. Read as seams
+  // they would collapse the band to a line (and invert it when it has a hole). (Other edges
+  // longer than 180 degrees are joined the short way by the -wrap auto rule, as the issue says.)
+  const std::vector<std::string> wkts = {
+      "POLYGON((-180 -60,180 -60,180 60,-180 60,-180 -60))",
+      "POLYGON((-180 -60,180 -60,180 60,-180 60,-180 -60),(-10 12,30 12,30 40,-10 40,-10 12))",
+  };
+  for (int level : {3, 6}) {
+    for (const auto& wkt : wkts) {
+      const auto g = from_wkt(wkt);
+      const auto cells = filled(rings_of(*g), level);
+      EXPECT_EQ(cells, geos_inside(*g, level)) << wkt << " level " << level;
+      EXPECT_EQ(cells, filled(rings_of(*g), level, WrapMode::none)) << wkt << " level " << level;
+    }
+  }
+}
+
 TEST(PolygonFill, HoleWithAnotherPolygonInside) {
   // Site 0: a square with a hole; site 1: an island inside the hole. Each gets its own cells.
   const int level = 6;

@@ -279,6 +279,12 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
       throw ReadError("interrupted");
     }
     const GIntBig fid = feature->GetFID();
+    // A driver that cannot decode one feature (a corrupt geometry blob, say) reports it while
+    // reading that feature: skip it with GDAL's reason instead of failing the whole read.
+    if (errors.failed()) {
+      skip(fid, "unreadable feature (GDAL: " + errors.take() + ")", summary.skipped_unreadable);
+      continue;
+    }
     std::unique_ptr<OGRGeometry> geometry(feature->StealGeometry());
     if (!geometry || geometry->IsEmpty()) {
       skip(fid, "empty geometry", summary.skipped_empty);
@@ -412,7 +418,8 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
     line += "; " + std::to_string(summary.skipped) + " features skipped (" + std::to_string(summary.skipped_empty) +
             " empty, " + std::to_string(summary.skipped_type) + " unsupported type, " +
             std::to_string(summary.skipped_coordinate) + " bad coordinate, " +
-            std::to_string(summary.skipped_transform) + " failed transformation)";
+            std::to_string(summary.skipped_transform) + " failed transformation, " +
+            std::to_string(summary.skipped_unreadable) + " unreadable)";
   }
   say(summary.skipped > 0 ? Severity::warning : Severity::info, line);
   return out;

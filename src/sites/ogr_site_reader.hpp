@@ -27,6 +27,7 @@ struct ReadSummary {
   std::uint64_t skipped_type = 0;       ///< unsupported geometry type
   std::uint64_t skipped_coordinate = 0; ///< NaN, infinite or out-of-range coordinate (before or after transformation)
   std::uint64_t skipped_transform = 0;  ///< the coordinate transformation failed
+  std::uint64_t skipped_unreadable = 0; ///< the driver could not decode the feature
   std::uint64_t sites_without_own_cell = 0;  ///< sites all of whose cells went to other sites
   std::uint64_t vertex_steps = 0;       ///< traced steps through a grid vertex (informative)
 };

@@ -1,0 +1,53 @@
+// What the writers take from the labeller: plain per-cell arrays, and their options.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace qtmv::write {
+
+/// The labeller's output for every cell of one level, indexed by cell code (0 .. 8 * 4^level - 1).
+struct CellLabels {
+  int level = 0;                           ///< QTM level (0..24)
+  const std::int32_t* site = nullptr;      ///< site id of each cell (an index into the site table)
+  const float* distance_m = nullptr;       ///< distance to the site (metres); null when not computed
+  const std::uint8_t* boundary = nullptr;  ///< 1 on boundary cells, else 0; null when not computed
+};
+
+/// Called with the fraction done (0..1) and the stage; return false to stop writing.
+using ProgressFunc = std::function<bool(double fraction, const char* stage)>;
+
+/// A writing error: the message names the destination, the layer or band, and GDAL's reason.
+class WriteError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Vector output (any OGR driver), all in EPSG:4326.
+struct VectorOptions {
+  std::string driver = "GPKG";  ///< OGR driver short name
+  /// Layers to write, from regions, boundary_cells, voronoi_edges, cells.
+  std::vector<std::string> layers{"regions", "boundary_cells", "voronoi_edges"};
+  std::vector<std::string> dataset_options;  ///< -dsco NAME=VALUE
+  std::vector<std::string> layer_options;    ///< -lco NAME=VALUE
+  ProgressFunc progress;                     ///< may be empty
+};
+
+/// Raster output (any GDAL raster driver with Create or CreateCopy).
+struct RasterOptions {
+  enum class Layout {
+    qtm,     ///< the QTM-coded raster: column j, row octant * 2^L + i
+    lonlat,  ///< a georeferenced EPSG:4326 grid over the globe
+  };
+  std::string driver = "GTiff";  ///< GDAL driver short name
+  Layout layout = Layout::qtm;
+  double x_resolution = 0, y_resolution = 0;  ///< -tr (degrees); 0: from -ts or the default
+  int width = 0, height = 0;                  ///< -ts (pixels); 0: from -tr or the default
+  std::vector<std::string> creation_options;  ///< -co NAME=VALUE
+  ProgressFunc progress;                      ///< may be empty
+};
+
+}  // namespace qtmv::write

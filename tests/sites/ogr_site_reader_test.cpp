@@ -336,7 +336,10 @@ TEST(OgrSiteReaderBadInput, FailedTransformationIsSkipped) {
   const SiteSet set = read_sites(path, options_at(4, &messages));
   EXPECT_EQ(set.geometry.site_count, 1);
   EXPECT_EQ(set.summary.skipped, 1u);
+  EXPECT_EQ(set.summary.skipped_transform, 1u);
+  EXPECT_EQ(set.summary.skipped_coordinate, 0u);
   EXPECT_TRUE(any_contains(messages, "FID 2: ")) << (messages.empty() ? "" : messages[0]);
+  EXPECT_TRUE(any_contains(messages, "1 failed transformation"));
 }
 
 TEST(OgrSiteReaderBadInput, CorruptGeometryBlobSkipsOnlyThatFeature) {

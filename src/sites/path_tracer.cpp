@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <string>
 
 #include "grid/qtm_checks.hpp"
 
@@ -21,6 +23,14 @@ Vec3 vector_at(const grid::LonLat& p) {
 }
 
 bool same(const Vec3& a, const Vec3& b) { return a.x == b.x && a.y == b.y && a.z == b.z; }
+
+/// Index the next piece will get: site cells hold 32-bit piece indices.
+std::uint32_t next_piece_index(const std::vector<SitePiece>& pieces) {
+  if (pieces.size() >= UINT32_MAX) {
+    throw ReadError("more than " + std::to_string(UINT32_MAX) + " pieces of lines and rings: use a lower level");
+  }
+  return static_cast<std::uint32_t>(pieces.size());
+}
 
 // Steps below this (degrees along the edge) are not bisected further.
 constexpr double kFinestStepDegrees = 1e-9;
@@ -152,7 +162,7 @@ void PathTracer::trace(const grid::LonLat* vertices, std::size_t count, std::int
       const Vec3 v = vector_at(p);
       if (samples) samples->push_back(p);
       if (!same(v, prev_vector)) {
-        const auto piece = static_cast<std::uint32_t>(pieces.size());
+        const std::uint32_t piece = next_piece_index(pieces);
         pieces.push_back({prev_vector, v, site});
         add_hit(prev_code, piece);
         refine(edge, prev_t, prev_code, t, code, piece, hits, 0);
@@ -164,7 +174,7 @@ void PathTracer::trace(const grid::LonLat* vertices, std::size_t count, std::int
     }
   }
   if (pieces.size() == first_piece) {  // a single point
-    const auto piece = static_cast<std::uint32_t>(pieces.size());
+    const std::uint32_t piece = next_piece_index(pieces);
     pieces.push_back({prev_vector, prev_vector, site});
     add_hit(prev_code, piece);
   }

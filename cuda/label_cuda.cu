@@ -3,6 +3,10 @@
 // --fmad=false), so the labels are those of the CPU path bit for bit.
 #include <cuda_runtime.h>
 
+#include <cub/device/device_scan.cuh>
+
+#include <climits>
+#include <cmath>
 #include <stdexcept>
 #include <string>
 
@@ -40,6 +44,62 @@ __global__ void tree_label_kernel(TreeView tree, grid::Code first, std::uint64_t
   const std::uint64_t stride = static_cast<std::uint64_t>(gridDim.x) * blockDim.x;
   for (std::uint64_t k = static_cast<std::uint64_t>(blockIdx.x) * blockDim.x + threadIdx.x; k < count; k += stride) {
     tree_label_cell(tree, first + k, site + k, metres ? metres + k : nullptr, boundary ? boundary + k : nullptr);
+  }
+}
+
+/// Labels (and boundary flags, no distances) by jump cell: one block per cell of the jump level.
+/// When the jump table sends a jump cell straight to a uniform leaf, all its cells get the
+/// leaf's site without a look-up, the flags of its inner cells are 0, and only its edge cells
+/// (gathered in shared memory so that whole warps work on them) take tree_label_cell; other
+/// jump cells take tree_label_cell for every cell. Cells outside [first, first + count) are
+/// skipped. Same labels and flags as tree_label_kernel.
+__global__ void tree_paint_kernel(TreeView tree, grid::Code jump_first, grid::Code first, std::uint64_t count,
+                                  std::int32_t* site, std::uint8_t* boundary) {
+  __shared__ grid::Code edge[kBlock];
+  __shared__ int edge_count;
+  const int level = tree.level, k = level - tree.jump_level;
+  const grid::Code jump_code = jump_first + blockIdx.x;
+  const grid::Cell jc = fast_cell_of(jump_code, tree.jump_level);
+  const TreeNode node = tree.nodes[tree.jump[jump_code].node];
+  const bool uniform = node.count == kUniform;
+  const std::uint64_t cells = std::uint64_t{1} << (2 * k);
+  for (std::uint64_t chunk = 0; chunk < cells; chunk += blockDim.x) {
+    if (uniform && threadIdx.x == 0) edge_count = 0;
+    if (uniform) __syncthreads();
+    const std::uint64_t m = chunk + threadIdx.x;
+    grid::Code code = 0;
+    grid::Cell cell{};
+    bool active = m < cells;
+    if (active) {
+      cell = descendant(jc, k, static_cast<std::uint32_t>(m));
+      code = grid::code_of(cell, level);
+      active = code >= first && code - first < count;
+    }
+    if (!uniform) {
+      if (active) {
+        const std::uint64_t out = code - first;
+        tree_label_cell(tree, code, site + out, nullptr, boundary ? boundary + out : nullptr);
+      }
+      continue;
+    }
+    if (active) {
+      const std::uint64_t out = code - first;
+      site[out] = node.value;
+      if (boundary) {
+        if (interior_of_ancestor(cell, level, tree.jump_level)) {
+          boundary[out] = 0;
+        } else {
+          edge[atomicAdd(&edge_count, 1)] = code;
+        }
+      }
+    }
+    __syncthreads();
+    const int edges = edge_count;
+    for (int e = threadIdx.x; e < edges; e += blockDim.x) {
+      const std::uint64_t out = edge[e] - first;
+      tree_label_cell(tree, edge[e], site + out, nullptr, boundary + out);
+    }
+    __syncthreads();
   }
 }
 
@@ -108,6 +168,273 @@ __global__ void brute_codes_kernel(const Piece* pieces, int piece_count, int lev
   if (active) site[k] = best.site;
 }
 
+// --- the tree, built on the device ----------------------------------------------------------
+//
+// The same tree as build_tree (labeller.cpp), node for node and list entry for list entry: one
+// level at a time, every (node, parent-list entry) pair is one work item; per node the nearest
+// candidate's squared chord (an atomicMin on the float64 bits: the chords are >= 0, so their bit
+// patterns order as the values), then the kept entries (d2 <= prune_threshold) are compacted in
+// list order by a scan, and the nodes' kinds, offsets and children follow from scans in node
+// order, as the host's parts do.
+
+/// A node of the level being built (see labeller.cpp's Pending).
+struct DevPending {
+  grid::Cell cell;
+  std::int32_t node;
+  std::uint32_t parent_count;
+  std::uint64_t parent_offset;
+};
+
+/// Per node totals, scanned in node order.
+struct LevelSums {
+  unsigned long long leaf_entries;      // list entries of list leaves
+  unsigned long long internal_entries;  // list entries kept by internal nodes
+  unsigned long long internals;         // internal nodes
+  __host__ __device__ LevelSums operator+(const LevelSums& o) const {
+    return {leaf_entries + o.leaf_entries, internal_entries + o.internal_entries, internals + o.internals};
+  }
+};
+struct AddSums {
+  __host__ __device__ LevelSums operator()(const LevelSums& a, const LevelSums& b) const { return a + b; }
+};
+
+constexpr int kNodeKindList = 1;
+
+/// The node (index into the level's pending) holding work item e: the last start <= e.
+__device__ inline std::int32_t node_of_entry(const unsigned long long* start, std::int32_t n, unsigned long long e) {
+  std::int32_t lo = 0, hi = n;  // start[lo] <= e < start[hi]
+  while (hi - lo > 1) {
+    const std::int32_t mid = (lo + hi) >> 1;
+    if (start[mid] <= e) lo = mid; else hi = mid;
+  }
+  return lo;
+}
+
+__global__ void level_init_kernel(const DevPending* pending, std::int32_t n, int level, bool last, Vec3* centre,
+                                  double* radius, unsigned long long* start_in, unsigned long long* min_bits,
+                                  std::int32_t* site_min, std::int32_t* site_max, unsigned long long* key) {
+  const std::int32_t q = blockIdx.x * blockDim.x + threadIdx.x;
+  if (q >= n) return;
+  const DevPending p = pending[q];
+  centre[q] = grid::cell_centre_vector(grid::code_of(p.cell, level), level);
+  radius[q] = last ? 0.0 : node_radius(level, p.cell);
+  start_in[q] = p.parent_count;
+  if (q == 0) start_in[n] = 0;
+  min_bits[q] = ~0ull;
+  site_min[q] = INT_MAX;
+  site_max[q] = INT_MIN;
+  key[q] = ~0ull;
+}
+
+/// Segmented reductions over a warp whose items are sorted by node (inactive lanes: node -1).
+/// Returns true in the lane that holds its node's result.
+template <typename T, typename Op>
+__device__ inline bool warp_segment_reduce(std::int32_t node, T& value, Op op) {
+  const int lane = threadIdx.x & 31;
+  for (int off = 1; off < 32; off <<= 1) {
+    const T other = __shfl_down_sync(0xffffffffu, value, off);
+    const std::int32_t other_node = __shfl_down_sync(0xffffffffu, node, off);
+    if (lane + off < 32 && other_node == node) value = op(value, other);
+  }
+  const std::int32_t prev = __shfl_up_sync(0xffffffffu, node, 1);
+  return node >= 0 && (lane == 0 || prev != node);
+}
+
+struct MinU64 {
+  __device__ unsigned long long operator()(unsigned long long a, unsigned long long b) const { return a < b ? a : b; }
+};
+struct MinI32 {
+  __device__ std::int32_t operator()(std::int32_t a, std::int32_t b) const { return a < b ? a : b; }
+};
+struct MaxI32 {
+  __device__ std::int32_t operator()(std::int32_t a, std::int32_t b) const { return a > b ? a : b; }
+};
+
+// The nodes of a level come in groups of four that share one parent list (the four children of
+// an internal node; at level 0 the octants 0-3 and 4-7, each with every candidate), so a work
+// item is one entry of a group's list, and its piece is read once for the four nodes. Node
+// 4 g + c's entries start at start[4 g + c] = 4 start[4 g] / 4 + c * (its list's length).
+
+/// The group holding work item t: start[4 g] <= 4 t < start[4 g + 4].
+__device__ inline std::int32_t group_of_item(const unsigned long long* start, std::int32_t groups,
+                                             unsigned long long t) {
+  std::int32_t lo = 0, hi = groups;
+  while (hi - lo > 1) {
+    const std::int32_t mid = (lo + hi) >> 1;
+    if (start[4 * mid] <= 4 * t) lo = mid; else hi = mid;
+  }
+  return lo;
+}
+
+/// Pass 1: the nearest candidate's squared chord per node.
+__global__ void level_min_kernel(const DevPending* pending, std::int32_t groups, const unsigned long long* start,
+                                 unsigned long long items, const std::int32_t* parent_lists, const Piece* pieces,
+                                 const Vec3* centre, unsigned long long* min_bits) {
+  const unsigned long long t = static_cast<unsigned long long>(blockIdx.x) * blockDim.x + threadIdx.x;
+  std::int32_t g = -1;
+  unsigned long long bits[4] = {~0ull, ~0ull, ~0ull, ~0ull};
+  if (t < items) {
+    g = group_of_item(start, groups, t);
+    const unsigned long long pos = t - start[4 * g] / 4;
+    const Piece piece = pieces[parent_lists[pending[4 * g].parent_offset + pos]];
+    for (int c = 0; c < 4; ++c) {
+      bits[c] = static_cast<unsigned long long>(__double_as_longlong(piece_chord2(centre[4 * g + c], piece)));
+    }
+  }
+  for (int c = 0; c < 4; ++c) {
+    if (warp_segment_reduce(g, bits[c], MinU64{})) atomicMin(&min_bits[4 * g + c], bits[c]);
+  }
+}
+
+/// Pass 2 (levels above the labelling level): keep flags, and the kept sites' range per node.
+__global__ void level_keep_kernel(const DevPending* pending, std::int32_t groups, const unsigned long long* start,
+                                  unsigned long long items, const std::int32_t* parent_lists, const Piece* pieces,
+                                  const Vec3* centre, const double* threshold, unsigned int* keep,
+                                  std::int32_t* site_min, std::int32_t* site_max) {
+  const unsigned long long t = static_cast<unsigned long long>(blockIdx.x) * blockDim.x + threadIdx.x;
+  std::int32_t g = -1;
+  std::int32_t lo[4] = {INT_MAX, INT_MAX, INT_MAX, INT_MAX}, hi[4] = {INT_MIN, INT_MIN, INT_MIN, INT_MIN};
+  if (t < items) {
+    g = group_of_item(start, groups, t);
+    const unsigned long long pos = t - start[4 * g] / 4;
+    const Piece piece = pieces[parent_lists[pending[4 * g].parent_offset + pos]];
+    for (int c = 0; c < 4; ++c) {
+      const double d2 = piece_chord2(centre[4 * g + c], piece);
+      const bool kept = d2 <= threshold[4 * g + c];
+      keep[start[4 * g + c] + pos] = kept ? 1u : 0u;
+      if (kept) lo[c] = hi[c] = piece.site;
+    }
+  }
+  for (int c = 0; c < 4; ++c) {
+    const bool lead = warp_segment_reduce(g, lo[c], MinI32{});
+    warp_segment_reduce(g, hi[c], MaxI32{});
+    if (lead && lo[c] != INT_MAX) {
+      atomicMin(&site_min[4 * g + c], lo[c]);
+      atomicMax(&site_max[4 * g + c], hi[c]);
+    }
+  }
+}
+
+/// Per node: the pruning threshold (in place of its radius).
+__global__ void level_threshold_kernel(std::int32_t n, const unsigned long long* min_bits, double* radius) {
+  const std::int32_t q = blockIdx.x * blockDim.x + threadIdx.x;
+  if (q >= n) return;
+  radius[q] = prune_threshold(__longlong_as_double(static_cast<long long>(min_bits[q])), radius[q]);
+}
+
+/// Pass 2 at the labelling level: per node the best candidate in consider()'s order, ties to
+/// the first in list order, as (rank, site, position) among the entries at the nearest chord.
+__global__ void level_best_kernel(const DevPending* pending, std::int32_t groups, const unsigned long long* start,
+                                  unsigned long long items, const std::int32_t* parent_lists, const Piece* pieces,
+                                  const Vec3* centre, const unsigned long long* min_bits, unsigned long long* key) {
+  const unsigned long long t = static_cast<unsigned long long>(blockIdx.x) * blockDim.x + threadIdx.x;
+  std::int32_t g = -1;
+  unsigned long long k[4] = {~0ull, ~0ull, ~0ull, ~0ull};
+  if (t < items) {
+    g = group_of_item(start, groups, t);
+    const unsigned long long pos = t - start[4 * g] / 4;
+    const Piece piece = pieces[parent_lists[pending[4 * g].parent_offset + pos]];
+    for (int c = 0; c < 4; ++c) {
+      const double d2 = piece_chord2(centre[4 * g + c], piece);
+      if (static_cast<unsigned long long>(__double_as_longlong(d2)) == min_bits[4 * g + c]) {
+        const unsigned long long rank = (d2 == 0.0 && (piece.flags & kPieceFixed)) ? 0 : 1;
+        k[c] = (rank << 63) | (static_cast<unsigned long long>(piece.site) << 32) | pos;
+      }
+    }
+  }
+  for (int c = 0; c < 4; ++c) {
+    if (warp_segment_reduce(g, k[c], MinU64{})) atomicMin(&key[4 * g + c], k[c]);
+  }
+}
+
+/// Per node: its kind and counts (kind: kUniform, kInternal or kNodeKindList; value: the site).
+__global__ void level_decide_kernel(std::int32_t n, bool last, bool with_distance, bool list_level_reached,
+                                    const unsigned long long* start, const unsigned int* keep_pos,
+                                    const std::int32_t* site_min, const std::int32_t* site_max,
+                                    const unsigned long long* key, std::int32_t* kind, std::int32_t* count,
+                                    std::int32_t* value, LevelSums* sums_in) {
+  const std::int32_t q = blockIdx.x * blockDim.x + threadIdx.x;
+  if (q >= n) return;
+  std::int32_t k, c, v;
+  if (last) {
+    v = static_cast<std::int32_t>((key[q] >> 32) & 0x7fffffffu);
+    k = with_distance ? kNodeKindList : kUniform;
+    c = with_distance ? 1 : 0;
+  } else {
+    c = static_cast<std::int32_t>(keep_pos[start[q + 1]] - keep_pos[start[q]]);
+    const bool uniform = c == 0 || site_min[q] == site_max[q];
+    v = c == 0 ? -1 : site_min[q];
+    if (uniform && !with_distance) {
+      k = kUniform;
+    } else if ((uniform && c == 1) || (list_level_reached && static_cast<std::uint32_t>(c) <= kMaxLeafList)) {
+      k = kNodeKindList;
+    } else {
+      k = kInternal;
+    }
+  }
+  kind[q] = k;
+  count[q] = c;
+  value[q] = v;
+  sums_in[q] = {k == kNodeKindList ? static_cast<unsigned long long>(c) : 0ull,
+                k == kInternal ? static_cast<unsigned long long>(c) : 0ull, k == kInternal ? 1ull : 0ull};
+  if (q == 0) sums_in[n] = {0, 0, 0};
+}
+
+/// Per node: its TreeNode, its children's pending entries, and at the labelling level its winner.
+__global__ void level_write_nodes_kernel(const DevPending* pending, std::int32_t n, bool last,
+                                         const unsigned long long* start, const std::int32_t* parent_lists,
+                                         const std::int32_t* kind, const std::int32_t* count,
+                                         const std::int32_t* value, const unsigned long long* key,
+                                         const LevelSums* offsets, unsigned long long lists_base,
+                                         unsigned long long nodes_base, TreeNode* nodes, std::int32_t* lists,
+                                         DevPending* next) {
+  const std::int32_t q = blockIdx.x * blockDim.x + threadIdx.x;
+  if (q >= n) return;
+  const DevPending p = pending[q];
+  const LevelSums at = offsets[q];
+  if (kind[q] == kUniform) {
+    nodes[p.node] = {kUniform, value[q]};
+  } else if (kind[q] == kNodeKindList) {
+    nodes[p.node] = {count[q], static_cast<std::int32_t>(lists_base + at.leaf_entries)};
+    if (last) lists[lists_base + at.leaf_entries] = parent_lists[p.parent_offset + (key[q] & 0xffffffffu)];
+  } else {
+    const std::int32_t first_child = static_cast<std::int32_t>(nodes_base + 4 * at.internals);
+    nodes[p.node] = {kInternal, first_child};
+    grid::Cell kids[4];
+    grid::children(p.cell, kids);
+    for (int k = 0; k < 4; ++k) {
+      next[4 * at.internals + k] = {kids[k], first_child + k, static_cast<std::uint32_t>(count[q]),
+                                    at.internal_entries};
+    }
+  }
+}
+
+/// Per work item: kept entries to the list leaves' lists or to the next level's parent lists.
+__global__ void level_write_lists_kernel(const DevPending* pending, std::int32_t n, const unsigned long long* start,
+                                         unsigned long long entries, const std::int32_t* parent_lists,
+                                         const unsigned int* keep_pos, const std::int32_t* kind,
+                                         const LevelSums* offsets, unsigned long long lists_base,
+                                         std::int32_t* lists, std::int32_t* next_lists) {
+  const unsigned long long e = static_cast<unsigned long long>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (e >= entries || keep_pos[e + 1] == keep_pos[e]) return;
+  const std::int32_t node = node_of_entry(start, n, e);
+  const std::int32_t k = kind[node];
+  if (k == kUniform) return;
+  const unsigned long long local = keep_pos[e] - keep_pos[start[node]];
+  const std::int32_t id = parent_lists[pending[node].parent_offset + (e - start[node])];
+  if (k == kNodeKindList) {
+    lists[lists_base + offsets[node].leaf_entries + local] = id;
+  } else {
+    next_lists[offsets[node].internal_entries + local] = id;
+  }
+}
+
+__global__ void jump_kernel(const TreeNode* nodes, int jump_level, std::uint64_t count, JumpEntry* jump) {
+  const std::uint64_t k = static_cast<std::uint64_t>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (k >= count) return;
+  jump[k] = walk_to_jump_level(nodes, fast_cell_of(k, jump_level), jump_level);
+}
+
 template <typename T>
 T* device_alloc(std::size_t count, std::size_t* total) {
   T* p = nullptr;
@@ -122,6 +449,218 @@ T* device_copy(const std::vector<T>& host, std::size_t* total) {
   T* p = device_alloc<T>(host.size(), total);
   if (p) QTMV_CUDA_CHECK(cudaMemcpy(p, host.data(), host.size() * sizeof(T), cudaMemcpyHostToDevice));
   return p;
+}
+
+/// A device array from the stream-ordered pool that grows on demand (contents dropped, or kept
+/// with grow_keep). The build's scratch: the pool keeps it for the next build.
+template <typename T>
+struct Buffer {
+  T* p = nullptr;
+  std::size_t capacity = 0;
+  Buffer() = default;
+  Buffer(const Buffer&) = delete;
+  Buffer& operator=(const Buffer&) = delete;
+  ~Buffer() {
+    if (p) cudaFreeAsync(p, 0);
+  }
+  void need(std::size_t n) {
+    if (n <= capacity) return;
+    if (p) QTMV_CUDA_CHECK(cudaFreeAsync(p, 0));
+    p = nullptr;
+    capacity = 0;
+    const std::size_t want = 2 * n + 256;
+    QTMV_CUDA_CHECK(cudaMallocAsync(&p, want * sizeof(T), 0));
+    capacity = want;
+  }
+  void grow_keep(std::size_t n, std::size_t used) {
+    if (n <= capacity) return;
+    const std::size_t want = 2 * n + 256;
+    T* q = nullptr;
+    QTMV_CUDA_CHECK(cudaMallocAsync(&q, want * sizeof(T), 0));
+    if (used) QTMV_CUDA_CHECK(cudaMemcpyAsync(q, p, used * sizeof(T), cudaMemcpyDeviceToDevice, 0));
+    if (p) QTMV_CUDA_CHECK(cudaFreeAsync(p, 0));
+    p = q;
+    capacity = want;
+  }
+  /// The first `count` elements in a plain (cudaMalloc) array of their own.
+  T* copy_out(std::size_t count) const {
+    T* q = nullptr;
+    QTMV_CUDA_CHECK(cudaMalloc(&q, (count ? count : 1) * sizeof(T)));
+    if (count) QTMV_CUDA_CHECK(cudaMemcpyAsync(q, p, count * sizeof(T), cudaMemcpyDeviceToDevice, 0));
+    return q;
+  }
+};
+
+__global__ void iota_kernel(std::int32_t* out, std::int32_t count) {
+  const std::int32_t k = blockIdx.x * blockDim.x + threadIdx.x;
+  if (k < count) out[k] = k;
+}
+
+unsigned int blocks_of(std::uint64_t count) { return static_cast<unsigned int>((count + kBlock - 1) / kBlock); }
+
+/// What build_on_device made: the tree's arrays (device pointers, owned by the caller).
+struct DeviceTree {
+  TreeNode* nodes = nullptr;
+  std::int32_t* lists = nullptr;
+  JumpEntry* jump = nullptr;
+  std::uint64_t node_count = 0, list_count = 0, jump_count = 0;
+  int jump_level = 0;
+  double mean_candidates = 0;
+};
+
+/// The tree of build_tree (labeller.cpp), built on the current device.
+DeviceTree build_on_device(int device, const Piece* pieces, std::int32_t piece_count, int level,
+                           bool with_distance) {
+  const int list_level = tree_list_level(level);
+  // The scratch comes from the device's default pool, kept between builds (trimmed at the end).
+  cudaMemPool_t pool;
+  QTMV_CUDA_CHECK(cudaDeviceGetDefaultMemPool(&pool, device));
+  {
+    std::uint64_t keep_all = ~std::uint64_t{0};
+    QTMV_CUDA_CHECK(cudaMemPoolSetAttribute(pool, cudaMemPoolAttrReleaseThreshold, &keep_all));
+  }
+  DeviceTree t;
+  {
+  Buffer<DevPending> pending, next;
+  Buffer<std::int32_t> parent_lists, next_lists;
+  Buffer<TreeNode> nodes;
+  Buffer<std::int32_t> lists;
+  Buffer<Vec3> centre;
+  Buffer<double> radius;
+  Buffer<unsigned long long> start_in, start, min_bits, key;
+  Buffer<std::int32_t> site_min, site_max, kind, count, value;
+  Buffer<unsigned int> keep, keep_pos;
+  Buffer<LevelSums> sums_in, offsets;
+  Buffer<unsigned char> temp;
+  auto scan_temp = [&](std::size_t bytes) { temp.need(bytes ? bytes : 1); };
+
+  // Level 0: the eight octants, each with every candidate.
+  std::uint64_t n = grid::kOctants;
+  std::uint64_t entries = n * static_cast<std::uint64_t>(piece_count);
+  {
+    DevPending roots[grid::kOctants];
+    for (int o = 0; o < grid::kOctants; ++o) {
+      roots[o] = {grid::Cell{o, 0, 0}, o, static_cast<std::uint32_t>(piece_count), 0};
+    }
+    pending.need(n);
+    QTMV_CUDA_CHECK(cudaMemcpy(pending.p, roots, sizeof roots, cudaMemcpyHostToDevice));
+    parent_lists.need(static_cast<std::size_t>(piece_count));
+    iota_kernel<<<blocks_of(piece_count), kBlock>>>(parent_lists.p, piece_count);
+    QTMV_CUDA_CHECK_LAUNCH("iota_kernel");
+  }
+  std::uint64_t node_count = grid::kOctants, list_count = 0;
+  nodes.grow_keep(node_count, 0);
+  double weighted = 0;
+  for (int l = 0; l <= level && n > 0; ++l) {
+    const bool last = l == level;
+    if (n > 0x7ffffffful || entries + 1 > 0xfffffffful) {
+      // std::length_error: label_cells falls back to the host build.
+      throw std::length_error("the labeller's tree level " + std::to_string(l) +
+                              " has too many nodes or entries to be built on the device");
+    }
+    const std::int32_t nn = static_cast<std::int32_t>(n);
+    if (n % 4 != 0 || entries % 4 != 0) throw std::logic_error("build_on_device: nodes not in groups of four");
+    centre.need(n);
+    radius.need(n);
+    start_in.need(n + 1);
+    start.need(n + 1);
+    min_bits.need(n);
+    key.need(n);
+    site_min.need(n);
+    site_max.need(n);
+    kind.need(n);
+    count.need(n);
+    value.need(n);
+    sums_in.need(n + 1);
+    offsets.need(n + 1);
+    keep.need(entries + 1);
+    keep_pos.need(entries + 1);
+    level_init_kernel<<<blocks_of(n), kBlock>>>(pending.p, nn, l, last, centre.p, radius.p, start_in.p, min_bits.p,
+                                                site_min.p, site_max.p, key.p);
+    QTMV_CUDA_CHECK_LAUNCH("level_init_kernel");
+    std::size_t bytes = 0;
+    QTMV_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(nullptr, bytes, start_in.p, start.p, n + 1));
+    scan_temp(bytes);
+    QTMV_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(temp.p, bytes, start_in.p, start.p, n + 1));
+    if (entries > 0) {
+      // Groups of four nodes share a list (n and entries are multiples of 4).
+      const std::int32_t groups = nn / 4;
+      const std::uint64_t items = entries / 4;
+      level_min_kernel<<<blocks_of(items), kBlock>>>(pending.p, groups, start.p, items, parent_lists.p, pieces,
+                                                     centre.p, min_bits.p);
+      QTMV_CUDA_CHECK_LAUNCH("level_min_kernel");
+      if (last) {
+        level_best_kernel<<<blocks_of(items), kBlock>>>(pending.p, groups, start.p, items, parent_lists.p, pieces,
+                                                        centre.p, min_bits.p, key.p);
+        QTMV_CUDA_CHECK_LAUNCH("level_best_kernel");
+      } else {
+        level_threshold_kernel<<<blocks_of(n), kBlock>>>(nn, min_bits.p, radius.p);
+        QTMV_CUDA_CHECK_LAUNCH("level_threshold_kernel");
+        level_keep_kernel<<<blocks_of(items), kBlock>>>(pending.p, groups, start.p, items, parent_lists.p, pieces,
+                                                        centre.p, radius.p, keep.p, site_min.p, site_max.p);
+        QTMV_CUDA_CHECK_LAUNCH("level_keep_kernel");
+      }
+    }
+    if (!last) {
+      QTMV_CUDA_CHECK(cudaMemset(keep.p + entries, 0, sizeof(unsigned int)));
+      bytes = 0;
+      QTMV_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(nullptr, bytes, keep.p, keep_pos.p, entries + 1));
+      scan_temp(bytes);
+      QTMV_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(temp.p, bytes, keep.p, keep_pos.p, entries + 1));
+    }
+    level_decide_kernel<<<blocks_of(n), kBlock>>>(nn, last, with_distance, l >= list_level, start.p, keep_pos.p,
+                                                  site_min.p, site_max.p, key.p, kind.p, count.p, value.p,
+                                                  sums_in.p);
+    QTMV_CUDA_CHECK_LAUNCH("level_decide_kernel");
+    bytes = 0;
+    const LevelSums zero{0, 0, 0};
+    QTMV_CUDA_CHECK(cub::DeviceScan::ExclusiveScan(nullptr, bytes, sums_in.p, offsets.p, AddSums{}, zero, n + 1));
+    scan_temp(bytes);
+    QTMV_CUDA_CHECK(cub::DeviceScan::ExclusiveScan(temp.p, bytes, sums_in.p, offsets.p, AddSums{}, zero, n + 1));
+    LevelSums total{};
+    QTMV_CUDA_CHECK(cudaMemcpy(&total, offsets.p + n, sizeof total, cudaMemcpyDeviceToHost));
+    if (node_count + 4 * total.internals > 0x7fffffffull || list_count + total.leaf_entries > 0x7fffffffull) {
+      throw std::length_error("the labeller's tree outgrew 2^31 nodes or list entries");
+    }
+    nodes.grow_keep(node_count + 4 * total.internals, node_count);
+    lists.grow_keep(list_count + total.leaf_entries + 1, list_count);
+    next.need(4 * total.internals + 1);
+    next_lists.need(total.internal_entries + 1);
+    level_write_nodes_kernel<<<blocks_of(n), kBlock>>>(pending.p, nn, last, start.p, parent_lists.p, kind.p, count.p,
+                                                       value.p, key.p, offsets.p, list_count, node_count, nodes.p,
+                                                       lists.p, next.p);
+    QTMV_CUDA_CHECK_LAUNCH("level_write_nodes_kernel");
+    if (!last && entries > 0) {
+      level_write_lists_kernel<<<blocks_of(entries), kBlock>>>(pending.p, nn, start.p, entries, parent_lists.p,
+                                                               keep_pos.p, kind.p, offsets.p, list_count, lists.p,
+                                                               next_lists.p);
+      QTMV_CUDA_CHECK_LAUNCH("level_write_lists_kernel");
+    }
+    weighted += static_cast<double>(entries) +
+                static_cast<double>(total.leaf_entries) * std::ldexp(1.0, 2 * (level - l));
+    node_count += 4 * total.internals;
+    list_count += total.leaf_entries;
+    n = 4 * total.internals;
+    entries = 4 * total.internal_entries;
+    std::swap(pending.p, next.p);
+    std::swap(pending.capacity, next.capacity);
+    std::swap(parent_lists.p, next_lists.p);
+    std::swap(parent_lists.capacity, next_lists.capacity);
+  }
+  t.jump_level = tree_jump_level(level);
+  t.jump_count = grid::cell_count(t.jump_level);
+  QTMV_CUDA_CHECK(cudaMalloc(&t.jump, t.jump_count * sizeof(JumpEntry)));
+  jump_kernel<<<blocks_of(t.jump_count), kBlock>>>(nodes.p, t.jump_level, t.jump_count, t.jump);
+  QTMV_CUDA_CHECK_LAUNCH("jump_kernel");
+  t.node_count = node_count;
+  t.list_count = list_count;
+  t.mean_candidates = weighted / static_cast<double>(grid::cell_count(level));
+  t.nodes = nodes.copy_out(node_count);
+  t.lists = lists.copy_out(list_count);
+  }  // the scratch goes back to the pool here
+  QTMV_CUDA_CHECK(cudaDeviceSynchronize());
+  QTMV_CUDA_CHECK(cudaMemPoolTrimTo(pool, std::size_t{256} << 20));
+  return t;
 }
 
 }  // namespace
@@ -155,6 +694,7 @@ struct Labeller::Impl {
   std::int32_t* lists = nullptr;
   JumpEntry* jump = nullptr;
   int jump_level = 0;
+  TreeInfo tree_info;
   std::int32_t* site = nullptr;
   float* metres = nullptr;
   std::uint8_t* boundary = nullptr;
@@ -206,7 +746,50 @@ Labeller::Labeller(int device, const std::vector<Piece>& candidates, const Tree*
   }
 }
 
+Labeller::Labeller(int device, const std::vector<Piece>& candidates, int level, bool with_distance)
+    : impl_(std::make_unique<Impl>()) {
+  Impl& m = *impl_;
+  m.device = device;
+  m.level = level;
+  m.hier = true;
+  QTMV_CUDA_CHECK(cudaSetDevice(device));
+  QTMV_CUDA_CHECK(cudaEventCreate(&m.start));
+  QTMV_CUDA_CHECK(cudaEventCreate(&m.stop));
+  if (candidates.empty()) throw std::invalid_argument("build_tree: no candidates");
+  if (candidates.size() > 0x7fffffffu) throw std::invalid_argument("more than 2^31 candidates");
+  m.piece_count = static_cast<int>(candidates.size());
+  m.pieces = device_copy(candidates, &m.bytes);
+  const DeviceTree t = build_on_device(device, m.pieces, m.piece_count, level, with_distance);
+  m.nodes = t.nodes;
+  m.lists = t.lists;
+  m.jump = t.jump;
+  m.jump_level = t.jump_level;
+  m.bytes += t.node_count * sizeof(TreeNode) + t.list_count * sizeof(std::int32_t) + t.jump_count * sizeof(JumpEntry);
+  m.tree_info = {t.node_count, t.list_count, t.jump_count, t.jump_level, t.mean_candidates};
+}
+
 Labeller::~Labeller() = default;
+
+TreeInfo Labeller::tree_info() const { return impl_->tree_info; }
+
+void Labeller::download_tree(std::vector<TreeNode>* nodes, std::vector<std::int32_t>* lists,
+                             std::vector<JumpEntry>* jump) const {
+  const Impl& m = *impl_;
+  QTMV_CUDA_CHECK(cudaSetDevice(m.device));
+  nodes->resize(m.tree_info.nodes);
+  lists->resize(m.tree_info.list_entries);
+  jump->resize(m.tree_info.jump_entries);
+  if (!nodes->empty()) {
+    QTMV_CUDA_CHECK(cudaMemcpy(nodes->data(), m.nodes, nodes->size() * sizeof(TreeNode), cudaMemcpyDeviceToHost));
+  }
+  if (!lists->empty()) {
+    QTMV_CUDA_CHECK(
+        cudaMemcpy(lists->data(), m.lists, lists->size() * sizeof(std::int32_t), cudaMemcpyDeviceToHost));
+  }
+  if (!jump->empty()) {
+    QTMV_CUDA_CHECK(cudaMemcpy(jump->data(), m.jump, jump->size() * sizeof(JumpEntry), cudaMemcpyDeviceToHost));
+  }
+}
 
 void Labeller::reserve(std::uint64_t max_cells, bool want_distance, bool want_boundary) {
   Impl& m = *impl_;
@@ -233,8 +816,22 @@ float Labeller::run(grid::Code first, std::uint64_t count, bool want_distance, b
   QTMV_CUDA_CHECK(cudaEventRecord(m.start));
   if (m.hier) {
     const TreeView view{m.nodes, m.lists, m.pieces, m.jump, m.jump_level, m.level};
-    tree_label_kernel<<<blocks_for(count), kBlock>>>(view, first, count, m.site, metres, boundary);
-    QTMV_CUDA_CHECK_LAUNCH("tree_label_kernel");
+    if (count == 0) {
+      // nothing to label
+    } else if (metres) {
+      // With distances the tree has no uniform leaves: cell by cell.
+      tree_label_kernel<<<blocks_for(count), kBlock>>>(view, first, count, m.site, metres, boundary);
+      QTMV_CUDA_CHECK_LAUNCH("tree_label_kernel");
+    } else {
+      // The jump cells whose rows the range touches.
+      const int k = m.level - m.jump_level;
+      const grid::Cell c0 = grid::cell_of(first, m.level), c1 = grid::cell_of(first + count - 1, m.level);
+      const std::uint32_t r0 = c0.row >> k, r1 = c1.row >> k;
+      const grid::Code j0 = grid::code_of({c0.octant, r0, 0}, m.jump_level);
+      const grid::Code j1 = grid::code_of({c1.octant, r1, 2 * r1}, m.jump_level);
+      tree_paint_kernel<<<static_cast<unsigned int>(j1 - j0 + 1), kBlock>>>(view, j0, first, count, m.site, boundary);
+      QTMV_CUDA_CHECK_LAUNCH("tree_paint_kernel");
+    }
   } else {
     brute_label_kernel<<<blocks_for(count), kBlock>>>(m.pieces, m.piece_count, m.level, first, count, m.site, metres);
     QTMV_CUDA_CHECK_LAUNCH("brute_label_kernel");

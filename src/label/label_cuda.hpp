@@ -11,6 +11,7 @@
 
 #include "grid/qtm.hpp"
 #include "label/label_math.hpp"
+#include "label/label_tree.hpp"
 
 namespace qtmv::label {
 struct Tree;
@@ -28,13 +29,30 @@ struct DeviceInfo {
 };
 DeviceInfo device_info(int device);
 
+/// Size of a tree built on the device.
+struct TreeInfo {
+  std::uint64_t nodes = 0;
+  std::uint64_t list_entries = 0;
+  std::uint64_t jump_entries = 0;
+  int jump_level = 0;
+  double mean_candidates = 0;  ///< as Tree::mean_candidates
+};
+
 /// One labelling job on one GPU: the candidates (and for `hier` the tree) live on the device;
 /// run() computes a range of codes into device buffers, download() brings them to the host.
 class Labeller {
  public:
   /// tree == nullptr: brute force over all candidates. Throws std::runtime_error on CUDA errors.
   Labeller(int device, const std::vector<Piece>& candidates, const Tree* tree, int level);
+  /// `hier` with the tree built on the device, level by level: the tree of build_tree
+  /// (labeller.cpp), node for node and entry for entry.
+  Labeller(int device, const std::vector<Piece>& candidates, int level, bool with_distance);
   ~Labeller();
+  /// Size of the device-built tree (zeros for the other constructor).
+  TreeInfo tree_info() const;
+  /// Copies the device-built tree to the host (for the tests).
+  void download_tree(std::vector<TreeNode>* nodes, std::vector<std::int32_t>* lists,
+                     std::vector<JumpEntry>* jump) const;
   Labeller(const Labeller&) = delete;
   Labeller& operator=(const Labeller&) = delete;
 

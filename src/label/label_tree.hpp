@@ -24,6 +24,19 @@ enum TreeNodeKind : std::int32_t {
   kUniform = -2,   ///< value: the site of every cell below
 };
 
+/// Levels above the labelling level at which mixed nodes stop being split (see build_tree).
+constexpr int kListDepth = 3;
+/// A mixed node with more candidates than this goes on being split (down to the level, where
+/// each cell's winner is settled in the build): dense line sites keep the lists short.
+constexpr std::uint32_t kMaxLeafList = 64;
+
+/// The level at which mixed nodes become list leaves, and the level of the jump table.
+QTMV_HD inline int tree_list_level(int level) { return level - kListDepth > 0 ? level - kListDepth : 0; }
+QTMV_HD inline int tree_jump_level(int level) {
+  const int j = level - 4 < 11 ? level - 4 : 11;  // at most 8 * 4^11 entries (256 MiB)
+  return j > 0 ? j : 0;
+}
+
 /// One node: kind (count < 0) or the length of its candidate list (count >= 1, value: offset of
 /// the list in TreeView::lists).
 struct TreeNode {
@@ -115,6 +128,19 @@ QTMV_HD inline bool interior_of_ancestor(const grid::Cell& c, int level, int lea
     return c.col > base && c.col < base + 2 * r && !(grid::is_up(c) && r == last_row);
   }
   return c.col > base + 2 * r + 1 && c.col < base + (2u << k) - 1 && !(!grid::is_up(c) && r == 0);
+}
+
+/// The m-th (0 <= m < 4^k) of the cells k levels below cell a, row by row from a's apex: local
+/// row rr holds 2 rr + 1 cells (the jump cells' painting order on the GPU).
+QTMV_HD inline grid::Cell descendant(const grid::Cell& a, int k, std::uint32_t m) {
+  std::uint32_t rr = static_cast<std::uint32_t>(sqrtf(static_cast<float>(m)));
+  while (rr * rr > m) --rr;
+  while ((rr + 1) * (rr + 1) <= m) ++rr;
+  const std::uint32_t cc = m - rr * rr;
+  const std::uint32_t side = 1u << k, base = (a.col / 2) << (k + 1);
+  const bool up = grid::is_up(a);
+  const std::uint32_t r = up ? rr : side - 1 - rr;
+  return {a.octant, (a.row << k) + r, up ? base + cc : base + 2 * r + 1 + cc};
 }
 
 /// The walk that builds the jump table: from the octant's root down to jump_level or a leaf.

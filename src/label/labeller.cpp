@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <memory>
 #include <stdexcept>
 #include <string>
 
@@ -120,9 +121,10 @@ constexpr std::uint64_t kMinTileCells = 4096;  // below this, tiling is pointles
 
 /// Boundary flags of [first, first + count) from its labels; neighbours outside the range are
 /// labelled by `outside(code)`.
+/// With `premarked`, cells whose flag is already 0 (inner cells of uniform leaves) are kept.
 template <typename Outside>
 void boundary_from_labels(int level, grid::Code first, std::uint64_t count, const std::int32_t* site,
-                          std::uint8_t* boundary, int threads, const Outside& outside) {
+                          std::uint8_t* boundary, int threads, const Outside& outside, bool premarked = false) {
   const std::int64_t blocks = static_cast<std::int64_t>((count + kCpuBlock - 1) / kCpuBlock);
 #pragma omp parallel for schedule(dynamic, 4) num_threads(threads)
   for (std::int64_t b = 0; b < blocks; ++b) {
@@ -130,15 +132,17 @@ void boundary_from_labels(int level, grid::Code first, std::uint64_t count, cons
     const std::uint64_t end = std::min(count, begin + kCpuBlock);
     grid::Cell c = grid::cell_of(first + begin, level);
     for (std::uint64_t k = begin; k < end; ++k) {
-      grid::Cell nb[3];
-      grid::neighbours(c, level, nb);
-      std::uint8_t flag = 0;
-      for (int s = 0; s < 3 && !flag; ++s) {
-        const grid::Code code = grid::code_of(nb[s], level);
-        const std::int32_t other = code >= first && code - first < count ? site[code - first] : outside(code);
-        flag = other != site[k];
+      if (!premarked || boundary[k] != 0) {
+        grid::Cell nb[3];
+        grid::neighbours(c, level, nb);
+        std::uint8_t flag = 0;
+        for (int s = 0; s < 3 && !flag; ++s) {
+          const grid::Code code = grid::code_of(nb[s], level);
+          const std::int32_t other = code >= first && code - first < count ? site[code - first] : outside(code);
+          flag = other != site[k];
+        }
+        boundary[k] = flag;
       }
-      boundary[k] = flag;
       // Next cell in code order.
       if (c.col < 2 * c.row) {
         ++c.col;
@@ -188,7 +192,19 @@ void cpu_tree_range(const Tree& tree, const TreeView& tv, grid::Code first, std:
       if (lo >= hi) continue;
       if (node.count == kUniform) {
         std::fill(site + (lo - first), site + (hi - first), node.value);
+        if (boundary) {
+          // Inner cells of the leaf (interior_of_ancestor) have all three neighbours in it: flag
+          // 0 now; the others (1: to be decided) go through boundary_from_labels.
+          const std::uint64_t row_first = octant_base + row * row + c0, row_last = octant_base + row * row + c1;
+          const bool edge_row = up ? r + 1 == rows : r == 0;
+          for (std::uint64_t code = lo; code < hi; ++code) {
+            const bool odd = ((code - octant_base - row * row) & 1u) != 0;  // a down cell
+            const bool inner = code > row_first && code < row_last && !(edge_row && (up ? !odd : odd));
+            boundary[code - first] = inner ? 0 : 1;
+          }
+        }
       } else {
+        if (boundary) std::fill(boundary + (lo - first), boundary + (hi - first), std::uint8_t{1});
         for (std::uint64_t code = lo; code < hi; ++code) {
           const Best best = best_of_list(tv, node, grid::cell_centre_vector(code, level));
           site[code - first] = best.site;
@@ -198,8 +214,9 @@ void cpu_tree_range(const Tree& tree, const TreeView& tv, grid::Code first, std:
     }
   }
   if (boundary) {
-    boundary_from_labels(level, first, count, site, boundary, threads,
-                         [&](grid::Code code) { return tree_label(tv, grid::cell_of(code, level)); });
+    boundary_from_labels(
+        level, first, count, site, boundary, threads,
+        [&](grid::Code code) { return tree_label(tv, grid::cell_of(code, level)); }, true);
   }
 }
 
@@ -261,12 +278,6 @@ Best reference_best(const std::vector<Piece>& candidates, grid::Code code, int l
 
 namespace {
 
-// Levels above the labelling level at which mixed nodes stop being split (see build_tree).
-constexpr int kListDepth = 3;
-// A mixed node with more candidates than this goes on being split (down to the level, where
-// each cell's winner is settled in the build): dense line sites keep the lists short.
-constexpr std::uint32_t kMaxLeafList = 64;
-
 /// A node of the level being built, with the list its parent kept (the node filters it).
 struct Pending {
   grid::Cell cell;
@@ -295,8 +306,8 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
   tree.level = level;
   // Nodes still mixed at this level become list leaves: their cells test the few candidates
   // left rather than the tree going on down (the last levels hold most of the nodes).
-  const int list_level = std::max(0, level - kListDepth);
-  tree.jump_level = std::max(0, std::min(level - 4, 9));
+  const int list_level = tree_list_level(level);
+  tree.jump_level = tree_jump_level(level);
   tree.nodes.resize(grid::kOctants);
 
   std::vector<std::int32_t> parent_lists(candidates.size());
@@ -505,8 +516,24 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
   progress(0.0, "prepare");
   const std::vector<Piece> candidates = make_candidates(input, options.rule);
   const bool hier = options.algorithm == Algorithm::hier;
+  // On a GPU the tree is built there (cuda::Labeller's device constructor), inside prepare.
+  const bool device_tree = hier && device.cuda && options.tree_on_device;
+  std::unique_ptr<cuda::Labeller> gpu_built;
   Tree tree;
-  if (hier) {
+  if (device_tree) {
+    try {
+      gpu_built = std::make_unique<cuda::Labeller>(device.index, candidates, input.level, options.want_distance);
+    } catch (const std::length_error&) {
+      // Too large for the device build's 32-bit work counts: the host builds it (below).
+      gpu_built.reset();
+    }
+  }
+  if (gpu_built) {
+    const cuda::TreeInfo info = gpu_built->tree_info();
+    stats.tree_nodes = info.nodes;
+    stats.tree_list_entries = info.list_entries;
+    stats.mean_candidates = info.mean_candidates;
+  } else if (hier) {
     tree = build_tree(candidates, input.level, options.want_distance, threads);
     stats.tree_nodes = tree.nodes.size();
     stats.tree_list_entries = tree.lists.size();
@@ -551,7 +578,8 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
     return stats;
   }
 
-  cuda::Labeller gpu(device.index, candidates, hier ? &tree : nullptr, input.level);
+  if (!gpu_built) gpu_built = std::make_unique<cuda::Labeller>(device.index, candidates, hier ? &tree : nullptr, input.level);
+  cuda::Labeller& gpu = *gpu_built;
   const cuda::DeviceInfo info = cuda::device_info(device.index);
   const std::uint64_t device_limit =
       options.memory_limit_bytes ? options.memory_limit_bytes : static_cast<std::uint64_t>(info.free_bytes * 0.8);

@@ -66,6 +66,8 @@ struct LabelOptions {
   bool want_distance = true;    ///< fill LabelTile::distance_m
   bool want_boundary = true;    ///< fill LabelTile::boundary
   int threads = 0;              ///< CPU threads; 0: all (OpenMP's default)
+  /// On a CUDA device, build `hier`'s tree on the device (the same tree as on the host, faster).
+  bool tree_on_device = true;
   /// Memory (bytes) the dense outputs of one tile may take on the device that computes them
   /// (and on the host that receives them); 0: from the device's free memory / the host's RAM.
   std::size_t memory_limit_bytes = 0;

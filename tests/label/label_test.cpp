@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "grid/qtm.hpp"
+#include "label/label_cuda.hpp"
 #include "label/label_math.hpp"
 #include "label/label_tree.hpp"
 #include "label/labeller.hpp"
@@ -138,6 +139,26 @@ TEST(LabelTree, FastCellOfAndAncestorAgreeWithTheGrid) {
         const int d = child_digit(child);
         ASSERT_TRUE(kids[d].row == child.row && kids[d].col == child.col);
       }
+    }
+  }
+}
+
+TEST(LabelTree, DescendantsCoverTheirAncestorOnce) {
+  for (int level = 0; level <= 5; ++level) {
+    for (int k = 0; k <= 4; ++k) {
+      const int below = level + k;
+      std::vector<std::uint8_t> seen(grid::cell_count(below), 0);
+      for (Code a = 0; a < grid::cell_count(level); ++a) {
+        const Cell ac = grid::cell_of(a, level);
+        for (std::uint32_t m = 0; m < (1u << (2 * k)); ++m) {
+          const Cell d = descendant(ac, k, m);
+          ASSERT_LE(d.col, 2 * d.row);
+          const Cell back = ancestor(d, below, level);
+          ASSERT_EQ(grid::code_of(back, level), a) << "level " << level << " k " << k << " m " << m;
+          ++seen[grid::code_of(d, below)];
+        }
+      }
+      EXPECT_EQ(std::count(seen.begin(), seen.end(), 1), static_cast<std::ptrdiff_t>(seen.size()));
     }
   }
 }
@@ -553,6 +574,92 @@ TEST_P(LabelDevice, WithoutDistanceOrBoundary) {
   EXPECT_TRUE(bare.distance_m.empty());
   EXPECT_TRUE(bare.boundary.empty());
   EXPECT_EQ(bare.site, full.site);
+}
+
+// The tree built on the GPU is the host's tree, node for node and list entry for list entry,
+// and labels without distances (the benchmarks' case) agree bit for bit between the devices.
+TEST(LabelDeviceTree, MatchesTheHostTree) {
+  if (cuda_device_count() == 0) GTEST_SKIP() << "no CUDA GPU";
+  struct Case {
+    std::string name;
+    SiteGeometry g;
+  };
+  std::vector<Case> cases;
+  for (int level : {0, 1, 3, 6, 9}) cases.push_back({"random", random_points(level, level < 3 ? 7 : 300, 500 + level)});
+  cases.push_back({"many", random_points(10, 20000, 61)});
+  cases.push_back({"duplicates", duplicates(5)});
+  cases.push_back({"poles", poles_and_dateline(8)});
+  cases.push_back({"antipodal", antipodal(6)});
+  cases.push_back({"hemisphere", random_points(9, 40, 77, 5, 80)});
+  cases.push_back({"single", single_site(9)});
+  cases.push_back({"ties", exact_ties(9)});
+  cases.push_back({"arcs", arcs(6, 6, 30, 306)});
+  cases.push_back({"dense arcs", arcs(10, 40, 25, 910)});
+  cases.push_back({"polygons", polygons(6)});
+  for (const Case& c : cases) {
+    for (const Rule rule : {Rule::exact, Rule::cell}) {
+      const LabelInput in = c.g.input();
+      if (rule == Rule::exact && in.piece_count == 0 && in.fixed_cell_count == 0) continue;
+      if (rule == Rule::cell && in.site_cell_count == 0 && in.fixed_cell_count == 0) continue;
+      const std::vector<Piece> candidates = make_candidates(in, rule);
+      for (const bool with_distance : {false, true}) {
+        SCOPED_TRACE(c.name + " level " + std::to_string(c.g.level) + (rule == Rule::exact ? " exact" : " cell") +
+                     (with_distance ? " with distances" : ""));
+        const Tree host = build_tree(candidates, c.g.level, with_distance, 2);
+        cuda::Labeller gpu(0, candidates, c.g.level, with_distance);
+        std::vector<TreeNode> nodes;
+        std::vector<std::int32_t> lists;
+        std::vector<JumpEntry> jump;
+        gpu.download_tree(&nodes, &lists, &jump);
+        ASSERT_EQ(nodes.size(), host.nodes.size());
+        ASSERT_EQ(lists.size(), host.lists.size());
+        ASSERT_EQ(jump.size(), host.jump.size());
+        EXPECT_EQ(gpu.tree_info().jump_level, host.jump_level);
+        std::uint64_t bad = 0;
+        for (std::size_t k = 0; k < nodes.size(); ++k) {
+          bad += nodes[k].count != host.nodes[k].count || nodes[k].value != host.nodes[k].value;
+        }
+        EXPECT_EQ(bad, 0u) << "nodes differ";
+        EXPECT_TRUE(lists == host.lists) << "lists differ";
+        bad = 0;
+        for (std::size_t k = 0; k < jump.size(); ++k) {
+          bad += jump[k].node != host.jump[k].node || jump[k].level != host.jump[k].level;
+        }
+        EXPECT_EQ(bad, 0u) << "jump tables differ";
+        EXPECT_NEAR(gpu.tree_info().mean_candidates, host.mean_candidates, 1e-9 * host.mean_candidates);
+      }
+      // Whole runs: CPU (host tree) and CUDA (device tree) give the same labels and flags.
+      LabelOptions options;
+      options.rule = rule;
+      options.want_distance = false;
+      options.device = "cpu";
+      const LabelResult cpu = label_all(in, options);
+      options.device = "cuda";
+      const LabelResult gpu = label_all(in, options);
+      EXPECT_TRUE(cpu.site == gpu.site) << c.name;
+      EXPECT_TRUE(cpu.boundary == gpu.boundary) << c.name;
+      if (grid::cell_count(c.g.level) >= 8 * 40000) {
+        // Tiles of 40000 cells (5 bytes each): the GPU's jump cells cut by the tiles' ends.
+        options.memory_limit_bytes = 5 * 40000;
+        std::uint64_t mismatches = 0, tiles = 0;
+        label_cells(in, options, [&](const LabelTile& tile) {
+          ++tiles;
+          for (std::uint64_t k = 0; k < tile.count; ++k) {
+            mismatches += tile.site[k] != cpu.site[tile.first + k] || tile.boundary[k] != cpu.boundary[tile.first + k];
+          }
+        });
+        EXPECT_GT(tiles, 5u);
+        EXPECT_EQ(mismatches, 0u) << c.name << " in tiles";
+        options.memory_limit_bytes = 0;
+      }
+      options.want_distance = true;
+      const LabelResult gpu_d = label_all(in, options);
+      options.device = "cpu";
+      const LabelResult cpu_d = label_all(in, options);
+      EXPECT_TRUE(cpu_d.site == gpu_d.site) << c.name;
+      EXPECT_TRUE(cpu_d.distance_m == gpu_d.distance_m) << c.name;
+    }
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(Cpu, LabelDevice, ::testing::Values(std::string("cpu")));

@@ -15,6 +15,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <iostream>
+#include <memory>
 #include <random>
 #include <sstream>
 #include <stdexcept>
@@ -50,13 +51,14 @@ struct Args {
   std::uint64_t seed = 1;
   bool csv = false;
   bool csv_header = true;
+  bool host_tree = false;  // GPU runs: build hier's tree on the host (the old way) rather than on the GPU
 };
 
 [[noreturn]] void usage(const std::string& error) {
   std::cerr << "qtmv_bench: " << error << "\n"
             << "usage: qtmv_bench [--sites SPEC[;SPEC...]] [--level L[,L...]] [--algorithm brute|hier]\n"
                "                  [--rule exact|cell] [--device auto|cpu|cuda|cuda:N] [--repeat R] [--threads T]\n"
-               "                  [--distance] [--no-boundary] [--check N] [--seed S] [--csv] [--no-header]\n"
+               "                  [--distance] [--no-boundary] [--check N] [--seed S] [--csv] [--no-header] [--host-tree]\n"
                "  SPEC: FILE.csv (lon,lat per line) | uniform:N | arcs:N\n";
   std::exit(2);
 }
@@ -108,6 +110,8 @@ Args parse(int argc, char** argv) {
       a.seed = std::stoull(value());
     } else if (opt == "--csv") {
       a.csv = true;
+    } else if (opt == "--host-tree") {
+      a.host_tree = true;
     } else if (opt == "--no-header") {
       a.csv_header = false;
     } else {
@@ -306,15 +310,31 @@ Row run_one(const Args& a, const std::string& spec, int level) {
     row.device = "cuda:" + std::to_string(device) + " " + info.name;
     std::vector<label::Piece> candidates;
     label::Tree tree;
+    const bool hier = a.algorithm == Algorithm::hier;
+    const bool device_tree = hier && !a.host_tree;
+    if (hier && a.host_tree) row.algorithm = "hier-host-tree";
+    std::unique_ptr<label::cuda::Labeller> built;
     for (int r = 0; r < a.repeat; ++r) {
+      built.reset();
       const double t0 = now_seconds();
       candidates = label::make_candidates(input, a.rule);
-      if (a.algorithm == Algorithm::hier) tree = label::build_tree(candidates, level, a.distance, a.threads);
+      if (device_tree) {
+        // Candidates to the GPU and the tree built there (the constructor synchronises).
+        built = std::make_unique<label::cuda::Labeller>(device, candidates, level, a.distance);
+      } else if (hier) {
+        tree = label::build_tree(candidates, level, a.distance, a.threads);
+      }
       prepare.push_back((now_seconds() - t0) * 1e3);
     }
-    row.mean_candidates = a.algorithm == Algorithm::hier ? tree.mean_candidates : double(candidates.size());
-    row.tree_nodes = tree.nodes.size();
-    label::cuda::Labeller gpu(device, candidates, a.algorithm == Algorithm::hier ? &tree : nullptr, level);
+    if (device_tree) {
+      row.mean_candidates = built->tree_info().mean_candidates;
+      row.tree_nodes = built->tree_info().nodes;
+    } else {
+      row.mean_candidates = hier ? tree.mean_candidates : double(candidates.size());
+      row.tree_nodes = tree.nodes.size();
+      built = std::make_unique<label::cuda::Labeller>(device, candidates, hier ? &tree : nullptr, level);
+    }
+    label::cuda::Labeller& gpu = *built;
     const label::MemoryEstimate need = label::estimate_output_memory(level, options);
     const std::uint64_t tile =
         std::min<std::uint64_t>(row.cells, static_cast<std::uint64_t>(label::cuda::device_info(device).free_bytes * 0.85) /

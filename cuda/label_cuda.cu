@@ -60,7 +60,8 @@ __global__ void tree_paint_kernel(TreeView tree, grid::Code jump_first, grid::Co
   const int level = tree.level, k = level - tree.jump_level;
   const grid::Code jump_code = jump_first + blockIdx.x;
   const grid::Cell jc = fast_cell_of(jump_code, tree.jump_level);
-  const TreeNode node = tree.nodes[tree.jump[jump_code].node];
+  const JumpEntry jump = tree.jump[jump_code];
+  const TreeNode node = tree.nodes[jump.node];
   const bool uniform = node.count == kUniform;
   const std::uint64_t cells = std::uint64_t{1} << (2 * k);
   for (std::uint64_t chunk = 0; chunk < cells; chunk += blockDim.x) {
@@ -86,7 +87,8 @@ __global__ void tree_paint_kernel(TreeView tree, grid::Code jump_first, grid::Co
       const std::uint64_t out = code - first;
       site[out] = node.value;
       if (boundary) {
-        if (interior_of_ancestor(cell, level, tree.jump_level)) {
+        // Inside the uniform leaf (which may be coarser than the jump cell), not just the jump cell.
+        if (interior_of_ancestor(cell, level, jump.level)) {
           boundary[out] = 0;
         } else {
           edge[atomicAdd(&edge_count, 1)] = code;

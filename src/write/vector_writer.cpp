@@ -1,0 +1,764 @@
+#include "write/vector_writer.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <memory>
+#include <stdexcept>
+#include <utility>
+#include <vector>
+
+#include <GeographicLib/Geodesic.hpp>
+#include <GeographicLib/PolygonArea.hpp>
+#include <cpl_error.h>
+#include <cpl_string.h>
+#include <gdal_priv.h>
+#include <ogr_spatialref.h>
+#include <ogrsf_frmts.h>
+
+#include "grid/qtm.hpp"
+#include "write/region_tracer.hpp"
+
+namespace qtmv::write {
+
+const char* const kVectorLayerNames[4] = {"regions", "boundary_cells", "voronoi_edges", "cells"};
+
+namespace {
+
+using grid::Cell;
+using grid::Code;
+
+constexpr std::uint64_t kTransactionFeatures = 100000;  // features per transaction
+constexpr std::uint64_t kProgressEvery = 1024;          // features between progress calls
+constexpr std::size_t kEdgePairBlock = 4096;            // voronoi_edges pairs computed at once
+
+// --- GDAL errors -----------------------------------------------------------------------------
+
+/// Catches GDAL's failures while it lives (GDAL 3.6's GDALClose returns nothing, and not every
+/// failure shows in a return code). Warnings are handed on to the handler below it.
+class ErrorTrap {
+ public:
+  ErrorTrap() { push(); }
+  ~ErrorTrap() { CPLPopErrorHandler(); }
+  ErrorTrap(const ErrorTrap&) = delete;
+  ErrorTrap& operator=(const ErrorTrap&) = delete;
+
+  bool failed() const { return failures_ > 0; }
+  /// The first failure's message, and how many more there were.
+  std::string message() const {
+    if (failures_ <= 1) return first_;
+    return first_ + " (and " + std::to_string(failures_ - 1) + " more errors)";
+  }
+
+ private:
+  void push() {
+    CPLPushErrorHandlerEx(&ErrorTrap::handle, this);
+    CPLSetCurrentErrorHandlerCatchDebug(FALSE);
+  }
+  static void CPL_STDCALL handle(CPLErr type, CPLErrorNum number, const char* message) {
+    auto* self = static_cast<ErrorTrap*>(CPLGetErrorHandlerUserData());
+    if (type == CE_Failure || type == CE_Fatal) {
+      if (self->failures_++ == 0) self->first_ = message ? message : "";
+      return;
+    }
+    // GDAL 3.6 has no CPLCallPreviousHandler: step aside and raise it again.
+    const std::string copy = message ? message : "";
+    CPLPopErrorHandler();
+    CPLError(type, number, "%s", copy.c_str());
+    self->push();
+  }
+
+  int failures_ = 0;
+  std::string first_;
+};
+
+struct DatasetCloser {
+  void operator()(GDALDataset* dataset) const { GDALClose(dataset); }
+};
+using DatasetPtr = std::unique_ptr<GDALDataset, DatasetCloser>;
+
+struct FeatureDeleter {
+  void operator()(OGRFeature* feature) const { OGRFeature::DestroyFeature(feature); }
+};
+using FeaturePtr = std::unique_ptr<OGRFeature, FeatureDeleter>;
+
+// --- cells -----------------------------------------------------------------------------------
+
+/// Marks a drawn edge on latitude +-90 (the pole cell's fourth side), which has no neighbour.
+constexpr int kNoNeighbour = -1;
+
+/// The cell as the grid draws it (counter-clockwise ring) and the neighbour slot across each
+/// edge k (ring[k] -> ring[k + 1]); the same mapping as the region tracer's.
+int drawn_ring(const Cell& c, int level, LonLat ring[grid::kMaxPolygonCorners], int across[grid::kMaxPolygonCorners]) {
+  const int n = grid::cell_polygon(c, level, ring);
+  if (n == 4) {
+    across[0] = grid::kNeighbourLeft;
+    across[1] = grid::kNeighbourVertical;
+    across[2] = grid::kNeighbourRight;
+    across[3] = kNoNeighbour;
+  } else if (grid::is_up(c)) {
+    across[0] = grid::kNeighbourLeft;
+    across[1] = grid::kNeighbourVertical;
+    across[2] = grid::kNeighbourRight;
+  } else {
+    across[0] = grid::kNeighbourLeft;
+    across[1] = grid::kNeighbourRight;
+    across[2] = grid::kNeighbourVertical;
+  }
+  return n;
+}
+
+bool is_boundary(const CellLabels& labels, Code code) {
+  if (labels.boundary) return labels.boundary[code] != 0;
+  // Not computed: the labeller's rule, a neighbour with another site.
+  Code nb[3];
+  grid::neighbours(code, labels.level, nb);
+  const std::int32_t site = labels.site[code];
+  return labels.site[nb[0]] != site || labels.site[nb[1]] != site || labels.site[nb[2]] != site;
+}
+
+// --- geodesic measures -----------------------------------------------------------------------
+
+/// Longitudes (degrees) of the grid vertices strictly between lon_from and lon_to on the
+/// parallel `lat` (a row line, or a pole line, where the octant corners are the vertices), in
+/// the order met going from lon_from to lon_to. Computed as grid_vertex computes them, so that
+/// they are the cells' own vertices to the bit.
+void row_line_vertices(double lat, double lon_from, double lon_to, int level, std::vector<double>& out) {
+  out.clear();
+  const double lo = std::min(lon_from, lon_to), hi = std::max(lon_from, lon_to);
+  if (std::fabs(lat) == 90.0) {
+    for (double lon : {-90.0, 0.0, 90.0}) {
+      if (lon > lo && lon < hi) out.push_back(lon);
+    }
+  } else {
+    const double rows = static_cast<double>(grid::rows_per_octant(level));
+    const double lat_local = std::fabs(lat);
+    const auto r = static_cast<std::uint64_t>(std::llround((90.0 - lat_local) / 90.0 * rows));
+    const bool north = lat >= 0;  // the equator's vertices are the same from either side
+    const int first_octant = north ? 0 : 4;
+    if (r == 0 || std::fabs(grid::grid_vertex(first_octant, r, 0, level).lat) != lat_local) return;  // not a row line
+    for (int o = first_octant; o < first_octant + 4; ++o) {
+      const double origin = grid::lon_from_local(o, 0.0);
+      // The run's local longitudes (lon') in this octant.
+      double local_lo = north ? lo - origin : origin - hi;
+      double local_hi = north ? hi - origin : origin - lo;
+      local_lo = std::max(local_lo, 0.0);
+      local_hi = std::min(local_hi, 90.0);
+      if (local_lo > local_hi) continue;
+      const double per_degree = static_cast<double>(r) / 90.0;
+      const auto k_first = static_cast<std::uint64_t>(std::max(0.0, std::floor(local_lo * per_degree) - 1));
+      const auto k_last = std::min(r, static_cast<std::uint64_t>(std::ceil(local_hi * per_degree)) + 1);
+      for (std::uint64_t k = k_first; k <= k_last; ++k) {
+        const double lon = grid::grid_vertex(o, r, k, level).lon;
+        if (lon > lo && lon < hi) out.push_back(lon);
+      }
+    }
+  }
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  if (lon_to < lon_from) std::reverse(out.begin(), out.end());
+}
+
+/// Rough area (square metres) inside a ring in lon/lat, of either orientation: the sphere's
+/// area between each edge and the equator by the trapezoid rule in sin(latitude), scaled to
+/// the ellipsoid's area. Good to a few percent, enough to resolve a multiple of the whole.
+double lonlat_ring_area(const std::vector<LonLat>& ring) {
+  double sum = 0;  // steradians, signed
+  const std::size_t n = ring.size();
+  for (std::size_t k = 0; k < n; ++k) {
+    const LonLat& p = ring[k];
+    const LonLat& q = ring[(k + 1) % n];
+    sum += (q.lon - p.lon) * grid::kDegree * 0.5 * (std::sin(p.lat * grid::kDegree) + std::sin(q.lat * grid::kDegree));
+  }
+  return std::fabs(sum) / (4 * grid::kPi) * GeographicLib::Geodesic::WGS84().EllipsoidArea();
+}
+
+/// Area (square metres) on the left of a counter-clockwise ring, or on the right of a clockwise
+/// one (`clockwise`), in [0, area of the ellipsoid). The tracer drops the vertices in the
+/// middle of runs along row lines; they are put back, so that every edge is one cell edge and
+/// neighbouring regions share their geodesic edges exactly. Runs along the pole lines get the
+/// octant corners back too, which keeps every edge there under 180 degrees of longitude.
+double ring_area(const std::vector<LonLat>& ring, bool clockwise, int level, std::vector<double>& scratch) {
+  GeographicLib::PolygonArea polygon(GeographicLib::Geodesic::WGS84());
+  const std::size_t n = ring.size();
+  for (std::size_t k = 0; k < n; ++k) {
+    const LonLat& from = ring[k];
+    const LonLat& to = ring[(k + 1) % n];
+    polygon.AddPoint(from.lat, from.lon);
+    if (from.lat == to.lat) {
+      row_line_vertices(from.lat, from.lon, to.lon, level, scratch);
+      for (double lon : scratch) polygon.AddPoint(from.lat, lon);
+    }
+  }
+  double perimeter = 0, area = 0;
+  // sign = false: the area on the ring's inner side (left, or right when reversed), never a
+  // negative remainder; so a ring around a pole gives the polar cap.
+  polygon.Compute(clockwise, false, perimeter, area);
+  // That area is known modulo the ellipsoid's, in [0, A): a ring that holds both poles' lines
+  // from -180 to 180 (the whole rectangle, less notches) encloses nearly A, which can come
+  // back as nearly 0. A rough area from the lon/lat ring tells the two apart.
+  const double ellipsoid = GeographicLib::Geodesic::WGS84().EllipsoidArea();
+  if (area < 0.5 * ellipsoid && lonlat_ring_area(ring) - area > 0.5 * ellipsoid) area += ellipsoid;
+  return area;
+}
+
+/// Area of a region (square metres): its shells less its holes.
+double region_area(const Region& region, int level, std::vector<double>& scratch) {
+  double area = 0;
+  for (const RegionPolygon& part : region) {
+    area += ring_area(part.shell, false, level, scratch);
+    for (const auto& hole : part.holes) area -= ring_area(hole, true, level, scratch);
+  }
+  return area;
+}
+
+/// Geodesic length (metres) of the segment between two points (degrees).
+double geodesic_length(const LonLat& a, const LonLat& b) {
+  double s12 = 0;
+  GeographicLib::Geodesic::WGS84().Inverse(a.lat, a.lon, b.lat, b.lon, s12);
+  return s12;
+}
+
+// --- voronoi edges ---------------------------------------------------------------------------
+
+/// One cell edge between two sites: key = site a << 32 | site b (a < b), edge = the cell of
+/// site a << 2 | the edge's index in its drawn ring.
+struct EdgeRef {
+  std::uint64_t key, edge;
+  bool operator<(const EdgeRef& o) const { return key < o.key || (key == o.key && edge < o.edge); }
+};
+
+/// Every edge between cells of different sites, once (from the cell of the lower site id: the
+/// two drawings of an edge on +-180, at +180 and -180, are one edge), sorted by pair.
+std::vector<EdgeRef> gather_edges(const CellLabels& labels) {
+  const int level = labels.level;
+  const auto n = static_cast<std::int64_t>(grid::cell_count(level));
+  std::vector<EdgeRef> all;
+#pragma omp parallel
+  {
+    std::vector<EdgeRef> local;
+#pragma omp for schedule(static)
+    for (std::int64_t c = 0; c < n; ++c) {
+      const Code code = static_cast<Code>(c);
+      const std::int32_t site = labels.site[code];
+      Code nb[3];
+      grid::neighbours(code, level, nb);
+      if (labels.site[nb[0]] <= site && labels.site[nb[1]] <= site && labels.site[nb[2]] <= site) continue;
+      LonLat ring[grid::kMaxPolygonCorners];
+      int across[grid::kMaxPolygonCorners];
+      const int corners = drawn_ring(grid::cell_of(code, level), level, ring, across);
+      for (int k = 0; k < corners; ++k) {
+        if (across[k] == kNoNeighbour) continue;
+        const std::int32_t other = labels.site[nb[across[k]]];
+        if (other > site) {
+          local.push_back({static_cast<std::uint64_t>(site) << 32 | static_cast<std::uint32_t>(other),
+                           code << 2 | static_cast<std::uint64_t>(k)});
+        }
+      }
+    }
+#pragma omp critical
+    all.insert(all.end(), local.begin(), local.end());
+  }
+  std::sort(all.begin(), all.end());
+  return all;
+}
+
+bool same_point(const LonLat& a, const LonLat& b) { return a.lon == b.lon && a.lat == b.lat; }
+bool point_less(const LonLat& a, const LonLat& b) { return a.lon < b.lon || (a.lon == b.lon && a.lat < b.lat); }
+
+struct Segment {
+  LonLat from, to;
+};
+
+/// The lines of one pair and their geodesic length.
+struct PairLines {
+  std::vector<std::vector<LonLat>> lines;
+  double length_m = 0;
+};
+
+/// Links a pair's cell edges (all with site a on their left) into lines: an edge continues the
+/// one that ends where it starts. Edges that do not meet (across +-180, across a pole) start
+/// new lines.
+PairLines link_pair(const EdgeRef* begin, const EdgeRef* end, int level) {
+  std::vector<Segment> segments;
+  segments.reserve(static_cast<std::size_t>(end - begin));
+  PairLines out;
+  for (const EdgeRef* e = begin; e != end; ++e) {
+    LonLat ring[grid::kMaxPolygonCorners];
+    const int corners = grid::cell_polygon(grid::cell_of(e->edge >> 2, level), level, ring);
+    const int k = static_cast<int>(e->edge & 3u);
+    segments.push_back({ring[k], ring[(k + 1) % corners]});
+    out.length_m += geodesic_length(segments.back().from, segments.back().to);
+  }
+  std::sort(segments.begin(), segments.end(), [](const Segment& a, const Segment& b) {
+    return point_less(a.from, b.from) || (same_point(a.from, b.from) && point_less(a.to, b.to));
+  });
+  std::vector<LonLat> ends;
+  ends.reserve(segments.size());
+  for (const Segment& s : segments) ends.push_back(s.to);
+  std::sort(ends.begin(), ends.end(), point_less);
+  const auto has_incoming = [&](const LonLat& p) {
+    const auto it = std::lower_bound(ends.begin(), ends.end(), p, point_less);
+    return it != ends.end() && same_point(*it, p);
+  };
+  std::vector<char> used(segments.size(), 0);
+  const auto unused_from = [&](const LonLat& p) {
+    auto it = std::lower_bound(segments.begin(), segments.end(), p,
+                               [](const Segment& s, const LonLat& q) { return point_less(s.from, q); });
+    for (; it != segments.end() && same_point(it->from, p); ++it) {
+      const auto k = static_cast<std::size_t>(it - segments.begin());
+      if (!used[k]) return k;
+    }
+    return segments.size();
+  };
+  const auto follow = [&](std::size_t k) {
+    std::vector<LonLat> line{segments[k].from};
+    while (k < segments.size()) {
+      used[k] = 1;
+      line.push_back(segments[k].to);
+      k = unused_from(segments[k].to);
+    }
+    out.lines.push_back(std::move(line));
+  };
+  // Open lines from their starts first, then what is left are closed loops.
+  for (std::size_t k = 0; k < segments.size(); ++k) {
+    if (!used[k] && !has_incoming(segments[k].from)) follow(k);
+  }
+  for (std::size_t k = 0; k < segments.size(); ++k) {
+    if (!used[k]) follow(k);
+  }
+  return out;
+}
+
+// --- OGR helpers -----------------------------------------------------------------------------
+
+OGRLinearRing* make_ring(const LonLat* points, std::size_t n) {
+  auto* ring = new OGRLinearRing;
+  ring->setNumPoints(static_cast<int>(n + 1), FALSE);
+  for (std::size_t k = 0; k < n; ++k) ring->setPoint(static_cast<int>(k), points[k].lon, points[k].lat);
+  ring->setPoint(static_cast<int>(n), points[0].lon, points[0].lat);
+  return ring;
+}
+
+OGRMultiPolygon* make_multipolygon(const Region& region) {
+  auto* multi = new OGRMultiPolygon;
+  for (const RegionPolygon& part : region) {
+    auto* polygon = new OGRPolygon;
+    polygon->addRingDirectly(make_ring(part.shell.data(), part.shell.size()));
+    for (const auto& hole : part.holes) polygon->addRingDirectly(make_ring(hole.data(), hole.size()));
+    multi->addGeometryDirectly(polygon);
+  }
+  return multi;
+}
+
+/// Sets the feature's polygon (created by the caller with one ring) to the cell, in place.
+void set_cell_polygon(OGRFeature& feature, Code code, int level) {
+  LonLat ring[grid::kMaxPolygonCorners];
+  const int n = grid::cell_polygon(grid::cell_of(code, level), level, ring);
+  OGRLinearRing* r = feature.GetGeometryRef()->toPolygon()->getExteriorRing();
+  r->setNumPoints(n + 1, FALSE);
+  for (int k = 0; k < n; ++k) r->setPoint(k, ring[k].lon, ring[k].lat);
+  r->setPoint(n, ring[0].lon, ring[0].lat);
+}
+
+/// A feature whose geometry is an empty polygon with one ring, for set_cell_polygon.
+FeaturePtr cell_feature(OGRLayer* layer) {
+  FeaturePtr feature(OGRFeature::CreateFeature(layer->GetLayerDefn()));
+  auto* polygon = new OGRPolygon;
+  polygon->addRingDirectly(new OGRLinearRing);
+  feature->SetGeometryDirectly(polygon);
+  return feature;
+}
+
+void set_fid_field(OGRFeature& feature, int field, std::int64_t fid) {
+  if (fid == OGRNullFID) {
+    feature.SetFieldNull(field);
+  } else {
+    feature.SetField(field, static_cast<GIntBig>(fid));
+  }
+}
+
+CPLStringList string_list(const std::vector<std::string>& items) {
+  CPLStringList list;
+  for (const std::string& item : items) list.AddString(item.c_str());
+  return list;
+}
+
+// --- the writer ------------------------------------------------------------------------------
+
+/// The dataset being written: layers, fields, transactions, progress and errors.
+class Writer {
+ public:
+  Writer(const std::string& path, const VectorOptions& options, ErrorTrap& trap, double total_work)
+      : path_(path), options_(options), trap_(trap), total_work_(std::max(total_work, 1.0)) {
+    srs_.importFromEPSG(4326);
+    srs_.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  }
+
+  void open(GDALDriver* driver) {
+    const CPLStringList dsco = string_list(options_.dataset_options);
+    dataset_.reset(driver->Create(path_.c_str(), 0, 0, 0, GDT_Unknown, dsco.List()));
+    if (!dataset_) fail("cannot create the dataset");
+    check("creating the dataset");
+    transactions_ = dataset_->TestCapability(ODsCTransactions) != 0;
+  }
+
+  /// Closes the dataset; throws if GDAL reported any error meanwhile.
+  void close() {
+    layer_name_.clear();
+    dataset_.reset();
+    check("closing the dataset");
+  }
+
+  /// Creates a layer; `work` is its share of the progress (features it will write, about).
+  OGRLayer* begin_layer(const char* name, OGRwkbGeometryType type, double work) {
+    layer_name_ = name;
+    layer_work_ = work;
+    layer_done_ = 0;
+    CPLStringList lco = string_list(options_.layer_options);
+    layer_ = dataset_->CreateLayer(name, &srs_, type, lco.List());
+    if (!layer_) fail("cannot create the layer");
+    check("creating the layer");
+    return layer_;
+  }
+
+  /// Adds a field; returns its index in the layer (drivers may launder its name).
+  int add_field(OGRFieldDefn& field) {
+    const int before = layer_->GetLayerDefn()->GetFieldCount();
+    if (layer_->CreateField(&field, TRUE) != OGRERR_NONE || layer_->GetLayerDefn()->GetFieldCount() != before + 1) {
+      fail(std::string("cannot create the field ") + field.GetNameRef());
+    }
+    check(std::string("creating the field ") + field.GetNameRef());
+    return before;
+  }
+
+  /// Starts writing features (after the fields are made).
+  void begin_features() {
+    if (transactions_) start_transaction();
+  }
+
+  void write(OGRFeature& feature) {
+    feature.SetFID(OGRNullFID);  // CreateFeature sets it: let the driver assign the next one
+    if (layer_->CreateFeature(&feature) != OGRERR_NONE) fail("cannot write a feature");
+    if (trap_.failed()) check("writing a feature");
+    ++in_transaction_;
+    if (transactions_ && in_transaction_ >= kTransactionFeatures) {
+      commit();
+      start_transaction();
+    }
+    if (++since_progress_ >= kProgressEvery) {  // the layer reports its share; this catches an interrupt
+      since_progress_ = 0;
+      report();
+    }
+  }
+
+  /// Reports progress within the layer: `done` of `count` features.
+  void layer_progress(double done, double count) {
+    layer_done_ = count > 0 ? layer_work_ * std::min(1.0, done / count) : layer_work_;
+    report();
+  }
+
+  void end_layer() {
+    if (transactions_) commit();
+    work_done_ += layer_work_;
+    layer_done_ = 0;
+    report();
+  }
+
+  /// The last report, once the dataset is closed (too late to interrupt).
+  void report_done() {
+    if (options_.progress) options_.progress(1.0, "write");
+  }
+
+  [[noreturn]] void fail(const std::string& what) const {
+    std::string message = path_;
+    if (!layer_name_.empty()) message += ", layer " + layer_name_;
+    message += ": " + what;
+    if (trap_.failed()) message += ": " + trap_.message();
+    throw WriteError(message);
+  }
+
+ private:
+  void check(const std::string& what) const {
+    if (trap_.failed()) fail(what);
+  }
+  void start_transaction() {
+    if (dataset_->StartTransaction(FALSE) != OGRERR_NONE) fail("cannot start a transaction");
+    in_transaction_ = 0;
+  }
+  void commit() {
+    if (dataset_->CommitTransaction() != OGRERR_NONE) fail("cannot commit a transaction");
+    check("committing a transaction");
+    in_transaction_ = 0;
+  }
+  void report() {
+    if (!options_.progress) return;
+    const double fraction = std::min(1.0, (work_done_ + layer_done_) / total_work_);
+    if (!options_.progress(fraction, "write")) throw WriteError("interrupted");
+  }
+
+  std::string path_;
+  const VectorOptions& options_;
+  ErrorTrap& trap_;
+  OGRSpatialReference srs_;
+  DatasetPtr dataset_;
+  OGRLayer* layer_ = nullptr;
+  std::string layer_name_;
+  bool transactions_ = false;
+  std::uint64_t in_transaction_ = 0, since_progress_ = 0;
+  double total_work_, work_done_ = 0, layer_work_ = 0, layer_done_ = 0;
+};
+
+/// A name for one of our fields that no source field has (compared without case).
+std::string unique_field_name(const std::string& name, const OGRFeatureDefn* source) {
+  const auto taken = [&](const std::string& candidate) { return source && source->GetFieldIndex(candidate.c_str()) >= 0; };
+  if (!taken(name)) return name;
+  std::string candidate = "qtmv_" + name;
+  for (int k = 2; taken(candidate); ++k) candidate = "qtmv_" + name + "_" + std::to_string(k);
+  return candidate;
+}
+
+// --- the layers ------------------------------------------------------------------------------
+
+struct Input {
+  const CellLabels& labels;
+  const sites::SiteTable& table;
+  std::int32_t site_count;
+  std::vector<std::uint64_t> cells_of;  ///< cells per site
+};
+
+void write_regions(Writer& w, const Input& in, double work) {
+  const int level = in.labels.level;
+  const OGRFeatureDefn* source = in.table.definition();
+  OGRLayer* layer = w.begin_layer("regions", wkbMultiPolygon, work);
+
+  // The source's fields first, as ogr2ogr would copy them.
+  std::vector<int> field_map;
+  if (source) {
+    for (int f = 0; f < source->GetFieldCount(); ++f) {
+      OGRFieldDefn copy(source->GetFieldDefn(f));
+      field_map.push_back(w.add_field(copy));
+    }
+  }
+  OGRFieldDefn fid_field(unique_field_name("site_fid", source).c_str(), OFTInteger64);
+  OGRFieldDefn cells_field(unique_field_name("cells", source).c_str(), OFTInteger64);
+  OGRFieldDefn area_field(unique_field_name("area_m2", source).c_str(), OFTReal);
+  area_field.SetWidth(24);  // up to 5.1e14 with decimals to spare where widths count (shapefiles)
+  area_field.SetPrecision(3);
+  const int fid_index = w.add_field(fid_field);
+  const int cells_index = w.add_field(cells_field);
+  const int area_index = w.add_field(area_field);
+
+  const std::vector<Region> regions = trace_regions(level, in.labels.site, in.site_count);
+  w.layer_progress(0.25, 1.0);
+  std::vector<double> areas(regions.size(), 0.0);
+#pragma omp parallel
+  {
+    std::vector<double> scratch;
+#pragma omp for schedule(dynamic, 16)
+    for (std::int32_t s = 0; s < in.site_count; ++s) {
+      areas[s] = region_area(regions[s], level, scratch);
+    }
+  }
+  w.layer_progress(0.5, 1.0);
+
+  w.begin_features();
+  for (std::int32_t s = 0; s < in.site_count; ++s) {
+    const sites::SiteRecord& site = in.table.sites[static_cast<std::size_t>(s)];
+    FeaturePtr feature(OGRFeature::CreateFeature(layer->GetLayerDefn()));
+    if (site.attributes && !field_map.empty()) {
+      if (feature->SetFieldsFrom(site.attributes.get(), field_map.data(), TRUE) != OGRERR_NONE) {
+        w.fail("cannot copy the attributes of site " + std::to_string(s));
+      }
+    }
+    set_fid_field(*feature, fid_index, site.fid);
+    feature->SetField(cells_index, static_cast<GIntBig>(in.cells_of[s]));
+    feature->SetField(area_index, areas[s]);
+    feature->SetGeometryDirectly(make_multipolygon(regions[s]));  // empty for a site without cells
+    w.write(*feature);
+    if (s % 256 == 0) w.layer_progress(0.5 + 0.5 * s / in.site_count, 1.0);
+  }
+  w.end_layer();
+}
+
+void write_boundary_cells(Writer& w, const Input& in, double work, std::uint64_t count) {
+  const int level = in.labels.level;
+  OGRLayer* layer = w.begin_layer("boundary_cells", wkbPolygon, work);
+  OGRFieldDefn code_field("code", OFTInteger64);
+  OGRFieldDefn fid_field("site_fid", OFTInteger64);
+  const int code_index = w.add_field(code_field);
+  const int fid_index = w.add_field(fid_field);
+  w.begin_features();
+  FeaturePtr feature = cell_feature(layer);
+  const Code cells = grid::cell_count(level);
+  std::uint64_t done = 0;
+  for (Code code = 0; code < cells; ++code) {
+    if (!is_boundary(in.labels, code)) continue;
+    set_cell_polygon(*feature, code, level);
+    feature->SetField(code_index, static_cast<GIntBig>(code));
+    set_fid_field(*feature, fid_index, in.table.sites[static_cast<std::size_t>(in.labels.site[code])].fid);
+    w.write(*feature);
+    if (++done % kProgressEvery == 0) w.layer_progress(static_cast<double>(done), static_cast<double>(count));
+  }
+  w.end_layer();
+}
+
+void write_voronoi_edges(Writer& w, const Input& in, double work) {
+  const int level = in.labels.level;
+  OGRLayer* layer = w.begin_layer("voronoi_edges", wkbMultiLineString, work);
+  OGRFieldDefn a_field("site_a", OFTInteger64);
+  OGRFieldDefn b_field("site_b", OFTInteger64);
+  OGRFieldDefn length_field("length_m", OFTReal);
+  const int a_index = w.add_field(a_field);
+  const int b_index = w.add_field(b_field);
+  const int length_index = w.add_field(length_field);
+
+  const std::vector<EdgeRef> edges = gather_edges(in.labels);
+  std::vector<std::size_t> pair_start;  // where each pair's run of edges begins
+  for (std::size_t k = 0; k < edges.size(); ++k) {
+    if (k == 0 || edges[k].key != edges[k - 1].key) pair_start.push_back(k);
+  }
+  const std::size_t pairs = pair_start.size();
+  pair_start.push_back(edges.size());
+  w.layer_progress(0.2, 1.0);
+
+  w.begin_features();
+  FeaturePtr feature(OGRFeature::CreateFeature(layer->GetLayerDefn()));
+  std::vector<PairLines> block;
+  for (std::size_t first = 0; first < pairs; first += kEdgePairBlock) {
+    const std::size_t last = std::min(pairs, first + kEdgePairBlock);
+    block.assign(last - first, {});
+    // Linking and measuring in parallel; OGR writes one feature at a time.
+#pragma omp parallel for schedule(dynamic, 16)
+    for (std::int64_t p = static_cast<std::int64_t>(first); p < static_cast<std::int64_t>(last); ++p) {
+      block[static_cast<std::size_t>(p) - first] =
+          link_pair(edges.data() + pair_start[p], edges.data() + pair_start[p + 1], level);
+    }
+    for (std::size_t p = first; p < last; ++p) {
+      const PairLines& lines = block[p - first];
+      const std::uint64_t key = edges[pair_start[p]].key;
+      const auto a = static_cast<std::size_t>(key >> 32), b = static_cast<std::size_t>(key & 0xffffffffu);
+      auto* multi = new OGRMultiLineString;
+      for (const auto& line : lines.lines) {
+        auto* ls = new OGRLineString;
+        ls->setNumPoints(static_cast<int>(line.size()), FALSE);
+        for (std::size_t k = 0; k < line.size(); ++k) ls->setPoint(static_cast<int>(k), line[k].lon, line[k].lat);
+        multi->addGeometryDirectly(ls);
+      }
+      feature->SetGeometryDirectly(multi);
+      set_fid_field(*feature, a_index, in.table.sites[a].fid);
+      set_fid_field(*feature, b_index, in.table.sites[b].fid);
+      feature->SetField(length_index, lines.length_m);
+      w.write(*feature);
+    }
+    w.layer_progress(0.2 + 0.8 * static_cast<double>(last) / static_cast<double>(pairs), 1.0);
+  }
+  w.end_layer();
+}
+
+void write_cells(Writer& w, const Input& in, double work) {
+  const int level = in.labels.level;
+  OGRLayer* layer = w.begin_layer("cells", wkbPolygon, work);
+  OGRFieldDefn code_field("code", OFTInteger64);
+  OGRFieldDefn fid_field("site_fid", OFTInteger64);
+  OGRFieldDefn distance_field("distance_m", OFTReal);
+  OGRFieldDefn boundary_field("boundary", OFTInteger);
+  boundary_field.SetSubType(OFSTBoolean);
+  const int code_index = w.add_field(code_field);
+  const int fid_index = w.add_field(fid_field);
+  const int distance_index = w.add_field(distance_field);
+  const int boundary_index = w.add_field(boundary_field);
+  w.begin_features();
+  FeaturePtr feature = cell_feature(layer);
+  const Code cells = grid::cell_count(level);
+  for (Code code = 0; code < cells; ++code) {
+    set_cell_polygon(*feature, code, level);
+    feature->SetField(code_index, static_cast<GIntBig>(code));
+    set_fid_field(*feature, fid_index, in.table.sites[static_cast<std::size_t>(in.labels.site[code])].fid);
+    if (in.labels.distance_m) {
+      feature->SetField(distance_index, static_cast<double>(in.labels.distance_m[code]));
+    } else {
+      feature->SetFieldNull(distance_index);
+    }
+    feature->SetField(boundary_index, is_boundary(in.labels, code) ? 1 : 0);
+    w.write(*feature);
+    if ((code + 1) % kProgressEvery == 0) w.layer_progress(static_cast<double>(code + 1), static_cast<double>(cells));
+  }
+  w.end_layer();
+}
+
+std::string valid_layer_list() {
+  std::string list;
+  for (const char* name : kVectorLayerNames) list += (list.empty() ? "" : ", ") + std::string(name);
+  return list;
+}
+
+}  // namespace
+
+void write_vector(const std::string& path, const CellLabels& labels, const sites::SiteTable& table,
+                  const VectorOptions& options) {
+  // Everything that can be refused is refused before the destination is created.
+  std::vector<std::string> layers;
+  for (const std::string& name : options.layers) {
+    if (std::find(std::begin(kVectorLayerNames), std::end(kVectorLayerNames), name) == std::end(kVectorLayerNames)) {
+      throw WriteError(path + ": unknown layer '" + name + "' (valid layers: " + valid_layer_list() + ")");
+    }
+    if (std::find(layers.begin(), layers.end(), name) == layers.end()) layers.push_back(name);
+  }
+  if (layers.empty()) throw WriteError(path + ": no layer to write (valid layers: " + valid_layer_list() + ")");
+
+  if (!grid::is_valid_level(labels.level)) throw std::invalid_argument("write_vector: bad level " + std::to_string(labels.level));
+  if (!labels.site) throw std::invalid_argument("write_vector: no site labels");
+  const auto site_count = static_cast<std::int32_t>(table.sites.size());
+  const Code cells = grid::cell_count(labels.level);
+  Input in{labels, table, site_count, std::vector<std::uint64_t>(table.sites.size(), 0)};
+  std::uint64_t boundary_count = 0;
+  for (Code code = 0; code < cells; ++code) {
+    const std::int32_t site = labels.site[code];
+    if (site < 0 || site >= site_count) {
+      throw std::invalid_argument("write_vector: label " + std::to_string(site) + " of cell " + std::to_string(code) +
+                                  " is not a site id (0 to " + std::to_string(site_count - 1) + ")");
+    }
+    ++in.cells_of[static_cast<std::size_t>(site)];
+  }
+  const bool want_boundary = std::find(layers.begin(), layers.end(), "boundary_cells") != layers.end();
+  if (want_boundary) {
+    for (Code code = 0; code < cells; ++code) boundary_count += is_boundary(labels, code) ? 1 : 0;
+  }
+
+  GDALDriver* driver = GetGDALDriverManager()->GetDriverByName(options.driver.c_str());
+  if (!driver) {
+    GDALAllRegister();
+    driver = GetGDALDriverManager()->GetDriverByName(options.driver.c_str());
+  }
+  if (!driver) throw WriteError(path + ": unknown format '" + options.driver + "'");
+  if (!driver->GetMetadataItem(GDAL_DCAP_VECTOR) || !driver->GetMetadataItem(GDAL_DCAP_CREATE)) {
+    throw WriteError(path + ": the " + options.driver + " driver cannot create vector datasets");
+  }
+
+  // Progress shares: about one unit per feature (edges: about one pair per two boundary cells).
+  std::vector<double> work;
+  for (const std::string& name : layers) {
+    if (name == "regions") work.push_back(static_cast<double>(site_count) + 1);
+    if (name == "boundary_cells") work.push_back(static_cast<double>(boundary_count) + 1);
+    if (name == "voronoi_edges") work.push_back(static_cast<double>(site_count) * 3 + 1);
+    if (name == "cells") work.push_back(static_cast<double>(cells));
+  }
+  double total = 0;
+  for (double x : work) total += x;
+
+  ErrorTrap trap;  // outlives the dataset, which is closed inside it even on a throw
+  Writer writer(path, options, trap, total);
+  writer.open(driver);
+  for (std::size_t k = 0; k < layers.size(); ++k) {
+    const std::string& name = layers[k];
+    if (name == "regions") write_regions(writer, in, work[k]);
+    if (name == "boundary_cells") write_boundary_cells(writer, in, work[k], boundary_count);
+    if (name == "voronoi_edges") write_voronoi_edges(writer, in, work[k]);
+    if (name == "cells") write_cells(writer, in, work[k]);
+  }
+  writer.close();
+  writer.report_done();
+}
+
+}  // namespace qtmv::write

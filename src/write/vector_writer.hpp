@@ -1,0 +1,50 @@
+// Vector output: the Voronoi regions, boundary cells, Voronoi edges and cells of a labelled
+// level, through any OGR driver, all in EPSG:4326 (longitude, latitude order).
+//
+// Layers (VectorOptions::layers, written in the order given):
+//   regions         one MultiPolygon per site, in site order: the union of its cells, traced
+//                   from the grid's topology (trace_regions), cut at +-180 and running along
+//                   latitude +-90 at the poles. Fields: every field of the source, then
+//                   site_fid (Integer64), cells (Integer64: cells labelled with the site),
+//                   area_m2 (Real: square metres on the WGS84 ellipsoid). A site without cells
+//                   gets its row with an empty geometry.
+//   boundary_cells  one Polygon per boundary cell: code (Integer64), site_fid (Integer64).
+//   voronoi_edges   one MultiLineString per pair of neighbouring sites a < b (site ids): the cell
+//                   edges between their cells, linked into lines. Fields site_a, site_b (the
+//                   sites' FIDs, Integer64), length_m (Real: metres, geodesic on WGS84).
+//   cells           every cell as a Polygon: code, site_fid, distance_m (Real, metres; null when
+//                   not computed), boundary (Integer, boolean subtype).
+//
+// Field names: the source's fields keep their names; one of ours whose name a source field
+// already has (compared without case) is written as "qtmv_<name>" instead (then
+// "qtmv_<name>_2", ...), e.g. a source field `cells` leaves ours as `qtmv_cells`.
+// A site whose FID is OGRNullFID gets a null site_fid (site_a, site_b).
+//
+// area_m2 is the area of the region whose cell vertices are joined by geodesics (the cells then
+// tile the ellipsoid exactly, so the areas add up to its area); each ring is taken with the
+// region on its left, so a region around a pole gets its own area, not the rest of the Earth.
+//
+// Transactions of about 100 000 features where the driver has efficient ones (GeoPackage).
+// On failure the dataset is closed and left as it is: the caller removes it (the pipeline
+// writes to a temporary file).
+#pragma once
+
+#include <string>
+
+#include "sites/site_table.hpp"
+#include "write/cell_labels.hpp"
+
+namespace qtmv::write {
+
+/// Names accepted in VectorOptions::layers, in their default order.
+extern const char* const kVectorLayerNames[4];
+
+/// Creates `path` with options.driver and writes the layers of options.layers. `labels` must
+/// hold site ids 0 .. table.sites.size() - 1 for every cell (std::invalid_argument otherwise).
+/// Throws WriteError naming the destination, the layer and GDAL's message when GDAL reports
+/// an error (creating, writing or closing), for an unknown layer name or driver, and with
+/// the message "interrupted" when options.progress returns false.
+void write_vector(const std::string& path, const CellLabels& labels, const sites::SiteTable& table,
+                  const VectorOptions& options);
+
+}  // namespace qtmv::write

@@ -1,0 +1,576 @@
+// The vector writer, end to end: labels from the labeller, written with GDAL, read back with
+// GDAL and checked with GEOS and GeographicLib computed here, cell by cell.
+#include <gtest/gtest.h>
+
+#include <GeographicLib/Geodesic.hpp>
+#include <GeographicLib/PolygonArea.hpp>
+#include <gdal_priv.h>
+#include <ogrsf_frmts.h>
+
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <random>
+#include <set>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "grid/qtm.hpp"
+#include "label/labeller.hpp"
+#include "write/vector_writer.hpp"
+
+namespace qtmv::write {
+namespace {
+
+using grid::Code;
+using grid::LonLat;
+
+const double kEllipsoidArea = GeographicLib::Geodesic::WGS84().EllipsoidArea();
+
+std::int64_t fid_of(std::int32_t site) { return 100 + 7 * static_cast<std::int64_t>(site); }
+
+/// Labels of a level and a site table whose source has fields name, pop, a long-named one and
+/// `cells` (which collides with ours).
+struct Scene {
+  int level = 0;
+  std::int32_t sites = 0;
+  label::LabelResult result;
+  sites::SiteTable table;
+
+  CellLabels labels(bool with_distance = true, bool with_boundary = true) const {
+    return {level, result.site.data(), with_distance ? result.distance_m.data() : nullptr,
+            with_boundary ? result.boundary.data() : nullptr};
+  }
+};
+
+/// Random points plus one near each pole and two beside +-180; the last site repeats site 2's
+/// point, so it loses every tie and gets no cell.
+Scene make_scene(int level, int random_points, unsigned seed) {
+  Scene scene;
+  scene.level = level;
+  label::SiteGeometry g;
+  g.level = level;
+  std::vector<std::pair<double, double>> points{{10, 88.5}, {-120, -89}, {179.9, 10}, {-179.9, -20}};
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> lon(-180, 180), z(-1, 1);
+  for (int k = 0; k < random_points; ++k) points.push_back({lon(rng), std::asin(z(rng)) / grid::kDegree});
+  points.push_back(points[2]);
+  for (std::size_t s = 0; s < points.size(); ++s) label::add_point(g, points[s].first, points[s].second, static_cast<int>(s));
+  scene.sites = static_cast<std::int32_t>(points.size());
+  label::LabelOptions options;
+  options.device = "cpu";
+  scene.result = label::label_all(g.input(), options);
+
+  auto* definition = new OGRFeatureDefn("source");
+  OGRFieldDefn name("name", OFTString), pop("pop", OFTInteger64), cells("cells", OFTInteger),
+      long_name("population_total", OFTReal);
+  definition->AddFieldDefn(&name);
+  definition->AddFieldDefn(&pop);
+  definition->AddFieldDefn(&cells);
+  definition->AddFieldDefn(&long_name);
+  scene.table.set_source(definition, "memory", "source");
+  for (std::int32_t s = 0; s < scene.sites; ++s) {
+    sites::SiteRecord record;
+    record.fid = fid_of(s);
+    record.attributes.reset(OGRFeature::CreateFeature(definition));
+    record.attributes->SetField("name", ("site " + std::to_string(s)).c_str());
+    record.attributes->SetField("pop", static_cast<GIntBig>(1000 + s));
+    record.attributes->SetField("cells", -s);
+    record.attributes->SetField("population_total", 0.5 * s);
+    record.kind = sites::kPointSite;
+    scene.table.sites.push_back(std::move(record));
+  }
+  return scene;
+}
+
+/// A path under the test directory, removed (with whatever GDAL made there) on destruction.
+struct TempPath {
+  explicit TempPath(const std::string& name) : path(::testing::TempDir() + "qtmv_vector_" + name) {
+    std::filesystem::remove_all(path);
+  }
+  ~TempPath() { std::filesystem::remove_all(path); }
+  std::string path;
+};
+
+GDALDatasetUniquePtr open_vector(const std::string& path) {
+  return GDALDatasetUniquePtr(GDALDataset::Open(path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY));
+}
+
+/// Area (square metres) of a cell with its vertices joined by geodesics.
+double cell_area(Code code, int level) {
+  LonLat ring[grid::kMaxPolygonCorners];
+  const int n = grid::cell_polygon(grid::cell_of(code, level), level, ring);
+  GeographicLib::PolygonArea polygon(GeographicLib::Geodesic::WGS84());
+  for (int k = 0; k < n; ++k) polygon.AddPoint(ring[k].lat, ring[k].lon);
+  double perimeter = 0, area = 0;
+  polygon.Compute(false, false, perimeter, area);
+  return area;
+}
+
+class VectorTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() { GDALAllRegister(); }
+};
+
+/// Site pairs (site ids, a < b) that share a cell edge, by a direct scan of the neighbours.
+std::set<std::pair<std::int32_t, std::int32_t>> neighbour_pairs(const Scene& scene) {
+  std::set<std::pair<std::int32_t, std::int32_t>> pairs;
+  for (Code code = 0; code < grid::cell_count(scene.level); ++code) {
+    Code nb[3];
+    grid::neighbours(code, scene.level, nb);
+    for (Code n : nb) {
+      const std::int32_t a = scene.result.site[code], b = scene.result.site[n];
+      if (a != b) pairs.insert({std::min(a, b), std::max(a, b)});
+    }
+  }
+  return pairs;
+}
+
+/// The geodesic length (metres) of the edge two neighbouring cells share: the two vertices of
+/// `code`'s polygon that `other`'s polygon has too (+180 and -180 are the same meridian).
+double shared_edge_length(Code code, Code other, int level) {
+  LonLat a[grid::kMaxPolygonCorners], b[grid::kMaxPolygonCorners];
+  const int na = grid::cell_polygon(grid::cell_of(code, level), level, a);
+  const int nb = grid::cell_polygon(grid::cell_of(other, level), level, b);
+  std::vector<LonLat> shared;
+  for (int i = 0; i < na; ++i) {
+    for (int j = 0; j < nb; ++j) {
+      const bool same_lon = a[i].lon == b[j].lon || (std::fabs(a[i].lon) == 180 && std::fabs(b[j].lon) == 180);
+      if (a[i].lat == b[j].lat && same_lon) {
+        shared.push_back(a[i]);
+        break;
+      }
+    }
+  }
+  EXPECT_EQ(shared.size(), 2u) << "cells " << code << " and " << other;
+  if (shared.size() != 2) return 0;
+  double s12 = 0;
+  GeographicLib::Geodesic::WGS84().Inverse(shared[0].lat, shared[0].lon, shared[1].lat, shared[1].lon, s12);
+  return s12;
+}
+
+TEST_F(VectorTest, RegionsTileTheGlobe) {
+  for (int level : {3, 5}) {
+    SCOPED_TRACE("level " + std::to_string(level));
+    const Scene scene = make_scene(level, 20, 7 + level);
+    const std::int32_t empty_site = scene.sites - 1;
+    const TempPath out("regions_" + std::to_string(level) + ".gpkg");
+    VectorOptions options;
+    options.layers = {"regions"};
+    write_vector(out.path, scene.labels(), scene.table, options);
+
+    // Expected per site: cells, and the area of its cells with geodesic edges.
+    std::vector<std::uint64_t> cells(scene.sites, 0);
+    std::vector<double> area(scene.sites, 0.0);
+    for (Code code = 0; code < grid::cell_count(level); ++code) {
+      ++cells[scene.result.site[code]];
+      area[scene.result.site[code]] += cell_area(code, level);
+    }
+    ASSERT_EQ(cells[empty_site], 0u) << "the scene should have a site without cells";
+    const std::int32_t north_site = scene.result.site[0];  // holds the north pole's cell of octant 0
+    ASSERT_EQ(north_site, 0);
+
+    auto ds = open_vector(out.path);
+    ASSERT_TRUE(ds);
+    OGRLayer* layer = ds->GetLayerByName("regions");
+    ASSERT_NE(layer, nullptr);
+    EXPECT_EQ(ds->GetLayerByName("boundary_cells"), nullptr);
+    ASSERT_EQ(layer->GetFeatureCount(), scene.sites);
+    const OGRFeatureDefn* defn = layer->GetLayerDefn();
+    for (const char* name : {"name", "pop", "cells", "population_total", "site_fid", "qtmv_cells", "area_m2"}) {
+      EXPECT_GE(defn->GetFieldIndex(name), 0) << name;
+    }
+    EXPECT_EQ(defn->GetFieldDefn(defn->GetFieldIndex("site_fid"))->GetType(), OFTInteger64);
+    EXPECT_EQ(defn->GetFieldDefn(defn->GetFieldIndex("area_m2"))->GetType(), OFTReal);
+    const OGRSpatialReference* srs = layer->GetSpatialRef();
+    ASSERT_NE(srs, nullptr);
+    EXPECT_STREQ(srs->GetAuthorityCode(nullptr), "4326");
+
+    std::vector<std::unique_ptr<OGRGeometry>> shapes;
+    double total_area = 0;
+    std::uint64_t total_cells = 0;
+    std::int32_t s = 0;
+    for (auto& feature : *layer) {
+      SCOPED_TRACE("site " + std::to_string(s));
+      EXPECT_EQ(feature->GetFieldAsInteger64("site_fid"), fid_of(s));
+      EXPECT_EQ(std::string(feature->GetFieldAsString("name")), "site " + std::to_string(s));
+      EXPECT_EQ(feature->GetFieldAsInteger64("pop"), 1000 + s);
+      EXPECT_EQ(feature->GetFieldAsInteger("cells"), -s);  // the source's, kept
+      EXPECT_DOUBLE_EQ(feature->GetFieldAsDouble("population_total"), 0.5 * s);
+      const auto got_cells = static_cast<std::uint64_t>(feature->GetFieldAsInteger64("qtmv_cells"));
+      EXPECT_EQ(got_cells, cells[s]);
+      total_cells += got_cells;
+      const double got_area = feature->GetFieldAsDouble("area_m2");
+      EXPECT_NEAR(got_area, area[s], 1e-9 * kEllipsoidArea);
+      total_area += got_area;
+      const OGRGeometry* geometry = feature->GetGeometryRef();
+      if (s == empty_site) {
+        EXPECT_TRUE(geometry == nullptr || geometry->IsEmpty());
+        EXPECT_EQ(got_area, 0.0);
+        shapes.emplace_back(nullptr);
+      } else {
+        ASSERT_NE(geometry, nullptr);
+        EXPECT_EQ(wkbFlatten(geometry->getGeometryType()), wkbMultiPolygon);
+        EXPECT_TRUE(geometry->IsValid()) << geometry->exportToWkt();
+        OGREnvelope box;
+        geometry->getEnvelope(&box);
+        EXPECT_GE(box.MinX, -180.0);
+        EXPECT_LE(box.MaxX, 180.0);
+        EXPECT_GE(box.MinY, -90.0);
+        EXPECT_LE(box.MaxY, 90.0);
+        shapes.emplace_back(geometry->clone());
+      }
+      ++s;
+    }
+    EXPECT_EQ(s, scene.sites);
+    EXPECT_EQ(total_cells, grid::cell_count(level));
+    EXPECT_NEAR(total_area, kEllipsoidArea, 1e-4 * kEllipsoidArea);
+    // The regions around the poles: runs along latitude +-90, cut at +-180, and their own
+    // small caps, not the rest of the Earth.
+    const std::int32_t south_site = scene.result.site[4 * grid::cells_per_octant(level)];  // octant 4's pole cell
+    ASSERT_EQ(south_site, 1);
+    for (std::int32_t polar : {north_site, south_site}) {
+      EXPECT_LT(area[polar], 0.2 * kEllipsoidArea);
+      OGREnvelope box;
+      shapes[polar]->getEnvelope(&box);
+      EXPECT_TRUE(box.MaxY == 90.0 || box.MinY == -90.0) << "site " << polar;
+    }
+
+    // No two regions overlap: neighbouring pairs and a random sample of others.
+    std::vector<std::pair<std::int32_t, std::int32_t>> sample;
+    for (const auto& pair : neighbour_pairs(scene)) sample.push_back(pair);
+    std::mt19937 rng(level);
+    std::uniform_int_distribution<std::int32_t> pick(0, empty_site - 1);
+    for (int k = 0; k < 20; ++k) sample.push_back({pick(rng), pick(rng)});
+    for (const auto& [a, b] : sample) {
+      if (a == b) continue;
+      std::unique_ptr<OGRGeometry> common(shapes[a]->Intersection(shapes[b].get()));
+      ASSERT_NE(common, nullptr) << a << " " << b;
+      double common_area = 0;
+      if (OGR_GT_IsSurface(wkbFlatten(common->getGeometryType())) ||
+          wkbFlatten(common->getGeometryType()) == wkbMultiPolygon ||
+          wkbFlatten(common->getGeometryType()) == wkbGeometryCollection) {
+        common_area = OGR_G_Area(OGRGeometry::ToHandle(common.get()));
+      }
+      EXPECT_LT(common_area, 1e-9) << "sites " << a << " and " << b << " overlap";
+    }
+  }
+}
+
+/// Writes the regions of `labels` (site ids 0 .. sites - 1, FIDs fid_of) and checks each area
+/// against its cells' and each geometry's validity; returns the regions read back.
+std::vector<std::unique_ptr<OGRGeometry>> check_region_areas(int level, const std::vector<std::int32_t>& labels,
+                                                             std::int32_t sites, const std::string& name) {
+  sites::SiteTable table;
+  for (std::int32_t s = 0; s < sites; ++s) {
+    table.sites.emplace_back();
+    table.sites.back().fid = fid_of(s);
+  }
+  std::vector<double> area(sites, 0.0);
+  for (Code code = 0; code < grid::cell_count(level); ++code) area[labels[code]] += cell_area(code, level);
+  const TempPath out(name);
+  VectorOptions options;
+  options.layers = {"regions"};
+  write_vector(out.path, {level, labels.data(), nullptr, nullptr}, table, options);
+  auto ds = open_vector(out.path);
+  std::vector<std::unique_ptr<OGRGeometry>> shapes;
+  EXPECT_TRUE(ds);
+  if (!ds) return shapes;
+  std::int32_t s = 0;
+  double total = 0;
+  for (auto& feature : *ds->GetLayerByName("regions")) {
+    EXPECT_NEAR(feature->GetFieldAsDouble("area_m2"), area[s], 1e-9 * kEllipsoidArea) << "site " << s;
+    total += feature->GetFieldAsDouble("area_m2");
+    EXPECT_TRUE(feature->GetGeometryRef()->IsValid()) << "site " << s;
+    shapes.emplace_back(feature->GetGeometryRef()->clone());
+    ++s;
+  }
+  EXPECT_EQ(s, sites);
+  EXPECT_NEAR(total, kEllipsoidArea, 1e-4 * kEllipsoidArea);
+  return shapes;
+}
+
+TEST_F(VectorTest, RegionsWithHolesAndLargePolarRegions) {
+  // Site 1 a ring around (10, 10), site 0 outside it and again inside: polygons with holes.
+  {
+    const int level = 5;
+    const grid::Vec3 centre = grid::unit_vector(10, 10);
+    std::vector<std::int32_t> labels(grid::cell_count(level));
+    for (Code code = 0; code < labels.size(); ++code) {
+      const double d = grid::chord2(grid::cell_centre_vector(code, level), centre);
+      labels[code] = (d < 0.02 || d > 0.1) ? 0 : 1;
+    }
+    const auto shapes = check_region_areas(level, labels, 2, "holes.gpkg");
+    ASSERT_EQ(shapes.size(), 2u);
+    const OGRMultiPolygon* ring_site = shapes[1]->toMultiPolygon();
+    ASSERT_EQ(ring_site->getNumGeometries(), 1);
+    EXPECT_EQ(ring_site->getGeometryRef(0)->getNumInteriorRings(), 1);
+  }
+  // A cap around the north pole larger than a hemisphere, and a small southern region: each
+  // gets its own area, not the other's.
+  {
+    const int level = 4;
+    label::SiteGeometry g;
+    g.level = level;
+    label::add_point(g, 0, 89.9, 0);
+    label::add_point(g, 30, -70, 1);
+    label::LabelOptions lo;
+    lo.device = "cpu";
+    const label::LabelResult result = label::label_all(g.input(), lo);
+    check_region_areas(level, result.site, 2, "large_polar.gpkg");
+  }
+}
+
+TEST_F(VectorTest, OneSiteIsTheWholeEllipsoid) {
+  const int level = 3;
+  label::SiteGeometry g;
+  g.level = level;
+  label::add_point(g, 5, 5, 0);
+  label::LabelOptions lo;
+  lo.device = "cpu";
+  const label::LabelResult result = label::label_all(g.input(), lo);
+  sites::SiteTable table;
+  table.sites.emplace_back();
+  table.sites[0].fid = 1;
+  const TempPath out("one_site.gpkg");
+  write_vector(out.path, {level, result.site.data(), nullptr, nullptr}, table, VectorOptions{});
+  auto ds = open_vector(out.path);
+  ASSERT_TRUE(ds);
+  OGRLayer* regions = ds->GetLayerByName("regions");
+  ASSERT_NE(regions, nullptr);
+  ASSERT_EQ(regions->GetFeatureCount(), 1);
+  auto feature = std::unique_ptr<OGRFeature, decltype(&OGRFeature::DestroyFeature)>(regions->GetNextFeature(),
+                                                                                      &OGRFeature::DestroyFeature);
+  EXPECT_NEAR(feature->GetFieldAsDouble("area_m2"), kEllipsoidArea, 1e-9 * kEllipsoidArea);
+  EXPECT_EQ(feature->GetFieldAsInteger64("cells"), static_cast<GIntBig>(grid::cell_count(level)));
+  EXPECT_TRUE(feature->GetGeometryRef()->IsValid());
+  EXPECT_EQ(ds->GetLayerByName("boundary_cells")->GetFeatureCount(), 0);
+  EXPECT_EQ(ds->GetLayerByName("voronoi_edges")->GetFeatureCount(), 0);
+}
+
+TEST_F(VectorTest, BoundaryCells) {
+  const Scene scene = make_scene(4, 15, 3);
+  const TempPath out("boundary.gpkg");
+  VectorOptions options;
+  options.layers = {"boundary_cells"};
+  for (bool flags : {true, false}) {  // given, and computed by the writer
+    SCOPED_TRACE(flags ? "flags given" : "flags computed");
+    write_vector(out.path, scene.labels(true, flags), scene.table, options);
+    std::uint64_t flagged = 0;
+    for (std::uint8_t b : scene.result.boundary) flagged += b;
+    ASSERT_GT(flagged, 0u);
+    auto ds = open_vector(out.path);
+    ASSERT_TRUE(ds);
+    OGRLayer* layer = ds->GetLayerByName("boundary_cells");
+    ASSERT_NE(layer, nullptr);
+    EXPECT_EQ(static_cast<std::uint64_t>(layer->GetFeatureCount()), flagged);
+    std::set<Code> seen;
+    for (auto& feature : *layer) {
+      const auto code = static_cast<Code>(feature->GetFieldAsInteger64("code"));
+      ASSERT_LT(code, grid::cell_count(scene.level));
+      EXPECT_TRUE(seen.insert(code).second);
+      EXPECT_EQ(scene.result.boundary[code], 1);
+      EXPECT_EQ(feature->GetFieldAsInteger64("site_fid"), fid_of(scene.result.site[code]));
+      const OGRGeometry* geometry = feature->GetGeometryRef();
+      ASSERT_NE(geometry, nullptr);
+      EXPECT_EQ(wkbFlatten(geometry->getGeometryType()), wkbPolygon);
+      const LonLat c = grid::cell_centre(code, scene.level);
+      OGRPoint centre(c.lon, c.lat);
+      EXPECT_TRUE(geometry->Contains(&centre)) << "cell " << code;
+    }
+  }
+}
+
+TEST_F(VectorTest, VoronoiEdgesArePairsOfNeighbours) {
+  for (int level : {3, 6}) {
+    SCOPED_TRACE("level " + std::to_string(level));
+    const Scene scene = make_scene(level, 30, 21);
+    const TempPath out("edges_" + std::to_string(level) + ".gpkg");
+    VectorOptions options;
+    options.layers = {"voronoi_edges"};
+    write_vector(out.path, scene.labels(), scene.table, options);
+
+    // Expected: the pairs of a direct scan, and each pair's edge length summed from both sides.
+    const auto pairs = neighbour_pairs(scene);
+    std::map<std::pair<std::int64_t, std::int64_t>, double> expected;
+    for (Code code = 0; code < grid::cell_count(level); ++code) {
+      Code nb[3];
+      grid::neighbours(code, level, nb);
+      for (Code n : nb) {
+        const std::int32_t a = scene.result.site[code], b = scene.result.site[n];
+        if (a != b) expected[{fid_of(std::min(a, b)), fid_of(std::max(a, b))}] += 0.5 * shared_edge_length(code, n, level);
+      }
+    }
+    ASSERT_EQ(expected.size(), pairs.size());
+
+    auto ds = open_vector(out.path);
+    ASSERT_TRUE(ds);
+    OGRLayer* layer = ds->GetLayerByName("voronoi_edges");
+    ASSERT_NE(layer, nullptr);
+    std::map<std::pair<std::int64_t, std::int64_t>, double> got;
+    for (auto& feature : *layer) {
+      const std::pair<std::int64_t, std::int64_t> key{feature->GetFieldAsInteger64("site_a"),
+                                                      feature->GetFieldAsInteger64("site_b")};
+      EXPECT_LT(key.first, key.second);
+      EXPECT_EQ(got.count(key), 0u) << "pair written twice";
+      const double length = feature->GetFieldAsDouble("length_m");
+      EXPECT_GT(length, 0.0);
+      got[key] = length;
+      const OGRGeometry* geometry = feature->GetGeometryRef();
+      ASSERT_NE(geometry, nullptr);
+      EXPECT_EQ(wkbFlatten(geometry->getGeometryType()), wkbMultiLineString);
+      EXPECT_FALSE(geometry->IsEmpty());
+    }
+    ASSERT_EQ(got.size(), expected.size());
+    for (const auto& [key, length] : expected) {
+      ASSERT_EQ(got.count(key), 1u) << key.first << "-" << key.second << " missing";
+      EXPECT_NEAR(got[key], length, 1e-9 * length + 1e-6) << key.first << "-" << key.second;
+    }
+  }
+}
+
+TEST_F(VectorTest, CellsLayerOnlyWhenAsked) {
+  // Level 7 has 131 072 cells: more than one transaction.
+  const Scene scene = make_scene(7, 10, 5);
+  const TempPath plain("cells_default.gpkg"), asked("cells_asked.gpkg"), no_distance("cells_nodist.gpkg");
+  VectorOptions options;
+  options.layers = {"regions"};
+  write_vector(plain.path, scene.labels(), scene.table, options);
+  {
+    auto ds = open_vector(plain.path);
+    ASSERT_TRUE(ds);
+    EXPECT_EQ(ds->GetLayerByName("cells"), nullptr);
+  }
+  options.layers = {"cells"};
+  write_vector(asked.path, scene.labels(), scene.table, options);
+  write_vector(no_distance.path, scene.labels(false, false), scene.table, options);
+  for (const std::string& path : {asked.path, no_distance.path}) {
+    const bool with_distance = path == asked.path;
+    SCOPED_TRACE(path);
+    auto ds = open_vector(path);
+    ASSERT_TRUE(ds);
+    ASSERT_EQ(ds->GetLayerCount(), 1);
+    OGRLayer* layer = ds->GetLayerByName("cells");
+    ASSERT_NE(layer, nullptr);
+    ASSERT_EQ(static_cast<std::uint64_t>(layer->GetFeatureCount()), grid::cell_count(scene.level));
+    Code expected_code = 0;
+    int mismatches = 0;
+    for (auto& feature : *layer) {
+      const auto code = static_cast<Code>(feature->GetFieldAsInteger64("code"));
+      mismatches += code != expected_code++;
+      mismatches += feature->GetFieldAsInteger64("site_fid") != fid_of(scene.result.site[code]);
+      mismatches += feature->GetFieldAsInteger("boundary") != scene.result.boundary[code];
+      if (with_distance) {
+        mismatches += feature->GetFieldAsDouble("distance_m") != static_cast<double>(scene.result.distance_m[code]);
+      } else {
+        mismatches += !feature->IsFieldNull(feature->GetFieldIndex("distance_m"));
+      }
+    }
+    EXPECT_EQ(mismatches, 0);
+  }
+}
+
+TEST_F(VectorTest, UnknownLayerIsRefusedBeforeCreating) {
+  const Scene scene = make_scene(3, 5, 1);
+  const TempPath out("unknown.gpkg");
+  VectorOptions options;
+  options.layers = {"regions", "rivers"};
+  try {
+    write_vector(out.path, scene.labels(), scene.table, options);
+    FAIL() << "no WriteError";
+  } catch (const WriteError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("'rivers'"), std::string::npos) << message;
+    EXPECT_NE(message.find("regions, boundary_cells, voronoi_edges, cells"), std::string::npos) << message;
+  }
+  EXPECT_FALSE(std::filesystem::exists(out.path));
+}
+
+TEST_F(VectorTest, UnwritablePathAndUnknownDriver) {
+  const Scene scene = make_scene(3, 5, 1);
+  const std::string path = ::testing::TempDir() + "qtmv_no_such_dir/sub/out.gpkg";
+  try {
+    write_vector(path, scene.labels(), scene.table, VectorOptions{});
+    FAIL() << "no WriteError";
+  } catch (const WriteError& e) {
+    const std::string message = e.what();
+    EXPECT_EQ(message.rfind(path, 0), 0u) << message;             // names the destination
+    EXPECT_GT(message.size(), path.size() + 30) << message;       // and GDAL's reason
+  }
+  VectorOptions options;
+  options.driver = "NoSuchDriver";
+  EXPECT_THROW(write_vector(::testing::TempDir() + "qtmv_x.gpkg", scene.labels(), scene.table, options), WriteError);
+  options.driver = "GTiff";  // raster only
+  EXPECT_THROW(write_vector(::testing::TempDir() + "qtmv_x.tif", scene.labels(), scene.table, options), WriteError);
+}
+
+TEST_F(VectorTest, GdalFailureNamesTheLayer) {
+  // The geometry column takes the name `code`: creating the field `code` then fails in GDAL.
+  const Scene scene = make_scene(3, 5, 1);
+  const TempPath out("gdal_failure.gpkg");
+  VectorOptions options;
+  options.layers = {"regions", "boundary_cells"};
+  options.layer_options = {"GEOMETRY_NAME=code"};
+  try {
+    write_vector(out.path, scene.labels(), scene.table, options);
+    FAIL() << "no WriteError";
+  } catch (const WriteError& e) {
+    const std::string message = e.what();
+    EXPECT_EQ(message.rfind(out.path + ", layer boundary_cells: ", 0), 0u) << message;
+    EXPECT_NE(message.find("code"), std::string::npos) << message;
+  }
+}
+
+TEST_F(VectorTest, Shapefiles) {
+  const Scene scene = make_scene(4, 12, 9);
+  const TempPath dir("shp");
+  VectorOptions options;
+  options.driver = "ESRI Shapefile";
+  // A directory: one .shp per layer. The long source field name is truncated (a warning).
+  write_vector(dir.path, scene.labels(), scene.table, options);
+  auto ds = open_vector(dir.path);
+  ASSERT_TRUE(ds);
+  std::uint64_t flagged = 0;
+  for (std::uint8_t b : scene.result.boundary) flagged += b;
+  OGRLayer* boundary = ds->GetLayerByName("boundary_cells");
+  ASSERT_NE(boundary, nullptr);
+  EXPECT_EQ(static_cast<std::uint64_t>(boundary->GetFeatureCount()), flagged);
+  OGRLayer* regions = ds->GetLayerByName("regions");
+  ASSERT_NE(regions, nullptr);
+  EXPECT_EQ(regions->GetFeatureCount(), scene.sites);
+  EXPECT_GE(regions->GetLayerDefn()->GetFieldIndex("qtmv_cells"), 0);
+  OGRLayer* edges = ds->GetLayerByName("voronoi_edges");
+  ASSERT_NE(edges, nullptr);
+  EXPECT_EQ(static_cast<std::size_t>(edges->GetFeatureCount()), neighbour_pairs(scene).size());
+}
+
+TEST_F(VectorTest, ProgressAndInterrupt) {
+  const Scene scene = make_scene(6, 10, 2);
+  const TempPath out("progress.gpkg");
+  VectorOptions options;
+  options.layers = {"regions", "boundary_cells", "voronoi_edges", "cells"};
+  std::vector<double> seen;
+  options.progress = [&](double fraction, const char* stage) {
+    EXPECT_STREQ(stage, "write");
+    seen.push_back(fraction);
+    return true;
+  };
+  write_vector(out.path, scene.labels(), scene.table, options);
+  ASSERT_GT(seen.size(), 10u);
+  for (std::size_t k = 1; k < seen.size(); ++k) EXPECT_GE(seen[k], seen[k - 1]);
+  EXPECT_EQ(seen.back(), 1.0);
+
+  int calls = 0;
+  options.progress = [&](double, const char*) { return ++calls < 5; };
+  try {
+    write_vector(out.path, scene.labels(), scene.table, options);
+    FAIL() << "no WriteError";
+  } catch (const WriteError& e) {
+    EXPECT_STREQ(e.what(), "interrupted");
+  }
+  EXPECT_EQ(calls, 5);
+}
+
+}  // namespace
+}  // namespace qtmv::write

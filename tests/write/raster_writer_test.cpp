@@ -1,0 +1,395 @@
+// The raster writer, read back with GDAL: the QTM-coded raster equals the labels on every cell,
+// the lon/lat raster agrees with point location at its pixel centres, and failures are clear.
+#include <gtest/gtest.h>
+
+#include <cpl_conv.h>
+#include <cpl_string.h>
+#include <cpl_vsi.h>
+#include <gdal.h>
+#include <ogr_srs_api.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdint>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "grid/qtm.hpp"
+#include "label/labeller.hpp"
+#include "write/raster_writer.hpp"
+
+namespace qtmv::write {
+namespace {
+
+using grid::Code;
+
+/// Random point sites labelled on the CPU, with FIDs that differ from the site ids.
+struct Fixture {
+  int level = 0;
+  label::LabelResult result;
+  sites::SiteTable table;
+
+  Fixture(int level_, int site_count, unsigned seed) : level(level_) {
+    label::SiteGeometry g;
+    g.level = level;
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> lon(-180.0, 180.0), z(-1.0, 1.0);
+    for (int s = 0; s < site_count; ++s) add_point(g, lon(rng), std::asin(z(rng)) * 180.0 / M_PI, s);
+    label::LabelOptions options;
+    options.device = "cpu";
+    result = label::label_all(g.input(), options);
+    table.sites.resize(static_cast<std::size_t>(site_count));
+    for (int s = 0; s < site_count; ++s) table.sites[s].fid = fid_of(s);
+  }
+  static std::int64_t fid_of(int site) { return 1000 + 7 * static_cast<std::int64_t>(site); }
+
+  CellLabels labels(bool with_distance = true, bool with_boundary = true) const {
+    CellLabels l;
+    l.level = level;
+    l.site = result.site.data();
+    l.distance_m = with_distance ? result.distance_m.data() : nullptr;
+    l.boundary = with_boundary ? result.boundary.data() : nullptr;
+    return l;
+  }
+};
+
+std::string temp_path(const std::string& name) { return ::testing::TempDir() + "qtmv_raster_" + name; }
+
+/// Opens a raster read-only; closed (and the file removed) when the guard ends.
+struct Opened {
+  std::string path;
+  GDALDatasetH ds = nullptr;
+  explicit Opened(std::string p) : path(std::move(p)), ds(GDALOpen(path.c_str(), GA_ReadOnly)) {}
+  ~Opened() {
+    if (ds) GDALClose(ds);
+    VSIUnlink(path.c_str());
+  }
+};
+
+bool exists(const std::string& path) {
+  VSIStatBufL stat;
+  return VSIStatL(path.c_str(), &stat) == 0;
+}
+
+std::vector<double> read_band(GDALDatasetH ds, int band) {
+  const int w = GDALGetRasterXSize(ds), h = GDALGetRasterYSize(ds);
+  std::vector<double> values(static_cast<std::size_t>(w) * h);
+  EXPECT_EQ(GDALRasterIO(GDALGetRasterBand(ds, band), GF_Read, 0, 0, w, h, values.data(), w, h, GDT_Float64, 0, 0),
+            CE_None);
+  return values;
+}
+
+double read_pixel(GDALDatasetH ds, int band, int x, int y) {
+  double v = 0;
+  EXPECT_EQ(GDALRasterIO(GDALGetRasterBand(ds, band), GF_Read, x, y, 1, 1, &v, 1, 1, GDT_Float64, 0, 0), CE_None);
+  return v;
+}
+
+std::string metadata(GDALDatasetH ds, const char* key, const char* domain = nullptr) {
+  const char* v = GDALGetMetadataItem(ds, key, domain);
+  return v ? v : "";
+}
+
+class RasterWriter : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() { GDALAllRegister(); }
+};
+
+/// Every pixel of the QTM-coded raster: its cell's labels, or nodata where j > 2i.
+void check_qtm_raster(GDALDatasetH ds, const Fixture& f, bool with_distance) {
+  const int L = f.level;
+  const int I = 1 << L;
+  ASSERT_NE(ds, nullptr);
+  ASSERT_EQ(GDALGetRasterXSize(ds), 2 * I - 1);
+  ASSERT_EQ(GDALGetRasterYSize(ds), 8 * I);
+  ASSERT_EQ(GDALGetRasterCount(ds), with_distance ? 3 : 2);
+  EXPECT_EQ(metadata(ds, "QTM_LEVEL"), std::to_string(L));
+  EXPECT_EQ(metadata(ds, "QTM_LAYOUT"), "octant_row_col");
+  EXPECT_EQ(metadata(ds, "QTM_GEOREFERENCED"), "NO");
+  double gt[6];
+  EXPECT_NE(GDALGetGeoTransform(ds, gt), CE_None) << "the QTM raster must not be georeferenced";
+  EXPECT_EQ(GDALGetSpatialRef(ds), nullptr);
+  const char* names[3] = {"site_fid", "boundary", "distance_m"};
+  for (int b = 1; b <= GDALGetRasterCount(ds); ++b) {
+    GDALRasterBandH band = GDALGetRasterBand(ds, b);
+    EXPECT_STREQ(GDALGetDescription(band), names[b - 1]);
+    int has_nodata = 0;
+    EXPECT_EQ(GDALGetRasterNoDataValue(band, &has_nodata), -1.0);
+    EXPECT_TRUE(has_nodata);
+    EXPECT_EQ(GDALGetRasterDataType(band), with_distance ? GDT_Float64 : GDT_Int32);
+  }
+  const std::vector<double> fid = read_band(ds, 1), boundary = read_band(ds, 2);
+  const std::vector<double> distance = with_distance ? read_band(ds, 3) : std::vector<double>{};
+  const int w = 2 * I - 1;
+  std::uint64_t cells = 0;
+  int failures = 0;
+  for (int y = 0; y < 8 * I && failures < 10; ++y) {
+    const int octant = y / I, i = y % I;
+    for (int x = 0; x < w && failures < 10; ++x) {
+      const std::size_t p = static_cast<std::size_t>(y) * w + x;
+      if (x > 2 * i) {
+        if (fid[p] != -1 || boundary[p] != -1 || (with_distance && distance[p] != -1)) {
+          ADD_FAILURE() << "pixel " << x << "," << y << " beyond its row is not nodata";
+          ++failures;
+        }
+        continue;
+      }
+      ++cells;
+      const Code code = grid::code_of({octant, static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(x)}, L);
+      const std::int32_t site = f.result.site[code];
+      bool ok = fid[p] == static_cast<double>(Fixture::fid_of(site)) && boundary[p] == f.result.boundary[code];
+      if (with_distance) ok = ok && distance[p] == static_cast<double>(f.result.distance_m[code]);
+      if (!ok) {
+        ADD_FAILURE() << "level " << L << " cell " << code << " (pixel " << x << "," << y << "): fid " << fid[p]
+                      << " boundary " << boundary[p] << " vs site " << site << " boundary "
+                      << int(f.result.boundary[code]);
+        ++failures;
+      }
+    }
+  }
+  if (failures == 0) {
+    EXPECT_EQ(cells, grid::cell_count(L));
+  }
+}
+
+TEST_F(RasterWriter, QtmGeoTiffEqualsLabelsAtLevels2To7) {
+  for (int level = 2; level <= 7; ++level) {
+    SCOPED_TRACE("level " + std::to_string(level));
+    const Fixture f(level, 3 + 5 * level, 100 + level);
+    const std::string path = temp_path("qtm_" + std::to_string(level) + ".tif");
+    RasterOptions options;
+    std::vector<double> fractions;
+    options.progress = [&](double fraction, const char*) {
+      fractions.push_back(fraction);
+      return true;
+    };
+    write_raster(path, f.labels(), f.table, options);
+    Opened opened(path);
+    check_qtm_raster(opened.ds, f, true);
+    ASSERT_FALSE(fractions.empty());
+    EXPECT_DOUBLE_EQ(fractions.back(), 1.0);
+    for (std::size_t k = 1; k < fractions.size(); ++k) EXPECT_LE(fractions[k - 1], fractions[k]);
+  }
+}
+
+TEST_F(RasterWriter, WithoutDistanceOrBoundaryWritesInt32AndComputesBoundaries) {
+  const Fixture f(6, 40, 7);
+  const std::string path = temp_path("qtm_nodist.tif");
+  write_raster(path, f.labels(false, false), f.table, RasterOptions{});
+  Opened opened(path);
+  check_qtm_raster(opened.ds, f, false);  // boundary compared with the labeller's own
+}
+
+TEST_F(RasterWriter, LonLatAgreesWithPointLocationAtPixelCentres) {
+  const Fixture f(5, 30, 3);
+  const std::string path = temp_path("lonlat.tif");
+  RasterOptions options;
+  options.layout = RasterOptions::Layout::lonlat;
+  write_raster(path, f.labels(), f.table, options);
+  Opened opened(path);
+  GDALDatasetH ds = opened.ds;
+  ASSERT_NE(ds, nullptr);
+  const int I = 1 << f.level;
+  ASSERT_EQ(GDALGetRasterXSize(ds), 4 * I);  // default: square pixels of 90/2^L degrees
+  ASSERT_EQ(GDALGetRasterYSize(ds), 2 * I);
+  EXPECT_EQ(metadata(ds, "QTM_LAYOUT"), "lonlat");
+  EXPECT_EQ(metadata(ds, "QTM_LEVEL"), std::to_string(f.level));
+  double gt[6];
+  ASSERT_EQ(GDALGetGeoTransform(ds, gt), CE_None);
+  const double res = 90.0 / I;
+  EXPECT_EQ(gt[0], -180.0);
+  EXPECT_EQ(gt[1], res);
+  EXPECT_EQ(gt[2], 0.0);
+  EXPECT_EQ(gt[3], 90.0);
+  EXPECT_EQ(gt[4], 0.0);
+  EXPECT_EQ(gt[5], -res);
+  OGRSpatialReferenceH srs = GDALGetSpatialRef(ds);
+  ASSERT_NE(srs, nullptr);
+  EXPECT_STREQ(OSRGetAuthorityName(srs, nullptr), "EPSG");
+  EXPECT_STREQ(OSRGetAuthorityCode(srs, nullptr), "4326");
+
+  const std::vector<double> fid = read_band(ds, 1), boundary = read_band(ds, 2), distance = read_band(ds, 3);
+  const int w = 4 * I, h = 2 * I;
+  std::mt19937 rng(5);
+  std::uniform_int_distribution<int> px(0, w - 1), py(0, h - 1);
+  for (int k = 0; k < 4000; ++k) {
+    // Edges and corners too: the first/last rows and columns hold the poles and the antimeridian.
+    const int x = k < 4 ? (k % 2) * (w - 1) : px(rng);
+    const int y = k < 4 ? (k / 2) * (h - 1) : py(rng);
+    const double lon = gt[0] + (x + 0.5) * gt[1], lat = gt[3] + (y + 0.5) * gt[5];
+    const Code code = grid::lonlat_to_code(lon, lat, f.level);
+    ASSERT_NE(code, grid::kInvalidCode);
+    const std::size_t p = static_cast<std::size_t>(y) * w + x;
+    ASSERT_EQ(fid[p], Fixture::fid_of(f.result.site[code])) << "pixel " << x << "," << y;
+    ASSERT_EQ(boundary[p], f.result.boundary[code]) << "pixel " << x << "," << y;
+    ASSERT_EQ(distance[p], static_cast<double>(f.result.distance_m[code])) << "pixel " << x << "," << y;
+  }
+}
+
+TEST_F(RasterWriter, LonLatHonoursTsAndTr) {
+  const Fixture f(4, 10, 9);
+  RasterOptions options;
+  options.layout = RasterOptions::Layout::lonlat;
+  {
+    options.width = 500;
+    options.height = 200;
+    const std::string path = temp_path("ts.tif");
+    write_raster(path, f.labels(), f.table, options);
+    Opened opened(path);
+    ASSERT_NE(opened.ds, nullptr);
+    EXPECT_EQ(GDALGetRasterXSize(opened.ds), 500);
+    EXPECT_EQ(GDALGetRasterYSize(opened.ds), 200);
+    double gt[6];
+    ASSERT_EQ(GDALGetGeoTransform(opened.ds, gt), CE_None);
+    EXPECT_DOUBLE_EQ(gt[1], 360.0 / 500);
+    EXPECT_DOUBLE_EQ(gt[5], -180.0 / 200);
+    // A pixel at the far south-east agrees with point location there.
+    const double lon = -180.0 + 499.5 * gt[1], lat = 90.0 - 199.5 * -gt[5];
+    EXPECT_EQ(read_pixel(opened.ds, 1, 499, 199),
+              Fixture::fid_of(f.result.site[grid::lonlat_to_code(lon, lat, f.level)]));
+  }
+  {
+    options.width = options.height = 0;
+    options.x_resolution = 0.7;  // 360 / 0.7 = 514.3: rounded, the resolution kept
+    options.y_resolution = 2.0;
+    const std::string path = temp_path("tr.tif");
+    write_raster(path, f.labels(), f.table, options);
+    Opened opened(path);
+    ASSERT_NE(opened.ds, nullptr);
+    EXPECT_EQ(GDALGetRasterXSize(opened.ds), 514);
+    EXPECT_EQ(GDALGetRasterYSize(opened.ds), 90);
+    double gt[6];
+    ASSERT_EQ(GDALGetGeoTransform(opened.ds, gt), CE_None);
+    EXPECT_EQ(gt[1], 0.7);
+    EXPECT_EQ(gt[5], -2.0);
+  }
+  options.width = 10;  // with -tr too
+  EXPECT_THROW(write_raster(temp_path("both.tif"), f.labels(), f.table, options), WriteError);
+  EXPECT_FALSE(exists(temp_path("both.tif")));
+}
+
+TEST_F(RasterWriter, GeoTiffCreationOptionsDefaultAndOverridable) {
+  const Fixture f(6, 12, 4);
+  {
+    const std::string path = temp_path("co_default.tif");
+    write_raster(path, f.labels(), f.table, RasterOptions{});
+    Opened opened(path);
+    ASSERT_NE(opened.ds, nullptr);
+    EXPECT_EQ(metadata(opened.ds, "COMPRESSION", "IMAGE_STRUCTURE"), "DEFLATE");
+    EXPECT_EQ(metadata(opened.ds, "INTERLEAVE", "IMAGE_STRUCTURE"), "BAND");
+    int bw = 0, bh = 0;
+    GDALGetBlockSize(GDALGetRasterBand(opened.ds, 1), &bw, &bh);
+    EXPECT_EQ(bw, 256);  // tiled
+    EXPECT_EQ(bh, 256);
+  }
+  {
+    const std::string path = temp_path("co_lzw.tif");
+    RasterOptions options;
+    options.creation_options = {"COMPRESS=LZW", "tiled=no", "INTERLEAVE=PIXEL"};
+    write_raster(path, f.labels(), f.table, options);
+    Opened opened(path);
+    ASSERT_NE(opened.ds, nullptr);
+    EXPECT_EQ(metadata(opened.ds, "COMPRESSION", "IMAGE_STRUCTURE"), "LZW");
+    EXPECT_EQ(metadata(opened.ds, "INTERLEAVE", "IMAGE_STRUCTURE"), "PIXEL");
+    int bw = 0, bh = 0;
+    GDALGetBlockSize(GDALGetRasterBand(opened.ds, 1), &bw, &bh);
+    EXPECT_EQ(bw, GDALGetRasterXSize(opened.ds));  // strips
+    check_qtm_raster(opened.ds, f, true);
+  }
+}
+
+TEST_F(RasterWriter, CreateCopyOnlyDriverGoesThroughStaging) {
+  if (GDALGetDriverByName("COG") == nullptr) GTEST_SKIP() << "no COG driver";
+  const Fixture f(5, 20, 8);
+  const std::string path = temp_path("cog.tif");
+  RasterOptions options;
+  options.driver = "COG";
+  double last = -1;
+  options.progress = [&](double fraction, const char*) {
+    EXPECT_GE(fraction, last);
+    last = fraction;
+    return true;
+  };
+  write_raster(path, f.labels(), f.table, options);
+  EXPECT_DOUBLE_EQ(last, 1.0);
+  Opened opened(path);
+  check_qtm_raster(opened.ds, f, true);
+}
+
+TEST_F(RasterWriter, InterruptedLeavesNothing) {
+  const Fixture f(7, 10, 2);
+  for (const char* driver : {"GTiff", "COG"}) {
+    if (GDALGetDriverByName(driver) == nullptr) continue;
+    SCOPED_TRACE(driver);
+    const std::string path = temp_path(std::string("interrupted_") + driver + ".tif");
+    RasterOptions options;
+    options.driver = driver;
+    // GTiff: stop after the strips are written (before closing); COG: during CreateCopy.
+    const double stop_after = std::string(driver) == "COG" ? 0.5 : 0.99;
+    options.progress = [&](double fraction, const char*) { return fraction <= stop_after; };
+    try {
+      write_raster(path, f.labels(), f.table, options);
+      FAIL() << "no error";
+    } catch (const WriteError& e) {
+      EXPECT_STREQ(e.what(), "interrupted");
+    }
+    EXPECT_FALSE(exists(path));
+    EXPECT_FALSE(exists(path + ".staging.tif"));
+  }
+}
+
+TEST_F(RasterWriter, FailuresAreClearWriteErrors) {
+  const Fixture f(3, 5, 1);
+  auto message_of = [&](const std::string& path, const RasterOptions& options) -> std::string {
+    try {
+      write_raster(path, f.labels(), f.table, options);
+    } catch (const WriteError& e) {
+      std::printf("  WriteError: %s\n", e.what());
+      return e.what();
+    }
+    ADD_FAILURE() << "no WriteError for " << path;
+    VSIUnlink(path.c_str());
+    return "";
+  };
+  {
+    const std::string path = temp_path("no_such_dir/out.tif");
+    const std::string m = message_of(path, RasterOptions{});
+    EXPECT_NE(m.find(path), std::string::npos) << m;
+    EXPECT_NE(m.find("cannot create"), std::string::npos) << m;
+  }
+  {
+    RasterOptions options;
+    options.driver = "NoSuchDriver";
+    const std::string m = message_of(temp_path("x.tif"), options);
+    EXPECT_NE(m.find("unknown raster driver 'NoSuchDriver'"), std::string::npos) << m;
+  }
+  {
+    RasterOptions options;
+    options.driver = "PNG";  // Byte and UInt16 only: the FIDs would be truncated
+    const std::string path = temp_path("x.png");
+    const std::string m = message_of(path, options);
+    EXPECT_NE(m.find("PNG cannot hold Float64"), std::string::npos) << m;
+    EXPECT_NE(m.find("Int32"), std::string::npos) << m;
+    EXPECT_FALSE(exists(path));
+  }
+  {
+    sites::SiteTable big;
+    big.sites.resize(f.table.sites.size());
+    for (std::size_t s = 0; s < big.sites.size(); ++s) big.sites[s].fid = std::int64_t{1} << 31;
+    try {
+      write_raster(temp_path("bigfid.tif"), f.labels(), big, RasterOptions{});
+      ADD_FAILURE() << "no WriteError for a FID beyond Int32";
+    } catch (const WriteError& e) {
+      EXPECT_NE(std::string(e.what()).find("band 1 (site_fid)"), std::string::npos) << e.what();
+    }
+  }
+  {
+    RasterOptions options;
+    options.width = 100;  // -ts with the qtm layout
+    EXPECT_NE(message_of(temp_path("ts_qtm.tif"), options).find("lonlat only"), std::string::npos);
+  }
+}
+
+}  // namespace
+}  // namespace qtmv::write

@@ -1,18 +1,41 @@
 #!/usr/bin/env bash
-# Builds everything and runs the main job on the data shipped in testdata/.
-# Until the qtmvoronoi tool lands, the main job is qtmcell on a sample of world cities:
-# their level 9 cells, those cells' centres, and their polygons as WKT.
+# Builds everything and runs the main job on the data shipped in testdata/: the spherical Voronoi
+# diagrams of the world's country centres (points) and of Natural Earth's countries (polygons)
+# at level 9, as GeoPackage layers and as rasters, in build/demo/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/build.sh
-qtmcell=build/tools/qtmcell/qtmcell
+qtmvoronoi=build/tools/qtmvoronoi/qtmvoronoi
+out=build/demo
+mkdir -p "$out"
 level=9
-echo "== cells of testdata/sample_cities.txt at level $level (lon lat -> code)"
-cut -d' ' -f1,2 testdata/sample_cities.txt | "$qtmcell" encode -level $level | tee build/sample_codes.txt
-echo "== decode: code octant row col centre_lon centre_lat"
-"$qtmcell" decode -level $level < build/sample_codes.txt
-echo "== the first cell's polygon, its neighbours and its parent"
-first=$(head -n 1 build/sample_codes.txt)
-"$qtmcell" polygon -level $level "$first" -f wkt
-"$qtmcell" neighbours -level $level "$first"
-"$qtmcell" parent -level $level "$first"
+# country_centres.csv is lon,lat,name: GDAL's CSV driver reads the points with these open options.
+centres=(-oo X_POSSIBLE_NAMES=lon -oo Y_POSSIBLE_NAMES=lat -s_srs EPSG:4326 testdata/country_centres.csv)
+countries=(-l countries_110m testdata/world_atlas_countries_110m.gpkg)
+
+echo "== the country centres' regions, boundary cells and Voronoi edges at level $level"
+"$qtmvoronoi" -progress -overwrite -level $level "${centres[@]}" "$out/centres.gpkg"
+echo "== the same as a QTM-coded raster (one pixel per cell: site FID, boundary, distance)"
+"$qtmvoronoi" -progress -overwrite -level $level "${centres[@]}" "$out/centres_qtm.tif"
+echo "== the regions nearest to each country (polygon sites)"
+"$qtmvoronoi" -progress -overwrite -level $level "${countries[@]}" "$out/countries.gpkg"
+echo "== the same as a lon/lat raster of 0.25 degree pixels"
+"$qtmvoronoi" -progress -overwrite -level $level -tr 0.25 0.25 "${countries[@]}" "$out/countries_lonlat.tif"
+
+# With GDAL's command-line tools (Debian: gdal-bin), a look at the results and a picture.
+if command -v ogrinfo > /dev/null; then
+  echo "== the five largest regions of the country centres"
+  ogrinfo -q -sql "SELECT name, cells, CAST(area_m2 / 1e6 AS INTEGER) AS area_km2 FROM regions ORDER BY area_m2 DESC LIMIT 5" \
+    "$out/centres.gpkg" | grep -E "^  (name|cells|area_km2) "
+fi
+if command -v gdaldem > /dev/null; then
+  # Each country's region in a colour of its own (FID -> colour).
+  awk 'BEGIN { srand(7); print "nv 0 0 0 0"; print "-1 0 0 0 0";
+               for (f = 0; f <= 300; f++) printf "%d %d %d %d\n", f, 80 + int(rand() * 160), 80 + int(rand() * 160), 80 + int(rand() * 160) }' \
+    > "$out/palette.txt"
+  gdaldem color-relief -q -b 1 -nearest_color_entry -alpha "$out/countries_lonlat.tif" "$out/palette.txt" "$out/regions.tif"
+  gdal_translate -q -of PNG "$out/regions.tif" "$out/countries_voronoi.png"
+  rm -f "$out/regions.tif" "$out/palette.txt" "$out/countries_voronoi.png.aux.xml"
+  echo "== picture: $out/countries_voronoi.png"
+fi
+ls -l "$out"

@@ -2,6 +2,7 @@
 
 #include <cpl_conv.h>
 #include <cpl_error.h>
+#include <cpl_string.h>
 #include <cpl_vsi.h>
 #include <gdal_priv.h>
 #include <ogr_geometry.h>
@@ -185,7 +186,10 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
 
   // --- the dataset and the layer ----------------------------------------------------------------
   GdalErrorCapture errors;
-  GDALDatasetUniquePtr dataset(GDALDataset::Open(dataset_name.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY));
+  CPLStringList open_options;
+  for (const std::string& option : options.open_options) open_options.AddString(option.c_str());
+  GDALDatasetUniquePtr dataset(GDALDataset::Open(dataset_name.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, nullptr,
+                                                 open_options.List()));
   if (!dataset) {
     VSIStatBufL stat;
     if (VSIStatL(dataset_name.c_str(), &stat) != 0) throw ReadError("cannot open '" + dataset_name + "': no such file");

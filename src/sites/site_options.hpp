@@ -5,6 +5,7 @@
 #include <functional>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace qtmv::sites {
 
@@ -41,6 +42,7 @@ struct ReadOptions {
   std::string sql;               ///< -sql: statement whose result set is read instead of a layer
   std::string dialect;           ///< -dialect: SQL dialect of -sql ("OGRSQL", "SQLITE", ...)
   std::string source_srs;        ///< -s_srs: overrides the layer's CRS (any OGRSpatialReference input)
+  std::vector<std::string> open_options;  ///< -oo NAME=VALUE: the driver's open options
   EdgeShape edges = EdgeShape::lonlat;       ///< -edges lonlat|geodesic
   WrapMode wrap = WrapMode::automatic;       ///< -wrap auto|none
   DistanceRule distance = DistanceRule::exact;  ///< -distance exact|cell

@@ -1,0 +1,484 @@
+#include "voronoi.hpp"
+
+#include <cpl_conv.h>
+#include <cpl_vsi.h>
+#include <gdal_priv.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <new>
+#include <sstream>
+#include <system_error>
+#include <utility>
+#include <vector>
+
+#include "grid/qtm_checks.hpp"
+#include "sites/ogr_site_reader.hpp"
+#include "write/raster_writer.hpp"
+#include "write/vector_writer.hpp"
+
+namespace qtmv {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+double now_seconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+std::string lower(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+bool starts_with(const std::string& s, const char* prefix) { return s.rfind(prefix, 0) == 0; }
+
+bool ends_with(const std::string& s, const std::string& suffix) {
+  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+std::string gib(double bytes) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%.2f GiB", bytes / double(std::uint64_t{1} << 30));
+  return text;
+}
+
+std::string seconds(double s) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%.2f s", s);
+  return text;
+}
+
+std::uint64_t host_ram_bytes() {
+  const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
+  return pages > 0 && page > 0 ? static_cast<std::uint64_t>(pages) * static_cast<std::uint64_t>(page)
+                               : std::uint64_t{8} << 30;
+}
+
+// The labeller hands its outputs over in tiles and checks for an interrupt between them; on the
+// CPU, tiles of 64 MiB (about 7 million cells) keep that check under a second.
+constexpr std::uint64_t kCpuTileBytes = std::uint64_t{64} << 20;
+
+bool labels_on_cpu(const label::LabelOptions& options) {
+  return options.device == "cpu" || (options.device == "auto" && label::cuda_device_count() == 0);
+}
+
+// The tile limit the pipeline passes to the labeller (0: the labeller's own, a quarter of RAM).
+std::uint64_t tile_limit(const label::LabelOptions& options) {
+  if (options.memory_limit_bytes != 0) return options.memory_limit_bytes;
+  return labels_on_cpu(options) ? kCpuTileBytes : 0;
+}
+
+void replace_all(std::string& text, const std::string& from, const std::string& to) {
+  if (from.empty()) return;
+  for (std::size_t at = text.find(from); at != std::string::npos; at = text.find(from, at + to.size())) {
+    text.replace(at, from.size(), to);
+  }
+}
+
+// --- the destination, written all or nothing ---------------------------------------------------
+
+// The writer writes into a fresh directory beside the destination, under the destination's own
+// name (so drivers see the extension they expect, and sidecar files such as a shapefile's .dbf
+// or a PNG's .aux.xml land beside it); commit() renames everything into place, the named file
+// last. Same directory, so the renames stay on one file system and each is atomic.
+class StagedOutput {
+ public:
+  StagedOutput(std::string destination, bool overwrite) : destination_(std::move(destination)) {
+    if (starts_with(destination_, "/vsi")) {
+      // No rename in most virtual file systems: written directly.
+      direct_ = true;
+      write_path_ = destination_;
+      VSIStatBufL stat;
+      exists_ = !starts_with(destination_, "/vsistdout") && VSIStatL(destination_.c_str(), &stat) == 0;
+      if (exists_ && !overwrite) throw VoronoiError("'" + destination_ + "' exists: use -overwrite to replace it");
+      return;
+    }
+    const fs::path dest(destination_);
+    if (dest.filename().empty()) throw VoronoiError("'" + destination_ + "' names no file");
+    dir_ = dest.parent_path().empty() ? fs::path(".") : dest.parent_path();
+    std::error_code ec;
+    if (fs::exists(fs::symlink_status(dest, ec)) && !overwrite) {
+      throw VoronoiError("'" + destination_ + "' exists: use -overwrite to replace it");
+    }
+    if (!fs::is_directory(dir_, ec)) {
+      throw VoronoiError("cannot write '" + destination_ + "': no directory '" + dir_.string() + "'");
+    }
+    std::string pattern = (dir_ / ("." + dest.filename().string() + ".tmpXXXXXX")).string();
+    if (!mkdtemp(pattern.data())) {
+      throw VoronoiError("cannot write '" + destination_ + "': cannot create a file in '" + dir_.string() +
+                         "': " + std::strerror(errno));
+    }
+    temp_dir_ = pattern;
+    write_path_ = (temp_dir_ / dest.filename()).string();
+  }
+
+  StagedOutput(const StagedOutput&) = delete;
+  StagedOutput& operator=(const StagedOutput&) = delete;
+
+  ~StagedOutput() {
+    std::error_code ec;
+    if (!temp_dir_.empty()) fs::remove_all(temp_dir_, ec);
+    // A direct write that failed leaves what the driver made: remove it (best effort).
+    if (direct_ && !committed_ && began_ && !starts_with(destination_, "/vsistdout")) {
+      VSIUnlink(destination_.c_str());
+    }
+  }
+
+  /// The path the writer is to create; for a direct write, clears the way with -overwrite.
+  const std::string& begin() {
+    if (direct_ && exists_) {
+      if (GDALDriverH driver = GDALIdentifyDriver(destination_.c_str(), nullptr)) {
+        GDALDeleteDataset(driver, destination_.c_str());
+      } else {
+        VSIUnlink(destination_.c_str());
+      }
+    }
+    began_ = true;
+    return write_path_;
+  }
+  const std::string& write_path() const { return write_path_; }
+
+  /// Renames what the writer made into place.
+  void commit() {
+    if (direct_) {
+      committed_ = true;
+      return;
+    }
+    const fs::path main_name = fs::path(destination_).filename();
+    std::vector<fs::path> entries;
+    std::error_code ec;
+    for (const fs::directory_entry& entry : fs::directory_iterator(temp_dir_, ec)) entries.push_back(entry.path());
+    if (ec) throw VoronoiError("cannot write '" + destination_ + "': " + ec.message());
+    if (std::find_if(entries.begin(), entries.end(), [&](const fs::path& p) { return p.filename() == main_name; }) ==
+        entries.end()) {
+      throw VoronoiError("cannot write '" + destination_ + "': the driver made no file of that name");
+    }
+    // Only the destination and its sidecars (same stem: out.shx, out.png.aux.xml) move; anything
+    // else the driver made (a layer per file) would land on files nobody asked to replace.
+    const std::string stem = main_name.stem().string() + ".";
+    std::string strays;
+    for (const fs::path& p : entries) {
+      const std::string name = p.filename().string();
+      if (p.filename() != main_name && name.rfind(stem, 0) != 0) strays += (strays.empty() ? "" : ", ") + name;
+    }
+    if (!strays.empty()) {
+      throw VoronoiError("cannot write '" + destination_ + "': the driver made other files beside it (" + strays +
+                         "); a single-file format holds one layer: use -layers with one layer, or a directory");
+    }
+    // Sidecars first, the named file last: it appears only when all is in place.
+    std::stable_partition(entries.begin(), entries.end(), [&](const fs::path& p) { return p.filename() != main_name; });
+    for (const fs::path& from : entries) {
+      const fs::path to = dir_ / from.filename();
+      if (fs::is_directory(from) && fs::exists(to)) {
+        // A dataset that is a directory (-overwrite): the old one goes aside, then away.
+        const fs::path old = temp_dir_ / (".old." + from.filename().string());
+        fs::rename(to, old, ec);
+        if (!ec) fs::rename(from, to, ec);
+      } else {
+        fs::rename(from, to, ec);
+      }
+      if (ec) {
+        throw VoronoiError("cannot write '" + destination_ + "': renaming into '" + to.string() + "': " + ec.message());
+      }
+    }
+    committed_ = true;
+  }
+
+ private:
+  std::string destination_, write_path_;
+  fs::path dir_, temp_dir_;
+  bool direct_ = false, exists_ = false, began_ = false, committed_ = false;
+};
+
+// Maps each part's progress onto a slice of the whole run and remembers a request to stop.
+class Progress {
+ public:
+  explicit Progress(const ProgressFunc& user) : user_(user) {}
+  bool report(double begin, double end, double fraction, const char* stage) {
+    if (cancelled_) return false;
+    if (!user_) return true;
+    fraction = std::min(1.0, std::max(0.0, fraction));
+    if (!user_(begin + (end - begin) * fraction, stage)) cancelled_ = true;
+    return !cancelled_;
+  }
+  bool cancelled() const { return cancelled_; }
+
+ private:
+  const ProgressFunc& user_;
+  bool cancelled_ = false;
+};
+
+// Slices of the whole run (fractions) given to each stage.
+constexpr double kReadEnd = 0.15, kLabelEnd = 0.55;
+
+}  // namespace
+
+std::string VoronoiSummary::line() const {
+  std::ostringstream s;
+  s << sites << " site" << (sites == 1 ? "" : "s") << " read, " << skipped << " skipped; level " << level << ", "
+    << cells << " cells; " << device << "; read " << seconds(read_seconds) << ", label " << seconds(label_seconds)
+    << " (prepare " << seconds(prepare_seconds) << "), write " << seconds(write_seconds) << "; total "
+    << seconds(total_seconds);
+  return s.str();
+}
+
+OutputFormat choose_output_format(const std::string& destination, const std::string& format, OutputKind kind) {
+  GDALAllRegister();
+  auto can_vector = [](GDALDriver* d) {
+    return d->GetMetadataItem(GDAL_DCAP_VECTOR) && d->GetMetadataItem(GDAL_DCAP_CREATE);
+  };
+  auto can_raster = [](GDALDriver* d) {
+    return d->GetMetadataItem(GDAL_DCAP_RASTER) &&
+           (d->GetMetadataItem(GDAL_DCAP_CREATE) || d->GetMetadataItem(GDAL_DCAP_CREATECOPY));
+  };
+  auto pick = [&](GDALDriver* d) -> OutputFormat {
+    const std::string name = d->GetDescription();
+    const bool vector = can_vector(d), raster = can_raster(d);
+    if (kind == OutputKind::raster) {
+      if (!raster) throw VoronoiError("the " + name + " driver cannot write rasters (-raster, -tr, -ts, -co)");
+      return {name, true};
+    }
+    if (kind == OutputKind::vector && !vector) {
+      throw VoronoiError("the " + name + " driver cannot write vectors (-layers, -lco, -dsco)");
+    }
+    if (!vector && !raster) throw VoronoiError("the " + name + " driver cannot create datasets");
+    return {name, !vector};
+  };
+
+  if (!format.empty()) {
+    GDALDriver* driver = GetGDALDriverManager()->GetDriverByName(format.c_str());
+    if (!driver) throw VoronoiError("-of " + format + ": no such GDAL driver (--formats lists them)");
+    return pick(driver);
+  }
+  // As GDAL's utilities do: the drivers whose extensions match, in registration order (GTiff
+  // before COG); a driver that writes both (GPKG) writes vectors unless told otherwise.
+  const std::string name = lower(CPLGetFilename(destination.c_str()));
+  GDALDriver* first_vector = nullptr;
+  GDALDriver* first_raster = nullptr;
+  GDALDriverManager* manager = GetGDALDriverManager();
+  for (int k = 0; k < manager->GetDriverCount(); ++k) {
+    GDALDriver* d = manager->GetDriver(k);
+    const char* list = d->GetMetadataItem(GDAL_DMD_EXTENSIONS);
+    if (!list) list = d->GetMetadataItem(GDAL_DMD_EXTENSION);
+    if (!list) continue;
+    std::istringstream extensions{lower(list)};
+    bool match = false;
+    for (std::string ext; extensions >> ext && !match;) match = ends_with(name, "." + ext);
+    if (!match) continue;
+    if (!first_vector && can_vector(d)) first_vector = d;
+    if (!first_raster && can_raster(d)) first_raster = d;
+  }
+  GDALDriver* chosen = kind == OutputKind::raster   ? first_raster
+                       : kind == OutputKind::vector ? first_vector
+                       : first_vector               ? first_vector
+                                                    : first_raster;
+  if (!chosen) {
+    const std::string what = kind == OutputKind::raster ? "raster " : kind == OutputKind::vector ? "vector " : "";
+    throw VoronoiError("cannot tell the output format from '" + destination + "': no GDAL " + what +
+                       "driver writes files of that extension; use -of FORMAT (--formats lists them)");
+  }
+  return pick(chosen);
+}
+
+std::uint64_t estimate_run_memory(int level, const label::LabelOptions& label_options) {
+  grid::require_level(level);
+  const label::MemoryEstimate e = label::estimate_output_memory(level, label_options);
+  // The labeller's tile buffer: its limit, a quarter of RAM by default, at most 2^28 cells.
+  std::uint64_t limit = tile_limit(label_options);
+  if (limit == 0) limit = host_ram_bytes() / 4;
+  const std::uint64_t tile_cells =
+      std::min({e.cells, std::max<std::uint64_t>(1, limit / e.bytes_per_cell), std::uint64_t{1} << 28});
+  return e.output_bytes + tile_cells * e.bytes_per_cell;
+}
+
+VoronoiSummary run_voronoi(const std::string& source, const std::string& destination, const VoronoiOptions& options) {
+  const double t_start = now_seconds();
+  auto say = [&](Severity severity, const std::string& message) {
+    if (options.messages) options.messages(severity, message);
+  };
+  const int level = options.read.level;
+  try {
+    grid::require_level(level);
+  } catch (const std::invalid_argument& e) {
+    throw VoronoiError(std::string("-level: ") + e.what());
+  }
+
+  // --- options, format, destination and memory, before any work ---------------------------------
+  const OutputFormat format = choose_output_format(destination, options.format, options.kind);
+  write::VectorOptions vector_options = options.vector;
+  write::RasterOptions raster_options = options.raster;
+  vector_options.driver = raster_options.driver = format.driver;
+  if (format.raster) {
+    if (!options.vector.dataset_options.empty() || !options.vector.layer_options.empty()) {
+      throw VoronoiError("-dsco and -lco are for vector output; " + format.driver + " output is a raster: use -co");
+    }
+    const bool resolution = raster_options.x_resolution != 0 || raster_options.y_resolution != 0;
+    const bool size = raster_options.width != 0 || raster_options.height != 0;
+    if (raster_options.layout == write::RasterOptions::Layout::qtm && (resolution || size)) {
+      throw VoronoiError("-tr and -ts are for -raster lonlat: the QTM-coded raster's size follows the level");
+    }
+    if (resolution && size) throw VoronoiError("-tr and -ts exclude each other");
+  } else if (!options.raster.creation_options.empty()) {
+    throw VoronoiError("-co is for raster output; " + format.driver + " output is vector: use -lco or -dsco");
+  }
+  if (!format.raster) {
+    for (const std::string& layer : vector_options.layers) {
+      const auto& names = write::kVectorLayerNames;
+      if (std::find(std::begin(names), std::end(names), layer) == std::end(names)) {
+        throw VoronoiError("-layers: no layer '" + layer + "': choose from regions, boundary_cells, voronoi_edges, cells");
+      }
+    }
+    if (vector_options.layers.empty()) throw VoronoiError("-layers: no layer named");
+    const std::string name = lower(destination);
+    if (format.driver == "ESRI Shapefile" && vector_options.layers.size() > 1 &&
+        (ends_with(name, ".shp") || ends_with(name, ".dbf"))) {
+      throw VoronoiError("'" + destination + "' is one shapefile, which holds one layer: use -layers with one of " +
+                         "them, or name a directory to hold a shapefile per layer");
+    }
+  }
+  label::LabelOptions label_options = options.label;
+  label_options.rule = options.read.distance == sites::DistanceRule::cell ? label::Rule::cell : label::Rule::exact;
+  const bool wants_cells_layer =
+      std::find(vector_options.layers.begin(), vector_options.layers.end(), "cells") != vector_options.layers.end();
+  label_options.want_distance = format.raster || wants_cells_layer;
+  label_options.want_boundary = true;
+  label_options.memory_limit_bytes = tile_limit(label_options);
+
+  const std::uint64_t need = estimate_run_memory(level, label_options);
+  const std::uint64_t ram = host_ram_bytes();
+  const std::uint64_t allowed = options.memory_limit_bytes ? options.memory_limit_bytes : ram / 10 * 8;
+  if (need > allowed) {
+    const label::MemoryEstimate e = label::estimate_output_memory(level, label_options);
+    throw VoronoiError("level " + std::to_string(level) + " needs about " + gib(double(need)) + " for its " +
+                       std::to_string(e.cells) + " cells (" + std::to_string(e.bytes_per_cell) +
+                       " bytes each, and the labeller's tiles), more than the " + gib(double(allowed)) +
+                       " allowed (80% of this host's " + gib(double(ram)) + " of RAM): choose a lower -level");
+  }
+
+  StagedOutput output(destination, options.overwrite);
+  Progress progress(options.progress);
+  VoronoiSummary summary;
+  summary.driver = format.driver;
+  summary.raster = format.raster;
+  summary.level = level;
+  summary.cells = grid::cell_count(level);
+
+  // --- read ----------------------------------------------------------------------------------------
+  double t0 = now_seconds();
+  sites::ReadOptions read_options = options.read;
+  read_options.progress = [&](double f, const char* stage) { return progress.report(0.0, kReadEnd, f, stage); };
+  // The reader's count of sites without a cell comes before labelling; the pipeline reports the
+  // final one (below), so the reader's is dropped rather than shown with another number.
+  read_options.messages = [&](Severity severity, const std::string& message) {
+    if (severity == Severity::warning && message.find("have no cell of their own") != std::string::npos) return;
+    say(severity, message);
+  };
+  sites::SiteSet sites;
+  try {
+    if (!progress.report(0.0, kReadEnd, 0.0, "read")) throw Interrupted("interrupted");
+    sites = sites::read_sites(source, read_options);
+  } catch (const Interrupted&) {
+    throw;
+  } catch (const std::exception& e) {
+    if (progress.cancelled()) throw Interrupted("interrupted");
+    throw VoronoiError(e.what());
+  }
+  summary.features = sites.summary.features;
+  summary.sites = sites.summary.sites;
+  summary.skipped = sites.summary.skipped;
+  summary.read_seconds = now_seconds() - t0;
+
+  // --- label ---------------------------------------------------------------------------------------
+  t0 = now_seconds();
+  const std::uint64_t cells = summary.cells;
+  std::vector<std::int32_t> site;
+  std::vector<float> distance;
+  std::vector<std::uint8_t> boundary;
+  try {
+    site.resize(cells);
+    if (label_options.want_distance) distance.resize(cells);
+    if (label_options.want_boundary) boundary.resize(cells);
+  } catch (const std::bad_alloc&) {
+    throw VoronoiError("out of memory for the labels of level " + std::to_string(level) + " (" + gib(double(need)) + ")");
+  }
+  // The labeller reports between tiles, on this thread: throwing there stops it cleanly.
+  label_options.progress = [&](double f, const char* stage) {
+    if (!progress.report(kReadEnd, kLabelEnd, f, stage)) throw Interrupted("interrupted");
+  };
+  label_options.log = [&](const std::string& message) { say(Severity::info, message); };
+  label::LabelStats stats;
+  try {
+    stats = label::label_cells(sites.geometry.input(), label_options, [&](const label::LabelTile& tile) {
+      std::memcpy(site.data() + tile.first, tile.site, tile.count * sizeof(std::int32_t));
+      if (tile.distance_m) std::memcpy(distance.data() + tile.first, tile.distance_m, tile.count * sizeof(float));
+      if (tile.boundary) std::memcpy(boundary.data() + tile.first, tile.boundary, tile.count);
+    });
+  } catch (const Interrupted&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw VoronoiError(std::string("labelling failed: ") + e.what());
+  }
+  summary.device = stats.device;
+  summary.prepare_seconds = stats.prepare_seconds;
+
+  // Sites left without a cell still get their row; say which.
+  std::vector<std::uint64_t> count(sites.table.sites.size(), 0);
+  for (std::uint64_t c = 0; c < cells; ++c) ++count[static_cast<std::size_t>(site[c])];
+  std::string fids;
+  for (std::size_t s = 0; s < count.size(); ++s) {
+    sites.table.sites[s].has_own_cell = count[s] > 0;
+    if (count[s] == 0 && ++summary.sites_without_cell <= 10) {
+      fids += (fids.empty() ? "" : ", ") + std::to_string(sites.table.sites[s].fid);
+    }
+  }
+  if (summary.sites_without_cell > 0) {
+    say(Severity::warning, std::to_string(summary.sites_without_cell) + " site(s) got no cell of their own at level " +
+                               std::to_string(level) + " (FIDs " + fids + (summary.sites_without_cell > 10 ? ", ..." : "") +
+                               ")" + (format.raster ? "" : "; they keep their row, with an empty geometry"));
+  }
+  summary.label_seconds = now_seconds() - t0;
+
+  // --- write ---------------------------------------------------------------------------------------
+  t0 = now_seconds();
+  const std::string& path = output.begin();
+  const write::CellLabels labels{level, site.data(), distance.empty() ? nullptr : distance.data(),
+                                 boundary.empty() ? nullptr : boundary.data()};
+  const write::ProgressFunc write_progress = [&](double f, const char* stage) {
+    return progress.report(kLabelEnd, 1.0, f, stage);
+  };
+  try {
+    if (!progress.report(kLabelEnd, 1.0, 0.0, "write")) throw Interrupted("interrupted");
+    if (format.raster) {
+      raster_options.progress = write_progress;
+      write::write_raster(path, labels, sites.table, raster_options);
+    } else {
+      vector_options.progress = write_progress;
+      write::write_vector(path, labels, sites.table, vector_options);
+    }
+    // A stop asked for during the close is honoured too: nothing is renamed yet.
+    if (!progress.report(kLabelEnd, 1.0, 1.0, "write")) throw Interrupted("interrupted");
+  } catch (const Interrupted&) {
+    throw;
+  } catch (const std::exception& e) {
+    if (progress.cancelled()) throw Interrupted("interrupted");
+    std::string message = e.what();
+    replace_all(message, path, destination);  // name the destination, not the temporary file
+    throw VoronoiError(message);
+  }
+  output.commit();
+  summary.write_seconds = now_seconds() - t0;
+  summary.total_seconds = now_seconds() - t_start;
+  say(Severity::info, summary.line());
+  return summary;
+}
+
+}  // namespace qtmv

@@ -1,0 +1,102 @@
+// The pipeline: sites from an OGR source -> labels for every cell of a QTM level -> a vector or
+// raster dataset. The library side of the qtmvoronoi tool, in the style of GDAL's *_lib.cpp
+// utilities: an options struct, a progress callback that can stop the run, a message sink;
+// failures are exceptions (never exit()), and the destination is written all or nothing.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <stdexcept>
+#include <string>
+
+#include "label/labeller.hpp"
+#include "sites/site_options.hpp"
+#include "write/cell_labels.hpp"
+
+namespace qtmv {
+
+using sites::MessageSink;
+using sites::Severity;
+
+/// Called with the fraction of the whole run done (0..1) and the current stage ("read",
+/// "label", "write", or a finer name a part reports); return false to stop the run.
+using ProgressFunc = std::function<bool(double fraction, const char* stage)>;
+
+/// Vector or raster output; automatic lets the driver decide (vector when it writes both).
+enum class OutputKind { automatic, vector, raster };
+
+struct VoronoiOptions {
+  VoronoiOptions() { read.level = 9; }  // the seed paper's finest level
+
+  /// Reader options; read.level is the level of the whole run (0..24), read.distance the rule
+  /// (it sets label.rule too). Its progress and messages are replaced by the ones below.
+  sites::ReadOptions read;
+  /// Labeller options (device, algorithm, threads); rule and want_* are set from the output.
+  label::LabelOptions label;
+  /// GDAL driver short name (-of); empty: guessed from the destination's extension.
+  std::string format;
+  /// -layers forces vector output, -raster raster output.
+  OutputKind kind = OutputKind::automatic;
+  write::VectorOptions vector;  ///< layers, -dsco, -lco (driver set from format)
+  write::RasterOptions raster;  ///< layout, -tr (degrees), -ts (pixels), -co (driver set from format)
+  bool overwrite = false;       ///< replace an existing destination
+  ProgressFunc progress;        ///< may be empty
+  MessageSink messages;         ///< warnings, informative lines and the closing summary; may be empty
+  /// Host memory (bytes) the run may use for its per-cell arrays; 0: 80% of physical RAM.
+  std::uint64_t memory_limit_bytes = 0;
+};
+
+/// What a run did: counts and wall-clock seconds per stage.
+struct VoronoiSummary {
+  std::string driver;              ///< GDAL driver written with
+  bool raster = false;             ///< raster (true) or vector output
+  std::uint64_t features = 0;      ///< features read from the source (after -where)
+  std::uint64_t sites = 0;         ///< features kept as sites
+  std::uint64_t skipped = 0;       ///< features skipped
+  int level = 0;                   ///< QTM level
+  std::uint64_t cells = 0;         ///< 8 * 4^level
+  std::uint64_t sites_without_cell = 0;  ///< sites that got no cell in the labels
+  std::string device;              ///< where the labelling ran
+  double read_seconds = 0;         ///< reading and rasterising the sites (s)
+  double prepare_seconds = 0;      ///< the labeller's candidates and tree (s)
+  double label_seconds = 0;        ///< labelling every cell, boundaries included (s)
+  double write_seconds = 0;        ///< regions/rasters, the dataset, its close and rename (s)
+  double total_seconds = 0;        ///< the whole run (s)
+  /// One line: sites read and skipped, level, cells, device, time per stage.
+  std::string line() const;
+};
+
+/// A failed run; what() says why, naming the file. The destination is untouched.
+class VoronoiError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// The progress callback asked to stop (an interrupt); the destination is untouched.
+class Interrupted : public VoronoiError {
+ public:
+  using VoronoiError::VoronoiError;
+};
+
+/// The output driver and kind a run would use: options.format (-of), or the first GDAL driver
+/// whose extensions (GDAL_DMD_EXTENSIONS) list the destination's and that can create vectors
+/// (preferred) or rasters, as `kind` allows. Throws VoronoiError.
+struct OutputFormat {
+  std::string driver;
+  bool raster = false;
+};
+OutputFormat choose_output_format(const std::string& destination, const std::string& format, OutputKind kind);
+
+/// Memory (bytes) the per-cell arrays of a run take at `level`: the dense labels the pipeline
+/// keeps and the labeller's tile buffer.
+std::uint64_t estimate_run_memory(int level, const label::LabelOptions& label_options);
+
+/// Runs the whole pipeline from `source` (any OGR dataset name) to `destination`. Checks the
+/// options, the destination (an existing one is an error unless options.overwrite) and the
+/// memory before any work; writes into a temporary directory beside the destination and renames
+/// the result into place after a clean close (/vsi* destinations are written directly).
+/// Throws VoronoiError (Interrupted when the progress callback returned false); on any throw
+/// the destination is untouched and the temporary files are gone.
+VoronoiSummary run_voronoi(const std::string& source, const std::string& destination, const VoronoiOptions& options);
+
+}  // namespace qtmv

@@ -1,0 +1,574 @@
+// qtmvoronoi end to end: the built binary run as a user runs it, its outputs read back with GDAL
+// and checked against the labeller; and the library entry point and the parser called directly.
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <random>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gdal_priv.h>
+#include <ogrsf_frmts.h>
+#include <gtest/gtest.h>
+
+#include "grid/qtm.hpp"
+#include "label/labeller.hpp"
+#include "qtmv_version.hpp"
+#include "qtmvoronoi_core.hpp"
+#include "sites/ogr_site_reader.hpp"
+#include "voronoi.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+namespace grid = qtmv::grid;
+using qtmv::qtmvoronoi::parse_command_line;
+using qtmv::qtmvoronoi::UsageError;
+
+const std::string kTestdata = QTMV_TESTDATA_DIR;
+const std::string kCentres = kTestdata + "/country_centres.csv";
+const std::string kCountries = kTestdata + "/world_atlas_countries_110m.gpkg";
+const std::vector<std::string> kCsvOptions{"-oo", "X_POSSIBLE_NAMES=lon", "-oo", "Y_POSSIBLE_NAMES=lat"};
+constexpr double kEllipsoidArea = 5.10065621724088e14;  // WGS84, m^2 (GeographicLib's EllipsoidArea)
+
+struct Result {
+  int status = -1;  ///< exit status, -1 when killed by a signal
+  std::string out, err;
+};
+
+std::string read_all(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  std::ostringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+// A fresh directory for one test.
+std::string test_dir() {
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  const fs::path dir = fs::path(::testing::TempDir()) / (std::string("qtmvoronoi_") + info->name());
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir.string();
+}
+
+// Entries of a directory whose names start with a dot: the pipeline's temporary directories.
+std::vector<std::string> hidden_entries(const std::string& dir) {
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    if (e.path().filename().string().front() == '.') names.push_back(e.path().filename().string());
+  }
+  return names;
+}
+
+pid_t spawn(const std::vector<std::string>& args, const std::string& out, const std::string& err) {
+  std::vector<char*> argv{const_cast<char*>(QTMVORONOI_PATH)};
+  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  const pid_t pid = fork();
+  if (pid == 0) {
+    const int fo = open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    const int fe = open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    const int fi = open("/dev/null", O_RDONLY);
+    if (fi < 0 || fo < 0 || fe < 0 || dup2(fi, 0) < 0 || dup2(fo, 1) < 0 || dup2(fe, 2) < 0) _exit(127);
+    execv(QTMVORONOI_PATH, argv.data());
+    _exit(127);
+  }
+  return pid;
+}
+
+Result finish(pid_t pid, const std::string& out, const std::string& err) {
+  Result r;
+  int wstatus = 0;
+  if (pid > 0 && waitpid(pid, &wstatus, 0) == pid && WIFEXITED(wstatus)) r.status = WEXITSTATUS(wstatus);
+  r.out = read_all(out);
+  r.err = read_all(err);
+  std::remove(out.c_str());
+  std::remove(err.c_str());
+  return r;
+}
+
+// Runs qtmvoronoi; stdout and stderr go to files (outside the directories the tests inspect).
+Result run(const std::vector<std::string>& args) {
+  static int serial = 0;
+  const std::string base = ::testing::TempDir() + "/qtmvoronoi_run_" + std::to_string(getpid()) + "_" +
+                           std::to_string(serial++);
+  const std::string out = base + ".out", err = base + ".err";
+  return finish(spawn(args, out, err), out, err);
+}
+
+std::vector<std::string> concat(std::vector<std::string> a, const std::vector<std::string>& b) {
+  a.insert(a.end(), b.begin(), b.end());
+  return a;
+}
+
+GDALDatasetUniquePtr open(const std::string& path, unsigned flags) {
+  GDALAllRegister();
+  return GDALDatasetUniquePtr(GDALDataset::Open(path.c_str(), flags | GDAL_OF_READONLY));
+}
+
+// The sites and labels the tool should have computed, from the library parts directly.
+struct Reference {
+  qtmv::sites::SiteSet sites;
+  qtmv::label::LabelResult labels;
+};
+Reference reference(const std::string& source, int level, const std::vector<std::string>& open_options,
+                    const std::string& layer = "") {
+  qtmv::sites::ReadOptions ro;
+  ro.level = level;
+  ro.layer = layer;
+  ro.open_options = open_options;
+  Reference r;
+  r.sites = qtmv::sites::read_sites(source, ro);
+  qtmv::label::LabelOptions lo;
+  lo.device = "cpu";
+  r.labels = qtmv::label::label_all(r.sites.geometry.input(), lo);
+  return r;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The command line
+
+TEST(QtmvoronoiCli, HelpAndVersion) {
+  for (const char* option : {"--help", "-h", "-help"}) {
+    const Result r = run({option});
+    EXPECT_EQ(r.status, 0) << option;
+    EXPECT_NE(r.out.find("SYNOPSIS"), std::string::npos) << option;
+    EXPECT_NE(r.out.find("EXIT STATUS"), std::string::npos) << option;
+  }
+  const Result v = run({"--version"});
+  EXPECT_EQ(v.status, 0);
+  EXPECT_EQ(v.out.rfind(std::string("qtmvoronoi ") + QTMV_VERSION_STRING, 0), 0u) << v.out;
+  EXPECT_NE(v.out.find("GDAL"), std::string::npos) << v.out;
+}
+
+TEST(QtmvoronoiCli, UsageErrorsExit2WithTheUsage) {
+  const std::vector<std::vector<std::string>> cases{
+      {},
+      {"a.csv"},
+      {"a.csv", "b.gpkg", "c.gpkg"},
+      {"-bogus", "a.csv", "b.gpkg"},
+      {"a.csv", "b.gpkg", "-level"},
+      {"-level", "25", "a.csv", "b.gpkg"},
+      {"-level", "x", "a.csv", "b.gpkg"},
+      {"-tr", "1", "1", "-ts", "10", "10", "a.csv", "b.tif"},
+      {"-raster", "qtm", "-tr", "1", "1", "a.csv", "b.tif"},
+      {"-raster", "hex", "a.csv", "b.tif"},
+      {"-layers", "regions,nope", "a.csv", "b.gpkg"},
+      {"-device", "gpu", "a.csv", "b.gpkg"},
+      {"-oo", "novalue", "a.csv", "b.gpkg"},
+      {"--config", "ONLY_KEY"},
+  };
+  for (const auto& args : cases) {
+    const Result r = run(args);
+    std::string line;
+    for (const auto& a : args) line += a + ' ';
+    EXPECT_EQ(r.status, 2) << line << "\n" << r.err;
+    EXPECT_NE(r.err.find("Usage:"), std::string::npos) << line << "\n" << r.err;
+  }
+}
+
+TEST(QtmvoronoiCore, ParsesOptions) {
+  const auto o = parse_command_line({"--level", "7", "-L", "layer", "-where", "a > 1", "-s_srs", "EPSG:3857",
+                                     "-oo", "A=1", "-oo", "B=2", "-edges", "geodesic", "-wrap", "none", "-strict",
+                                     "-distance", "cell", "-device", "CPU", "-algorithm", "brute", "-f", "GPKG",
+                                     "-lco", "X=1", "-dsco", "Y=2", "-layers", "regions, cells", "-overwrite", "-q",
+                                     "src.shp", "dst.gpkg"});
+  EXPECT_EQ(o.run.read.level, 7);
+  EXPECT_EQ(o.run.read.layer, "layer");
+  EXPECT_EQ(o.run.read.where, "a > 1");
+  EXPECT_EQ(o.run.read.source_srs, "EPSG:3857");
+  EXPECT_EQ(o.run.read.open_options, (std::vector<std::string>{"A=1", "B=2"}));
+  EXPECT_EQ(o.run.read.edges, qtmv::sites::EdgeShape::geodesic);
+  EXPECT_EQ(o.run.read.wrap, qtmv::sites::WrapMode::none);
+  EXPECT_TRUE(o.run.read.strict);
+  EXPECT_EQ(o.run.read.distance, qtmv::sites::DistanceRule::cell);
+  EXPECT_EQ(o.run.label.device, "cpu");
+  EXPECT_EQ(o.run.label.algorithm, qtmv::label::Algorithm::brute);
+  EXPECT_EQ(o.run.format, "GPKG");
+  EXPECT_EQ(o.run.vector.layers, (std::vector<std::string>{"regions", "cells"}));
+  EXPECT_EQ(o.run.kind, qtmv::OutputKind::vector);
+  EXPECT_TRUE(o.run.overwrite);
+  EXPECT_TRUE(o.quiet);
+  EXPECT_EQ(o.source, "src.shp");
+  EXPECT_EQ(o.destination, "dst.gpkg");
+
+  const auto d = parse_command_line({"in.csv", "out.tif"});
+  EXPECT_EQ(d.run.read.level, 9);  // the default
+  EXPECT_EQ(d.run.kind, qtmv::OutputKind::automatic);
+  EXPECT_FALSE(d.run.overwrite);
+
+  const auto t = parse_command_line({"-tr", "0.5", "0.25", "in.csv", "out.tif"});  // -tr implies lonlat
+  EXPECT_EQ(t.run.kind, qtmv::OutputKind::raster);
+  EXPECT_EQ(t.run.raster.layout, qtmv::write::RasterOptions::Layout::lonlat);
+  EXPECT_EQ(t.run.raster.x_resolution, 0.5);
+  EXPECT_EQ(t.run.raster.y_resolution, 0.25);
+
+  EXPECT_THROW(parse_command_line({"-layers", "regions", "-raster", "qtm", "a", "b"}), UsageError);
+  EXPECT_THROW(parse_command_line({"-tr", "0", "1", "a", "b"}), UsageError);
+  EXPECT_THROW(parse_command_line({"-ts", "10", "a", "b"}), UsageError);
+  EXPECT_THROW(parse_command_line({"-layers", "regions,regions", "a", "b"}), UsageError);
+  EXPECT_TRUE(parse_command_line({"a", "--help"}).help);
+}
+
+TEST(QtmvoronoiCore, GuessesTheFormatFromGdalsDriverMetadata) {
+  using qtmv::OutputKind;
+  auto guess = [](const std::string& name, OutputKind kind = OutputKind::automatic) {
+    return qtmv::choose_output_format(name, "", kind);
+  };
+  EXPECT_EQ(guess("x/out.gpkg").driver, "GPKG");
+  EXPECT_FALSE(guess("out.gpkg").raster);
+  EXPECT_TRUE(guess("out.gpkg", OutputKind::raster).raster);
+  EXPECT_EQ(guess("out.shp").driver, "ESRI Shapefile");
+  EXPECT_EQ(guess("out.GeoJSON").driver, "GeoJSON");
+  EXPECT_EQ(guess("out.fgb").driver, "FlatGeobuf");
+  EXPECT_EQ(guess("out.csv").driver, "CSV");
+  EXPECT_EQ(guess("out.tif").driver, "GTiff");
+  EXPECT_TRUE(guess("out.tiff").raster);
+  EXPECT_EQ(guess("out.png").driver, "PNG");
+  EXPECT_THROW(guess("out.nosuchextension"), qtmv::VoronoiError);
+  EXPECT_THROW(guess("out"), qtmv::VoronoiError);
+  EXPECT_THROW(guess("out.tif", OutputKind::vector), qtmv::VoronoiError);
+  EXPECT_EQ(qtmv::choose_output_format("out.dat", "gtiff", OutputKind::automatic).driver, "GTiff");
+  EXPECT_THROW(qtmv::choose_output_format("out.gpkg", "NoSuchDriver", OutputKind::automatic), qtmv::VoronoiError);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Outputs
+
+TEST(QtmvoronoiCli, RegionsTileTheEllipsoid) {
+  const std::string dir = test_dir();
+  const std::string dst = dir + "/centres.gpkg";
+  const int level = 7;
+  const Result r = run(concat({"-level", std::to_string(level), "-device", "cpu", kCentres, dst}, kCsvOptions));
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("sites read"), std::string::npos) << r.err;  // the summary line
+  EXPECT_TRUE(hidden_entries(dir).empty());
+
+  const Reference ref = reference(kCentres, level, {"X_POSSIBLE_NAMES=lon", "Y_POSSIBLE_NAMES=lat"});
+  const auto ds = open(dst, GDAL_OF_VECTOR);
+  ASSERT_TRUE(ds);
+  for (const char* name : {"regions", "boundary_cells", "voronoi_edges"}) EXPECT_TRUE(ds->GetLayerByName(name)) << name;
+  OGRLayer* regions = ds->GetLayerByName("regions");
+  ASSERT_TRUE(regions);
+  EXPECT_EQ(regions->GetFeatureCount(), static_cast<GIntBig>(ref.sites.table.sites.size()));
+  const OGRFeatureDefn* defn = regions->GetLayerDefn();
+  for (const char* field : {"name", "site_fid", "cells", "area_m2"}) EXPECT_GE(defn->GetFieldIndex(field), 0) << field;
+
+  std::vector<std::unique_ptr<OGRGeometry>> shapes;
+  double area = 0;
+  std::uint64_t cells = 0;
+  std::size_t k = 0;
+  for (auto& feature : *regions) {
+    const OGRGeometry* g = feature->GetGeometryRef();
+    ASSERT_TRUE(g);
+    EXPECT_TRUE(g->IsValid()) << "site " << k;
+    EXPECT_EQ(feature->GetFieldAsInteger64("site_fid"), ref.sites.table.sites[k].fid);
+    area += feature->GetFieldAsDouble("area_m2");
+    cells += static_cast<std::uint64_t>(feature->GetFieldAsInteger64("cells"));
+    shapes.emplace_back(g->clone());
+    ++k;
+  }
+  EXPECT_EQ(cells, grid::cell_count(level));
+  EXPECT_NEAR(area / kEllipsoidArea, 1.0, 1e-4);
+  // No two overlap (GEOS, a sample of pairs: neighbours in file order and random pairs).
+  if (OGRGeometryFactory::haveGEOS()) {
+    std::mt19937 random(5);
+    for (int t = 0; t < 150; ++t) {
+      const std::size_t a = t < 50 ? t : random() % shapes.size(), b = t < 50 ? t + 1 : random() % shapes.size();
+      if (a == b || b >= shapes.size()) continue;
+      std::unique_ptr<OGRGeometry> common(shapes[a]->Intersection(shapes[b].get()));
+      const double overlap = common && common->getDimension() == 2 ? OGR_G_Area(OGRGeometry::ToHandle(common.get())) : 0;
+      EXPECT_LT(overlap, 1e-9) << "sites " << a << " and " << b;
+    }
+  }
+}
+
+TEST(QtmvoronoiCli, QtmRasterEqualsTheLabeller) {
+  const std::string dir = test_dir();
+  const std::string dst = dir + "/countries_qtm.tif";
+  const int level = 7;
+  const Result r = run({"-q", "-level", std::to_string(level), "-l", "countries_110m", kCountries, dst});
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(r.err.find("sites read"), std::string::npos) << "-q prints no summary: " << r.err;
+
+  const Reference ref = reference(kCountries, level, {}, "countries_110m");
+  const auto ds = open(dst, GDAL_OF_RASTER);
+  ASSERT_TRUE(ds);
+  const int n = 1 << level;
+  ASSERT_EQ(ds->GetRasterXSize(), 2 * n - 1);
+  ASSERT_EQ(ds->GetRasterYSize(), 8 * n);
+  ASSERT_EQ(ds->GetRasterCount(), 3);
+  EXPECT_STREQ(ds->GetMetadataItem("QTM_LAYOUT"), "octant_row_col");
+  EXPECT_EQ(std::string(ds->GetMetadataItem("QTM_LEVEL")), std::to_string(level));
+  const int w = ds->GetRasterXSize(), h = ds->GetRasterYSize();
+  std::vector<double> fid(std::size_t(w) * h), boundary(fid.size()), metres(fid.size());
+  ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, w, h, fid.data(), w, h, GDT_Float64, 0, 0), CE_None);
+  ASSERT_EQ(ds->GetRasterBand(2)->RasterIO(GF_Read, 0, 0, w, h, boundary.data(), w, h, GDT_Float64, 0, 0), CE_None);
+  ASSERT_EQ(ds->GetRasterBand(3)->RasterIO(GF_Read, 0, 0, w, h, metres.data(), w, h, GDT_Float64, 0, 0), CE_None);
+  std::uint64_t mismatches = 0, nodata_bad = 0;
+  for (int o = 0; o < 8; ++o) {
+    for (int i = 0; i < n; ++i) {
+      for (int j = 0; j < w; ++j) {
+        const std::size_t p = std::size_t(o * n + i) * w + j;
+        if (j > 2 * i) {
+          nodata_bad += fid[p] != -1;
+          continue;
+        }
+        const grid::Code code = grid::Code(o) * n * n + grid::Code(i) * i + j;
+        const auto s = static_cast<std::size_t>(ref.labels.site[code]);
+        mismatches += fid[p] != double(ref.sites.table.sites[s].fid) || boundary[p] != ref.labels.boundary[code] ||
+                      metres[p] != double(ref.labels.distance_m[code]);
+      }
+    }
+  }
+  EXPECT_EQ(mismatches, 0u);
+  EXPECT_EQ(nodata_bad, 0u);
+}
+
+TEST(QtmvoronoiCli, LonLatRasterAgreesWithPointLocation) {
+  const std::string dir = test_dir();
+  const std::string dst = dir + "/centres_lonlat.tif";
+  const int level = 6;
+  const Result r =
+      run(concat({"-level", std::to_string(level), "-ts", "720", "360", kCentres, dst, "-device", "cpu"}, kCsvOptions));
+  ASSERT_EQ(r.status, 0) << r.err;
+  const Reference ref = reference(kCentres, level, {"X_POSSIBLE_NAMES=lon", "Y_POSSIBLE_NAMES=lat"});
+  const auto ds = open(dst, GDAL_OF_RASTER);
+  ASSERT_TRUE(ds);
+  ASSERT_EQ(ds->GetRasterXSize(), 720);
+  ASSERT_EQ(ds->GetRasterYSize(), 360);
+  double gt[6];
+  ASSERT_EQ(ds->GetGeoTransform(gt), CE_None);
+  const int w = 720, h = 360;
+  std::vector<double> fid(std::size_t(w) * h);
+  ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, w, h, fid.data(), w, h, GDT_Float64, 0, 0), CE_None);
+  std::mt19937 random(9);
+  int mismatches = 0;
+  for (int t = 0; t < 20000; ++t) {
+    const int x = random() % w, y = random() % h;
+    const double lon = gt[0] + (x + 0.5) * gt[1], lat = gt[3] + (y + 0.5) * gt[5];
+    const grid::Code code = grid::lonlat_to_code(lon, lat, level);
+    const auto s = static_cast<std::size_t>(ref.labels.site[code]);
+    mismatches += fid[std::size_t(y) * w + x] != double(ref.sites.table.sites[s].fid);
+  }
+  EXPECT_EQ(mismatches, 0);
+}
+
+TEST(QtmvoronoiCli, ShapefileSidecarsMoveTogether) {
+  const std::string dir = test_dir();
+  const Result r = run(concat({"-q", "-level", "4", "-layers", "regions", kCentres, dir + "/regions.shp"}, kCsvOptions));
+  ASSERT_EQ(r.status, 0) << r.err;
+  for (const char* ext : {".shp", ".shx", ".dbf", ".prj"}) EXPECT_TRUE(fs::exists(dir + "/regions" + ext)) << ext;
+  EXPECT_TRUE(hidden_entries(dir).empty());
+  const auto ds = open(dir + "/regions.shp", GDAL_OF_VECTOR);
+  ASSERT_TRUE(ds);
+  EXPECT_GT(ds->GetLayer(0)->GetFeatureCount(), 200);
+  // One .shp file holds one layer: refused before any work, nothing written beside it.
+  const Result three = run(concat({"-q", "-level", "4", kCentres, dir + "/three.shp"}, kCsvOptions));
+  EXPECT_EQ(three.status, 1);
+  EXPECT_NE(three.err.find("-layers"), std::string::npos) << three.err;
+  EXPECT_FALSE(fs::exists(dir + "/boundary_cells.shp"));
+  EXPECT_FALSE(fs::exists(dir + "/three.shp"));
+  // A directory destination holds a shapefile per layer, and moves as one.
+  const Result folder = run(concat({"-q", "-level", "4", "-of", "ESRI Shapefile", kCentres, dir + "/layers"}, kCsvOptions));
+  ASSERT_EQ(folder.status, 0) << folder.err;
+  for (const char* name : {"regions.shp", "boundary_cells.shp", "voronoi_edges.shp"}) {
+    EXPECT_TRUE(fs::exists(dir + "/layers/" + name)) << name;
+  }
+  EXPECT_TRUE(hidden_entries(dir).empty());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Failures leave nothing behind
+
+TEST(QtmvoronoiCli, OverwriteSemantics) {
+  const std::string dir = test_dir();
+  const std::string dst = dir + "/out.gpkg";
+  const auto base = concat({"-q", "-layers", "regions"}, kCsvOptions);
+  ASSERT_EQ(run(concat({"-level", "3", kCentres, dst}, base)).status, 0);
+  const std::string first = read_all(dst);
+
+  // Exists: refused before any work (a missing source is not even looked at).
+  const Result again = run(concat({"-level", "4", kTestdata + "/no_such.csv", dst}, base));
+  EXPECT_EQ(again.status, 1);
+  EXPECT_NE(again.err.find("exists"), std::string::npos) << again.err;
+  EXPECT_NE(again.err.find("-overwrite"), std::string::npos) << again.err;
+  EXPECT_EQ(read_all(dst), first);
+
+  // -overwrite with a failing run: still untouched.
+  const Result failing = run(concat({"-overwrite", "-level", "4", "-where", "no_such_field = 1", kCentres, dst}, base));
+  EXPECT_EQ(failing.status, 1);
+  EXPECT_EQ(read_all(dst), first);
+
+  // -overwrite: replaced.
+  ASSERT_EQ(run(concat({"-overwrite", "-level", "4", kCentres, dst}, base)).status, 0);
+  const auto ds = open(dst, GDAL_OF_VECTOR);
+  ASSERT_TRUE(ds);
+  std::uint64_t cells = 0;
+  for (auto& f : *ds->GetLayerByName("regions")) cells += f->GetFieldAsInteger64("cells");
+  EXPECT_EQ(cells, grid::cell_count(4));
+  EXPECT_TRUE(hidden_entries(dir).empty());
+}
+
+TEST(QtmvoronoiCli, BadSourceNamesTheFile) {
+  const std::string dir = test_dir();
+  const std::string src = dir + "/missing.gpkg";
+  const Result r = run({src, dir + "/out.gpkg"});
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find(src), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("Usage:"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir + "/out.gpkg"));
+  EXPECT_TRUE(hidden_entries(dir).empty());
+}
+
+TEST(QtmvoronoiCli, UnwritableDirectoryFailsClearly) {
+  const std::string dir = test_dir();
+  // Root ignores permission bits; /proc refuses new files to everyone.
+  std::string locked = dir + "/locked";
+  if (geteuid() == 0) {
+    locked = "/proc";
+  } else {
+    fs::create_directory(locked);
+    chmod(locked.c_str(), 0555);
+  }
+  const Result r = run(concat({"-level", "3", kCentres, locked + "/out.gpkg"}, kCsvOptions));
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("cannot write '" + locked + "/out.gpkg'"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(locked + "/out.gpkg"));
+
+  const Result missing = run(concat({"-level", "3", kCentres, dir + "/no/such/dir/out.gpkg"}, kCsvOptions));
+  EXPECT_EQ(missing.status, 1);
+  EXPECT_NE(missing.err.find("no directory"), std::string::npos) << missing.err;
+  if (geteuid() != 0) chmod(locked.c_str(), 0755);
+}
+
+TEST(QtmvoronoiCli, OptionsThatDoNotSuitTheFormatOrTheHost) {
+  const std::string dir = test_dir();
+  const Result co = run(concat({"-co", "COMPRESS=LZW", kCentres, dir + "/a.gpkg"}, kCsvOptions));
+  EXPECT_EQ(co.status, 1);
+  EXPECT_NE(co.err.find("-co"), std::string::npos) << co.err;
+  const Result memory = run(concat({"-level", "24", kCentres, dir + "/b.gpkg"}, kCsvOptions));
+  EXPECT_EQ(memory.status, 1);
+  EXPECT_NE(memory.err.find("needs about"), std::string::npos) << memory.err;
+  const Result guess = run(concat({kCentres, dir + "/c.unknownext"}, kCsvOptions));
+  EXPECT_EQ(guess.status, 1);
+  EXPECT_NE(guess.err.find("-of"), std::string::npos) << guess.err;
+  EXPECT_TRUE(fs::is_empty(dir));
+}
+
+TEST(QtmvoronoiCli, ProgressOnStderr) {
+  const std::string dir = test_dir();
+  const Result r = run(concat({"-progress", "-level", "3", "-layers", "regions", kCentres, dir + "/p.gpkg"}, kCsvOptions));
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_TRUE(r.out.empty()) << r.out;
+  // Warnings may break the bar's line: take it without the message lines.
+  std::string bar;
+  std::istringstream lines(r.err);
+  for (std::string line; std::getline(lines, line);) {
+    if (line.rfind("qtmvoronoi:", 0) != 0) bar += line;
+  }
+  EXPECT_EQ(bar, "0...10...20...30...40...50...60...70...80...90...100 - done.") << r.err;
+  const Result q = run(concat({"-q", "-progress", "-level", "3", "-layers", "regions", kCentres, dir + "/q.gpkg"},
+                              kCsvOptions));
+  ASSERT_EQ(q.status, 0) << q.err;
+  EXPECT_EQ(q.err.find("0..."), std::string::npos) << q.err;
+}
+
+TEST(QtmvoronoiCli, SigtermWhileWritingLeavesNothing) {
+  const std::string dir = test_dir();
+  const std::string dst = dir + "/cells.gpkg";
+  // Every cell of level 9 as a polygon: seconds of writing.
+  const std::string out = dir + "/../sigterm.out", err = dir + "/../sigterm.err";
+  const pid_t pid =
+      spawn(concat({"-level", "9", "-device", "cpu", "-layers", "cells", kCentres, dst}, kCsvOptions), out, err);
+  ASSERT_GT(pid, 0);
+  // Wait until the writer has created its file inside the temporary directory.
+  using clock = std::chrono::steady_clock;
+  const auto start = clock::now();
+  bool writing = false;
+  while (!writing && clock::now() - start < std::chrono::seconds(60)) {
+    for (const std::string& name : hidden_entries(dir)) {
+      std::error_code ec;
+      if (fs::exists(fs::path(dir) / name / "cells.gpkg", ec)) writing = true;
+    }
+    if (!writing) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  ASSERT_TRUE(writing) << "the writer never started";
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const auto signalled = clock::now();
+  ASSERT_EQ(kill(pid, SIGTERM), 0);
+  const Result r = finish(pid, out, err);
+  const double seconds = std::chrono::duration<double>(clock::now() - signalled).count();
+  EXPECT_EQ(r.status, 1) << r.err;
+  EXPECT_NE(r.err.find("interrupted by SIGTERM"), std::string::npos) << r.err;
+  EXPECT_LT(seconds, 3.0);
+  EXPECT_FALSE(fs::exists(dst));
+  EXPECT_TRUE(hidden_entries(dir).empty());
+}
+
+// ---------------------------------------------------------------------------------------------
+// The library entry point
+
+TEST(QtmvoronoiLibrary, RunsIntoVsimemWithProgressAndMessages) {
+  qtmv::VoronoiOptions options;
+  options.read.level = 4;
+  options.read.open_options = {"X_POSSIBLE_NAMES=lon", "Y_POSSIBLE_NAMES=lat"};
+  options.label.device = "cpu";
+  options.vector.layers = {"regions"};
+  double last = -1;
+  bool monotonic = true;
+  options.progress = [&](double f, const char*) {
+    monotonic = monotonic && f >= last;
+    last = f;
+    return true;
+  };
+  std::vector<std::string> info;
+  options.messages = [&](qtmv::Severity s, const std::string& m) {
+    if (s == qtmv::Severity::info) info.push_back(m);
+  };
+  const std::string dst = "/vsimem/qtmvoronoi_library_test.gpkg";
+  const qtmv::VoronoiSummary summary = qtmv::run_voronoi(kCentres, dst, options);
+  EXPECT_EQ(summary.driver, "GPKG");
+  EXPECT_FALSE(summary.raster);
+  EXPECT_EQ(summary.level, 4);
+  EXPECT_EQ(summary.cells, grid::cell_count(4));
+  EXPECT_GT(summary.sites, 200u);
+  EXPECT_TRUE(monotonic);
+  EXPECT_DOUBLE_EQ(last, 1.0);
+  ASSERT_FALSE(info.empty());
+  EXPECT_EQ(info.back(), summary.line());
+  {
+    const auto ds = open(dst, GDAL_OF_VECTOR);
+    ASSERT_TRUE(ds);
+    EXPECT_EQ(ds->GetLayerByName("regions")->GetFeatureCount(), static_cast<GIntBig>(summary.sites));
+  }
+  // Exists now: refused without overwrite, replaced with it.
+  EXPECT_THROW(qtmv::run_voronoi(kCentres, dst, options), qtmv::VoronoiError);
+  options.overwrite = true;
+  EXPECT_NO_THROW(qtmv::run_voronoi(kCentres, dst, options));
+  // A stop asked for by the progress callback is an Interrupted, and leaves no file.
+  const std::string stopped = "/vsimem/qtmvoronoi_stopped.gpkg";
+  options.progress = [](double f, const char*) { return f < 0.5; };
+  EXPECT_THROW(qtmv::run_voronoi(kCentres, stopped, options), qtmv::Interrupted);
+  VSIStatBufL stat;
+  EXPECT_NE(VSIStatL(stopped.c_str(), &stat), 0);
+  // Stopped while writing directly into /vsimem/: what the driver made is removed.
+  options.progress = [](double f, const char*) { return f < 0.9; };
+  EXPECT_THROW(qtmv::run_voronoi(kCentres, stopped, options), qtmv::Interrupted);
+  EXPECT_NE(VSIStatL(stopped.c_str(), &stat), 0);
+  VSIUnlink(dst.c_str());
+}
+
+}  // namespace

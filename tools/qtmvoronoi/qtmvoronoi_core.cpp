@@ -1,0 +1,358 @@
+#include "qtmvoronoi_core.hpp"
+
+#include <cpl_conv.h>
+#include <gdal.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+
+#include "qtmv_version.hpp"
+#include "qtmvoronoi_usage.hpp"  // generated from man/qtmvoronoi.pod
+#include "write/vector_writer.hpp"
+
+namespace qtmv::qtmvoronoi {
+
+volatile std::sig_atomic_t g_signal = 0;
+
+namespace {
+
+std::string lower(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+bool is_digit(char c) { return c >= '0' && c <= '9'; }
+
+// Negative numbers are values, not options.
+bool looks_like_option(const std::string& s) {
+  return s.size() > 1 && s[0] == '-' && !is_digit(s[1]) && s[1] != '.';
+}
+
+// GDAL style: "--level" means "-level"; names are not case-sensitive.
+std::string option_name(const std::string& s) {
+  return lower(s.size() > 2 && s[0] == '-' && s[1] == '-' ? s.substr(1) : s);
+}
+
+bool is_help(const std::string& name) { return name == "-help" || name == "-h" || name == "-?"; }
+
+int parse_int(const std::string& option, const std::string& text, int low, int high, const char* what) {
+  int value = 0;
+  const char* end = text.data() + text.size();
+  const auto [ptr, ec] = std::from_chars(text.data(), end, value);
+  if (ec != std::errc() || ptr != end || value < low || value > high) {
+    throw UsageError(option + ": '" + text + "' is not " + what);
+  }
+  return value;
+}
+
+double parse_positive(const std::string& option, const std::string& text) {
+  char* end = nullptr;
+  const double value = std::strtod(text.c_str(), &end);
+  if (text.empty() || *end != '\0' || !std::isfinite(value) || value <= 0) {
+    throw UsageError(option + ": '" + text + "' is not a positive number");
+  }
+  return value;
+}
+
+std::string name_value(const std::string& option, const std::string& text) {
+  if (text.find('=') == std::string::npos || text.front() == '=') {
+    throw UsageError(option + ": '" + text + "' is not NAME=VALUE");
+  }
+  return text;
+}
+
+// -sql @file reads the statement from a file, as in ogr2ogr.
+std::string sql_text(const std::string& text) {
+  if (text.empty() || text.front() != '@') return text;
+  std::ifstream in(text.substr(1));
+  if (!in) throw UsageError("-sql: cannot read '" + text.substr(1) + "'");
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+std::vector<std::string> split_list(const std::string& text) {
+  std::vector<std::string> items;
+  std::string item;
+  std::istringstream in(text);
+  while (std::getline(in, item, ',')) {
+    item.erase(0, item.find_first_not_of(" \t"));
+    item.erase(item.find_last_not_of(" \t") + 1);
+    items.push_back(item);
+  }
+  return items;
+}
+
+bool valid_device(const std::string& device) {
+  if (device == "auto" || device == "cpu" || device == "cuda") return true;
+  if (device.rfind("cuda:", 0) != 0 || device.size() == 5) return false;
+  return std::all_of(device.begin() + 5, device.end(), is_digit);
+}
+
+extern "C" void on_signal(int signal_number) { g_signal = signal_number; }
+
+}  // namespace
+
+Options parse_command_line(const std::vector<std::string>& args) {
+  Options o;
+  for (const std::string& arg : args) {
+    if (arg == "--") break;
+    const std::string name = option_name(arg);
+    if (is_help(name)) {
+      o.help = true;
+      return o;
+    }
+    if (name == "-version") {
+      o.version = true;
+      return o;
+    }
+  }
+  VoronoiOptions& run = o.run;
+  std::vector<std::string> positional;
+  bool options_ended = false, tr = false, ts = false, raster_named = false;
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    const std::string& arg = args[i];
+    if (options_ended || !looks_like_option(arg)) {
+      positional.push_back(arg);
+      continue;
+    }
+    if (arg == "--") {
+      options_ended = true;
+      continue;
+    }
+    const std::string name = option_name(arg);
+    auto value = [&]() -> const std::string& {
+      if (i + 1 >= args.size()) throw UsageError("option '" + arg + "' needs a value");
+      return args[++i];
+    };
+    // Reader, labeller and writer options.
+    if (name == "-level") {
+      run.read.level = parse_int(arg, value(), 0, 24, "a level from 0 to 24");
+    } else if (name == "-l") {
+      run.read.layer = value();
+    } else if (name == "-where") {
+      run.read.where = value();
+    } else if (name == "-sql") {
+      run.read.sql = sql_text(value());
+    } else if (name == "-dialect") {
+      run.read.dialect = value();
+    } else if (name == "-s_srs") {
+      run.read.source_srs = value();
+    } else if (name == "-edges" || name == "-wrap" || name == "-distance") {
+      const std::string& v = value();
+      try {
+        if (name == "-edges") run.read.edges = sites::parse_edge_shape(v);
+        if (name == "-wrap") run.read.wrap = sites::parse_wrap_mode(v);
+        if (name == "-distance") run.read.distance = sites::parse_distance_rule(v);
+      } catch (const std::exception& e) {
+        throw UsageError(e.what());
+      }
+    } else if (name == "-strict") {
+      run.read.strict = true;
+    } else if (name == "-oo") {
+      run.read.open_options.push_back(name_value(arg, value()));
+    } else if (name == "-device") {
+      const std::string v = lower(value());
+      if (!valid_device(v)) throw UsageError("-device: '" + v + "' is not one of auto, cpu, cuda, cuda:N");
+      run.label.device = v;
+    } else if (name == "-algorithm") {
+      const std::string v = lower(value());
+      if (v == "hier") {
+        run.label.algorithm = label::Algorithm::hier;
+      } else if (v == "brute") {
+        run.label.algorithm = label::Algorithm::brute;
+      } else {
+        throw UsageError("-algorithm: '" + v + "' is not one of hier, brute");
+      }
+    } else if (name == "-threads") {
+      run.label.threads = parse_int(arg, value(), 1, 4096, "a number of threads");
+    } else if (name == "-of" || name == "-f") {
+      run.format = value();
+    } else if (name == "-lco") {
+      run.vector.layer_options.push_back(name_value(arg, value()));
+    } else if (name == "-dsco") {
+      run.vector.dataset_options.push_back(name_value(arg, value()));
+    } else if (name == "-co") {
+      run.raster.creation_options.push_back(name_value(arg, value()));
+    } else if (name == "-overwrite") {
+      run.overwrite = true;
+    } else if (name == "-q" || name == "-quiet") {
+      o.quiet = true;
+    } else if (name == "-progress") {
+      o.progress = true;
+    } else if (name == "-layers") {
+      run.vector.layers = split_list(value());
+      if (run.vector.layers.empty()) throw UsageError("-layers: no layer named");
+      for (std::size_t k = 0; k < run.vector.layers.size(); ++k) {
+        const std::string& layer = run.vector.layers[k];
+        const auto& names = write::kVectorLayerNames;
+        if (std::find(std::begin(names), std::end(names), layer) == std::end(names)) {
+          throw UsageError("-layers: no layer '" + layer + "': choose from regions, boundary_cells, voronoi_edges, cells");
+        }
+        if (std::find(run.vector.layers.begin(), run.vector.layers.begin() + k, layer) != run.vector.layers.begin() + k) {
+          throw UsageError("-layers: '" + layer + "' named twice");
+        }
+      }
+      if (run.kind == OutputKind::raster) throw UsageError("-layers is for vector output, -raster for raster output");
+      run.kind = OutputKind::vector;
+    } else if (name == "-raster") {
+      const std::string v = lower(value());
+      if (v == "qtm") {
+        run.raster.layout = write::RasterOptions::Layout::qtm;
+      } else if (v == "lonlat") {
+        run.raster.layout = write::RasterOptions::Layout::lonlat;
+      } else {
+        throw UsageError("-raster: '" + v + "' is not one of qtm, lonlat");
+      }
+      raster_named = true;
+      if (run.kind == OutputKind::vector) throw UsageError("-layers is for vector output, -raster for raster output");
+      run.kind = OutputKind::raster;
+    } else if (name == "-tr") {
+      run.raster.x_resolution = parse_positive(arg, value());
+      run.raster.y_resolution = parse_positive(arg, value());
+      tr = true;
+    } else if (name == "-ts") {
+      run.raster.width = parse_int(arg, value(), 1, 2147483647, "a positive number of pixels");
+      run.raster.height = parse_int(arg, value(), 1, 2147483647, "a positive number of pixels");
+      ts = true;
+    } else {
+      throw UsageError("unknown option '" + arg + "'");
+    }
+  }
+  if (tr && ts) throw UsageError("-tr and -ts exclude each other");
+  if (tr || ts) {
+    // A pixel size only makes sense for the lon/lat grid, so it implies it.
+    if (raster_named && run.raster.layout == write::RasterOptions::Layout::qtm) {
+      throw UsageError("-tr and -ts are for -raster lonlat: the QTM-coded raster's size follows the level");
+    }
+    if (run.kind == OutputKind::vector) throw UsageError("-tr and -ts are for raster output, not with -layers");
+    run.raster.layout = write::RasterOptions::Layout::lonlat;
+    run.kind = OutputKind::raster;
+  }
+  if (positional.size() < 2) {
+    throw UsageError(positional.empty() ? "SRC_DATASOURCE and DST_DATASOURCE are missing" : "DST_DATASOURCE is missing");
+  }
+  if (positional.size() > 2) throw UsageError("too many arguments: '" + positional[2] + "'");
+  o.source = positional[0];
+  o.destination = positional[1];
+  return o;
+}
+
+void TermProgress::update(double fraction) {
+  const int tick = std::max(0, std::min(40, static_cast<int>(fraction * 40.0)));
+  if (tick < ticks_ && ticks_ >= 39) ticks_ = -1;  // a new run after a finished one
+  if (tick <= ticks_) return;
+  while (tick > ticks_) {
+    ++ticks_;
+    if (ticks_ % 4 == 0) {
+      std::fprintf(out_, "%d", ticks_ / 4 * 10);
+    } else {
+      std::fputc('.', out_);
+    }
+  }
+  if (ticks_ == 40) std::fputs(" - done.\n", out_);
+  std::fflush(out_);
+}
+
+void TermProgress::break_line() {
+  if (mid_line()) std::fputc('\n', out_);
+}
+
+void install_signal_handlers() {
+  struct sigaction action {};
+  action.sa_handler = on_signal;
+  sigemptyset(&action.sa_mask);
+  action.sa_flags = SA_RESETHAND;  // a second signal kills at once, as users expect of Ctrl-C
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+}
+
+int qtmvoronoi_main(int argc, char** argv) {
+  // --help and --version before GDAL's processor, which answers --version with GDAL's own.
+  for (int k = 1; k < argc; ++k) {
+    if (std::strcmp(argv[k], "--") == 0) break;
+    const std::string name = option_name(argv[k]);
+    if (is_help(name)) {
+      std::fputs(kHelpText, stdout);
+      return kExitOk;
+    }
+    if (name == "-version") {
+      std::printf("qtmvoronoi %s (%s)\n", QTMV_VERSION_STRING, GDALVersionInfo("--version"));
+      return kExitOk;
+    }
+  }
+  auto usage_error = [](const std::string& message) {
+    std::fprintf(stderr, "qtmvoronoi: %s\n%s", message.c_str(), kUsageText);
+    return kExitUsage;
+  };
+
+  GDALAllRegister();
+  char** args = argv;
+  // --config KEY VALUE, --formats, --debug, --optfile, ...; returns below 1 when it answered
+  // (--formats: 0) or failed (a missing value: -1, after its message).
+  const int count = GDALGeneralCmdLineProcessor(argc, &args, 0);
+  if (count < 1) return count == 0 ? kExitOk : usage_error("bad GDAL option");
+  const std::vector<std::string> arguments(args + 1, args + count);
+  CSLDestroy(args);
+
+  Options options;
+  try {
+    options = parse_command_line(arguments);
+  } catch (const UsageError& e) {
+    return usage_error(e.what());
+  }
+
+  const bool show_progress = !options.quiet && (options.progress || isatty(STDERR_FILENO));
+  TermProgress bar(stderr);
+  // Informative lines wait while the bar runs; warnings break its line.
+  std::vector<std::string> deferred;
+  auto flush_deferred = [&] {
+    for (const std::string& line : deferred) std::fprintf(stderr, "qtmvoronoi: %s\n", line.c_str());
+    deferred.clear();
+  };
+  VoronoiOptions& run = options.run;
+  run.messages = [&](Severity severity, const std::string& message) {
+    if (severity == Severity::info) {
+      if (options.quiet) return;
+      if (show_progress) {
+        deferred.push_back(message);
+        return;
+      }
+    }
+    bar.break_line();
+    std::fprintf(stderr, "qtmvoronoi: %s%s\n", severity == Severity::warning ? "warning: " : "", message.c_str());
+  };
+  run.progress = [&](double fraction, const char*) {
+    if (g_signal != 0) return false;
+    if (show_progress) bar.update(fraction);
+    return true;
+  };
+
+  install_signal_handlers();
+  try {
+    run_voronoi(options.source, options.destination, run);
+  } catch (const Interrupted&) {
+    bar.break_line();
+    flush_deferred();
+    const char* name = g_signal == SIGINT ? "SIGINT" : g_signal == SIGTERM ? "SIGTERM" : "a signal";
+    std::fprintf(stderr, "qtmvoronoi: interrupted by %s: '%s' not written\n", name, options.destination.c_str());
+    return kExitFailure;
+  } catch (const std::exception& e) {
+    bar.break_line();
+    flush_deferred();
+    std::fprintf(stderr, "qtmvoronoi: %s\n", e.what());
+    return kExitFailure;
+  }
+  flush_deferred();
+  return kExitOk;
+}
+
+}  // namespace qtmv::qtmvoronoi

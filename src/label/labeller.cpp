@@ -297,7 +297,8 @@ struct Decision {
 
 }  // namespace
 
-Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_distance, int threads_requested) {
+Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_distance, int threads_requested,
+                const std::function<void(double fraction)>& level_done) {
   grid::require_level(level);
   if (candidates.empty()) throw std::invalid_argument("build_tree: no candidates");
   if (candidates.size() > 0x7fffffffu) throw std::invalid_argument("build_tree: more than 2^31 candidates");
@@ -466,6 +467,7 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
     weighted_candidates += weighted + evaluations;
     parent_lists.swap(next_lists);
     pending.swap(next);
+    if (level_done) level_done(static_cast<double>(l + 1) / static_cast<double>(level + 1));
   }
   tree.mean_candidates = weighted_candidates / static_cast<double>(grid::cell_count(level));
 
@@ -534,7 +536,9 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
     stats.tree_list_entries = info.list_entries;
     stats.mean_candidates = info.mean_candidates;
   } else if (hier) {
-    tree = build_tree(candidates, input.level, options.want_distance, threads);
+    // Progress after each level of the build, so that a caller can stop a long build.
+    tree = build_tree(candidates, input.level, options.want_distance, threads,
+                      [&](double fraction) { progress(fraction, "prepare"); });
     stats.tree_nodes = tree.nodes.size();
     stats.tree_list_entries = tree.lists.size();
     stats.mean_candidates = tree.mean_candidates;

@@ -175,7 +175,10 @@ struct Tree {
 };
 /// Builds the pruned tree over `candidates` for `level`; with_distance keeps candidate lists
 /// where all candidates share one site, so that distances can be computed.
-Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_distance, int threads = 0);
+/// `level_done` (may be empty) is called after each level of the tree with the fraction of the
+/// levels done, outside any parallel region, so that it may throw to stop the build.
+Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_distance, int threads = 0,
+                const std::function<void(double fraction)>& level_done = {});
 
 /// Number of usable CUDA devices (0 when built without CUDA or none is present).
 int cuda_device_count();

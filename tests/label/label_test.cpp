@@ -703,6 +703,23 @@ TEST(LabelInterface, AutoSaysWhichDevice) {
   EXPECT_EQ(last_progress, 1.0);
 }
 
+TEST(LabelInterface, ProgressDuringTheTreeBuildCanStopIt) {
+  // A caller stops a run by throwing from progress; on the CPU the tree build reports after each
+  // level, so the run stops in the build, before any cell is labelled.
+  const SiteGeometry g = random_points(8, 200, 3);
+  LabelOptions options;
+  options.device = "cpu";
+  int prepare_calls = 0;
+  bool labelled = false;
+  struct Stop {};
+  options.progress = [&](double f, const char* stage) {
+    if (std::string(stage) == "prepare" && f > 0 && ++prepare_calls == 3) throw Stop{};
+  };
+  EXPECT_THROW(label_cells(g.input(), options, [&](const LabelTile&) { labelled = true; }), Stop);
+  EXPECT_EQ(prepare_calls, 3);
+  EXPECT_FALSE(labelled);
+}
+
 TEST(LabelInterface, TooLittleMemoryIsAClearError) {
   const SiteGeometry g = random_points(6, 5, 1);
   LabelOptions options;

@@ -16,6 +16,7 @@
 
 #include <gtest/gtest.h>
 
+#include "child_process.hpp"
 #include "grid/qtm.hpp"
 #include "qtmv_version.hpp"
 
@@ -23,50 +24,14 @@ namespace {
 
 namespace grid = qtmv::grid;
 
-struct Result {
-  int status = -1;  ///< exit status, -1 when killed by a signal
-  std::string out, err;
-};
+using Result = qtmv::test::ProcessResult;
+using qtmv::test::read_file;
 
-std::string read_all(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  std::ostringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
+std::string read_all(const std::string& path) { return read_file(path); }
 
-std::string temp_file() {
-  const char* dir = std::getenv("TMPDIR");
-  std::string pattern = std::string(dir && *dir ? dir : "/tmp") + "/qtmcell_cli_XXXXXX";
-  const int fd = mkstemp(pattern.data());
-  if (fd < 0) throw std::runtime_error("mkstemp failed");
-  close(fd);
-  return pattern;
-}
-
-// Runs qtmcell with args and stdin; files, not pipes, so that nothing can deadlock.
+// Runs qtmcell with args and stdin.
 Result run(const std::vector<std::string>& args, const std::string& input = "") {
-  const std::string in = temp_file(), out = temp_file(), err = temp_file();
-  std::ofstream(in, std::ios::binary) << input;
-  std::vector<char*> argv{const_cast<char*>(QTMCELL_PATH)};
-  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-  argv.push_back(nullptr);
-  const pid_t pid = fork();
-  if (pid == 0) {
-    const int fi = open(in.c_str(), O_RDONLY), fo = open(out.c_str(), O_WRONLY), fe = open(err.c_str(), O_WRONLY);
-    if (fi < 0 || fo < 0 || fe < 0 || dup2(fi, 0) < 0 || dup2(fo, 1) < 0 || dup2(fe, 2) < 0) _exit(127);
-    execv(QTMCELL_PATH, argv.data());
-    _exit(127);
-  }
-  Result r;
-  int wstatus = 0;
-  if (pid > 0 && waitpid(pid, &wstatus, 0) == pid && WIFEXITED(wstatus)) r.status = WEXITSTATUS(wstatus);
-  r.out = read_all(out);
-  r.err = read_all(err);
-  std::remove(in.c_str());
-  std::remove(out.c_str());
-  std::remove(err.c_str());
-  return r;
+  return qtmv::test::run_process(QTMCELL_PATH, args, input);
 }
 
 std::vector<std::string> lines_of(const std::string& text) {

@@ -22,6 +22,7 @@
 #include <ogrsf_frmts.h>
 #include <gtest/gtest.h>
 
+#include "child_process.hpp"
 #include "grid/qtm.hpp"
 #include "label/labeller.hpp"
 #include "qtmv_version.hpp"
@@ -42,17 +43,9 @@ const std::string kCountries = kTestdata + "/world_atlas_countries_110m.gpkg";
 const std::vector<std::string> kCsvOptions{"-oo", "X_POSSIBLE_NAMES=lon", "-oo", "Y_POSSIBLE_NAMES=lat"};
 constexpr double kEllipsoidArea = 5.10065621724088e14;  // WGS84, m^2 (GeographicLib's EllipsoidArea)
 
-struct Result {
-  int status = -1;  ///< exit status, -1 when killed by a signal
-  std::string out, err;
-};
+using Result = qtmv::test::ProcessResult;
 
-std::string read_all(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  std::ostringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
+std::string read_all(const std::string& path) { return qtmv::test::read_file(path); }
 
 // A fresh directory for one test.
 std::string test_dir() {
@@ -73,40 +66,15 @@ std::vector<std::string> hidden_entries(const std::string& dir) {
 }
 
 pid_t spawn(const std::vector<std::string>& args, const std::string& out, const std::string& err) {
-  std::vector<char*> argv{const_cast<char*>(QTMVORONOI_PATH)};
-  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-  argv.push_back(nullptr);
-  const pid_t pid = fork();
-  if (pid == 0) {
-    const int fo = open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    const int fe = open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    const int fi = open("/dev/null", O_RDONLY);
-    if (fi < 0 || fo < 0 || fe < 0 || dup2(fi, 0) < 0 || dup2(fo, 1) < 0 || dup2(fe, 2) < 0) _exit(127);
-    execv(QTMVORONOI_PATH, argv.data());
-    _exit(127);
-  }
-  return pid;
+  return qtmv::test::spawn_process(QTMVORONOI_PATH, args, "", out, err);
 }
 
 Result finish(pid_t pid, const std::string& out, const std::string& err) {
-  Result r;
-  int wstatus = 0;
-  if (pid > 0 && waitpid(pid, &wstatus, 0) == pid && WIFEXITED(wstatus)) r.status = WEXITSTATUS(wstatus);
-  r.out = read_all(out);
-  r.err = read_all(err);
-  std::remove(out.c_str());
-  std::remove(err.c_str());
-  return r;
+  return qtmv::test::wait_process(pid, out, err);
 }
 
 // Runs qtmvoronoi; stdout and stderr go to files (outside the directories the tests inspect).
-Result run(const std::vector<std::string>& args) {
-  static int serial = 0;
-  const std::string base = ::testing::TempDir() + "/qtmvoronoi_run_" + std::to_string(getpid()) + "_" +
-                           std::to_string(serial++);
-  const std::string out = base + ".out", err = base + ".err";
-  return finish(spawn(args, out, err), out, err);
-}
+Result run(const std::vector<std::string>& args) { return qtmv::test::run_process(QTMVORONOI_PATH, args); }
 
 std::vector<std::string> concat(std::vector<std::string> a, const std::vector<std::string>& b) {
   a.insert(a.end(), b.begin(), b.end());

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <stdexcept>
 #include <string>
 
@@ -71,6 +72,31 @@ std::vector<LonLat> drop_straight_runs(const std::vector<LonLat>& ring) {
   return out;
 }
 
+/// Cuts a closed walk that passes a vertex more than once into simple rings. Where a region
+/// meets itself at a vertex, no pairing of the edges there suits every case: lobes that touch
+/// at a point, a hole that touches its shell, holes that touch each other. Each loop cut off
+/// here is a shell (counter-clockwise) or a hole (clockwise) of its own.
+std::vector<std::vector<LonLat>> split_at_repeated_vertices(const std::vector<LonLat>& walk) {
+  std::vector<std::vector<LonLat>> rings;
+  std::vector<LonLat> stack;
+  std::map<std::pair<double, double>, std::size_t> position;  // vertex -> its index in stack
+  for (const LonLat& p : walk) {
+    const auto found = position.find({p.lon, p.lat});
+    if (found == position.end()) {
+      position.emplace(std::make_pair(p.lon, p.lat), stack.size());
+      stack.push_back(p);
+      continue;
+    }
+    // The walk came back to p: the stretch since p's first visit is a closed loop.
+    const std::size_t first = found->second;
+    rings.emplace_back(stack.begin() + static_cast<std::ptrdiff_t>(first), stack.end());
+    for (std::size_t k = first + 1; k < stack.size(); ++k) position.erase({stack[k].lon, stack[k].lat});
+    stack.resize(first + 1);
+  }
+  rings.push_back(std::move(stack));
+  return rings;
+}
+
 /// Even-odd test of a point against a ring that does not pass through it.
 bool ring_contains(const std::vector<LonLat>& ring, const LonLat& p) {
   bool inside = false;
@@ -137,9 +163,11 @@ Region link_rings(std::vector<Edge>& edges) {
       ring.push_back(edges[e].from);
       e = next_edge(e);
     }
-    ring = drop_straight_runs(ring);
-    if (ring.size() < 3) continue;
-    (planar_ring_area(ring) > 0 ? shells : holes).push_back(std::move(ring));
+    for (std::vector<LonLat>& simple : split_at_repeated_vertices(ring)) {
+      simple = drop_straight_runs(simple);
+      if (simple.size() < 3) continue;
+      (planar_ring_area(simple) > 0 ? shells : holes).push_back(std::move(simple));
+    }
   }
 
   Region region(shells.size());

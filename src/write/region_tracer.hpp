@@ -9,8 +9,8 @@
 // Those edges are linked into rings instead of uniting millions of triangles.
 //
 // Rings are counter-clockwise (shells) or clockwise (holes) in lon/lat. Where a region meets
-// itself at a single vertex the walk turns off along the tightest wedge, so no ring touches
-// itself: the pieces come out as separate polygons (or holes) touching at a point, which is
+// itself at a single vertex, the walk is cut there into simple rings, so no ring touches
+// itself: the pieces come out as separate polygons or holes touching at a point, which is
 // valid in the OGC simple-features sense.
 #pragma once
 

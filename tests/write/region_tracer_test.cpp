@@ -126,6 +126,19 @@ TEST(RegionTracer, RandomLabelsPinchAtVertices) {
   }
 }
 
+TEST(RegionTracer, HolesTouchingTheirShellOrEachOtherAtAVertex) {
+  // Site 0 on most cells, so that it is one region full of holes (site 1's cells) that touch one
+  // another and the border of the map at single vertices: a ring must never visit a vertex twice.
+  for (int level : {3, 5}) {
+    SCOPED_TRACE("level " + std::to_string(level));
+    std::mt19937_64 rng(100 + level);
+    std::bernoulli_distribution other(0.3);
+    std::vector<std::int32_t> labels(grid::cell_count(level));
+    for (auto& l : labels) l = other(rng) ? 1 : 0;
+    check_regions(level, labels, 2);
+  }
+}
+
 TEST(RegionTracer, IslandInALakeInAnIsland) {
   // Site 0 everywhere, site 1 in a cap around (10, 10), site 0 again in a smaller cap inside:
   // a polygon with a hole, and a second polygon inside that hole.

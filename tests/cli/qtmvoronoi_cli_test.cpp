@@ -263,6 +263,32 @@ TEST(QtmvoronoiCli, RegionsTileTheEllipsoid) {
   }
 }
 
+TEST(QtmvoronoiCli, RegionsOfPolygonSitesAreValid) {
+  // Countries: enclaves and coasts make regions that meet themselves at single vertices.
+  const std::string dir = test_dir();
+  const std::string dst = dir + "/countries.gpkg";
+  const int level = 7;
+  const Result r = run({"-q", "-level", std::to_string(level), "-layers", "regions", "-l", "countries_110m", kCountries, dst});
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto ds = open(dst, GDAL_OF_VECTOR);
+  ASSERT_TRUE(ds);
+  OGRLayer* regions = ds->GetLayerByName("regions");
+  ASSERT_TRUE(regions);
+  EXPECT_EQ(regions->GetFeatureCount(), 177);
+  double area = 0;
+  std::uint64_t cells = 0;
+  int invalid = 0;
+  for (auto& feature : *regions) {
+    const OGRGeometry* g = feature->GetGeometryRef();
+    if (g && !g->IsEmpty() && !g->IsValid()) ++invalid;
+    area += feature->GetFieldAsDouble("area_m2");
+    cells += static_cast<std::uint64_t>(feature->GetFieldAsInteger64("cells"));
+  }
+  EXPECT_EQ(invalid, 0);
+  EXPECT_EQ(cells, grid::cell_count(level));
+  EXPECT_NEAR(area / kEllipsoidArea, 1.0, 1e-4);
+}
+
 TEST(QtmvoronoiCli, QtmRasterEqualsTheLabeller) {
   const std::string dir = test_dir();
   const std::string dst = dir + "/countries_qtm.tif";

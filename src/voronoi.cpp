@@ -338,12 +338,21 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
       }
     }
     if (vector_options.layers.empty()) throw VoronoiError("-layers: no layer named");
-    const std::string name = lower(destination);
-    if (format.driver == "ESRI Shapefile" && vector_options.layers.size() > 1 &&
-        (ends_with(name, ".shp") || ends_with(name, ".dbf"))) {
-      throw VoronoiError("'" + destination + "' is one shapefile, which holds one layer: use -layers with one of " +
-                         "them, or name a directory to hold a shapefile per layer");
+    // A driver without multi-layer files (Shapefile, GeoJSON, FlatGeobuf, CSV...) writing to one
+    // file of its own extension holds one layer: say so now, not after all the work.
+    GDALDriver* driver = GetGDALDriverManager()->GetDriverByName(format.driver.c_str());
+    const bool multi_layer = driver && CPLTestBool(CSLFetchNameValueDef(driver->GetMetadata(),
+                                                                        GDAL_DCAP_MULTIPLE_VECTOR_LAYERS, "NO"));
+    const std::string extension = lower(CPLGetExtension(destination.c_str()));
+    if (!multi_layer && vector_options.layers.size() > 1 && !extension.empty()) {
+      throw VoronoiError("'" + destination + "': a " + format.driver + " file holds one layer: use -layers with one of " +
+                         "them, or name a directory (for drivers that write one file per layer there) or a format " +
+                         "such as GPKG");
     }
+    // CSV keeps no geometry unless asked to: keep it, as WKT.
+    const bool geometry_option = std::any_of(vector_options.layer_options.begin(), vector_options.layer_options.end(),
+                                             [](const std::string& o) { return lower(o).rfind("geometry=", 0) == 0; });
+    if (format.driver == "CSV" && !geometry_option) vector_options.layer_options.push_back("GEOMETRY=AS_WKT");
   }
   label::LabelOptions label_options = options.label;
   label_options.rule = options.read.distance == sites::DistanceRule::cell ? label::Rule::cell : label::Rule::exact;

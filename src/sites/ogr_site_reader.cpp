@@ -389,8 +389,14 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   if (options.progress && !options.progress(1.0, "reading sites")) throw ReadError("interrupted");
 
   if (summary.sites == 0) {
+    // A table of coordinates read without open options has no geometry at all: say how to read it.
+    const bool no_geometry_field = layer->GetLayerDefn()->GetGeomFieldCount() == 0;
     throw ReadError(where_from + ": no usable site (" + std::to_string(summary.features) + " features read, " +
-                    std::to_string(summary.skipped) + " skipped)");
+                    std::to_string(summary.skipped) + " skipped)" +
+                    (no_geometry_field && summary.features > 0
+                         ? "; the layer has no geometry column: for a CSV of coordinates, name them with "
+                           "-oo X_POSSIBLE_NAMES=lon -oo Y_POSSIBLE_NAMES=lat"
+                         : ""));
   }
 
   // --- claims, counts, summary --------------------------------------------------------------------

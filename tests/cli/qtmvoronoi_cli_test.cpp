@@ -387,6 +387,24 @@ TEST(QtmvoronoiCli, ShapefileSidecarsMoveTogether) {
 // ---------------------------------------------------------------------------------------------
 // Failures leave nothing behind
 
+TEST(QtmvoronoiCli, SingleLayerFilesAndCsv) {
+  const std::string dir = test_dir();
+  // GeoJSON holds one layer: refused before any work, nothing written.
+  const Result json = run(concat({"-level", "3", kCentres, dir + "/r.geojson"}, kCsvOptions));
+  EXPECT_EQ(json.status, 1);
+  EXPECT_NE(json.err.find("a GeoJSON file holds one layer"), std::string::npos) << json.err;
+  EXPECT_FALSE(fs::exists(dir + "/r.geojson"));
+  EXPECT_TRUE(hidden_entries(dir).empty());
+  // CSV output keeps the geometry, as WKT.
+  const Result csv = run(concat({"-q", "-level", "3", "-layers", "regions", kCentres, dir + "/r.csv"}, kCsvOptions));
+  ASSERT_EQ(csv.status, 0) << csv.err;
+  EXPECT_EQ(read_all(dir + "/r.csv").rfind("WKT,", 0), 0u);
+  // A CSV source read without the open options that name its coordinates: say how.
+  const Result bare = run({"-level", "3", kCentres, dir + "/bare.gpkg"});
+  EXPECT_EQ(bare.status, 1);
+  EXPECT_NE(bare.err.find("-oo X_POSSIBLE_NAMES"), std::string::npos) << bare.err;
+}
+
 TEST(QtmvoronoiCli, OverwriteSemantics) {
   const std::string dir = test_dir();
   const std::string dst = dir + "/out.gpkg";

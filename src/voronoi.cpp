@@ -13,6 +13,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <memory>
 #include <new>
 #include <sstream>
 #include <system_error>
@@ -471,6 +472,15 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
       write::write_raster(path, labels, sites.table, raster_options);
     } else {
       vector_options.progress = write_progress;
+      // A temporary file, renamed into place only after a clean close, needs no durability
+      // while it is written: no fsync, no rollback journal (nothing is rolled back; a failed
+      // write is removed). Only where the user has not set these, and never for a direct write.
+      const bool temporary = path != destination;
+      std::unique_ptr<CPLConfigOptionSetter> no_sync, no_journal;
+      if (temporary) {
+        no_sync = std::make_unique<CPLConfigOptionSetter>("OGR_SQLITE_SYNCHRONOUS", "OFF", true);
+        no_journal = std::make_unique<CPLConfigOptionSetter>("OGR_SQLITE_JOURNAL", "OFF", true);
+      }
       write::write_vector(path, labels, sites.table, vector_options);
     }
     // A stop asked for during the close is honoured too: nothing is renamed yet.

@@ -401,6 +401,7 @@ class Writer {
     if (!dataset_) fail("cannot create the dataset");
     check("creating the dataset");
     transactions_ = dataset_->TestCapability(ODsCTransactions) != 0;
+    driver_name_ = driver->GetDescription();
   }
 
   /// Closes the dataset; throws if GDAL reported any error meanwhile.
@@ -411,11 +412,16 @@ class Writer {
   }
 
   /// Creates a layer; `work` is its share of the progress (features it will write, about).
-  OGRLayer* begin_layer(const char* name, OGRwkbGeometryType type, double work) {
+  /// `per_cell`: a layer of millions of cell polygons (boundary_cells, cells), which gets no
+  /// GeoPackage spatial index unless the layer options ask for one (see the header).
+  OGRLayer* begin_layer(const char* name, OGRwkbGeometryType type, double work, bool per_cell = false) {
     layer_name_ = name;
     layer_work_ = work;
     layer_done_ = 0;
     CPLStringList lco = string_list(options_.layer_options);
+    if (per_cell && EQUAL(driver_name_.c_str(), "GPKG") && lco.FetchNameValue("SPATIAL_INDEX") == nullptr) {
+      lco.SetNameValue("SPATIAL_INDEX", "NO");
+    }
     layer_ = dataset_->CreateLayer(name, &srs_, type, lco.List());
     if (!layer_) fail("cannot create the layer");
     check("creating the layer");
@@ -503,7 +509,7 @@ class Writer {
   OGRSpatialReference srs_;
   DatasetPtr dataset_;
   OGRLayer* layer_ = nullptr;
-  std::string layer_name_;
+  std::string layer_name_, driver_name_;
   bool transactions_ = false;
   std::uint64_t in_transaction_ = 0, since_progress_ = 0;
   double total_work_, work_done_ = 0, layer_work_ = 0, layer_done_ = 0;
@@ -583,7 +589,7 @@ void write_regions(Writer& w, const Input& in, double work) {
 
 void write_boundary_cells(Writer& w, const Input& in, double work, std::uint64_t count) {
   const int level = in.labels.level;
-  OGRLayer* layer = w.begin_layer("boundary_cells", wkbPolygon, work);
+  OGRLayer* layer = w.begin_layer("boundary_cells", wkbPolygon, work, /*per_cell=*/true);
   OGRFieldDefn code_field("code", OFTInteger64);
   OGRFieldDefn fid_field("site_fid", OFTInteger64);
   const int code_index = w.add_field(code_field);
@@ -658,7 +664,7 @@ void write_voronoi_edges(Writer& w, const Input& in, double work) {
 
 void write_cells(Writer& w, const Input& in, double work) {
   const int level = in.labels.level;
-  OGRLayer* layer = w.begin_layer("cells", wkbPolygon, work);
+  OGRLayer* layer = w.begin_layer("cells", wkbPolygon, work, /*per_cell=*/true);
   OGRFieldDefn code_field("code", OFTInteger64);
   OGRFieldDefn fid_field("site_fid", OFTInteger64);
   OGRFieldDefn distance_field("distance_m", OFTReal);

@@ -471,6 +471,43 @@ TEST_F(VectorTest, CellsLayerOnlyWhenAsked) {
   }
 }
 
+TEST_F(VectorTest, GeoPackageCellLayersHaveNoSpatialIndexUnlessAsked) {
+  const Scene scene = make_scene(5, 10, 7);
+  const TempPath plain("spi_default.gpkg"), asked("spi_asked.gpkg");
+  VectorOptions options;
+  options.layers = {"regions", "boundary_cells", "voronoi_edges", "cells"};
+  write_vector(plain.path, scene.labels(), scene.table, options);
+  options.layer_options = {"SPATIAL_INDEX=YES"};
+  write_vector(asked.path, scene.labels(), scene.table, options);
+  const auto has_rtree = [](GDALDataset& ds, const char* layer) {
+    OGRLayer* result = ds.ExecuteSQL(
+        (std::string("SELECT COUNT(*) FROM sqlite_master WHERE name = 'rtree_") + layer + "_geom'").c_str(), nullptr,
+        nullptr);
+    EXPECT_NE(result, nullptr);
+    if (!result) return false;
+    OGRFeature* row = result->GetNextFeature();
+    const bool found = row && row->GetFieldAsInteger(0) > 0;
+    OGRFeature::DestroyFeature(row);
+    ds.ReleaseResultSet(result);
+    return found;
+  };
+  {
+    auto ds = open_vector(plain.path);
+    ASSERT_TRUE(ds);
+    EXPECT_TRUE(has_rtree(*ds, "regions"));
+    EXPECT_TRUE(has_rtree(*ds, "voronoi_edges"));
+    EXPECT_FALSE(has_rtree(*ds, "boundary_cells"));
+    EXPECT_FALSE(has_rtree(*ds, "cells"));
+  }
+  {
+    auto ds = open_vector(asked.path);
+    ASSERT_TRUE(ds);
+    for (const char* layer : {"regions", "boundary_cells", "voronoi_edges", "cells"}) {
+      EXPECT_TRUE(has_rtree(*ds, layer)) << layer;
+    }
+  }
+}
+
 TEST_F(VectorTest, UnknownLayerIsRefusedBeforeCreating) {
   const Scene scene = make_scene(3, 5, 1);
   const TempPath out("unknown.gpkg");

@@ -404,6 +404,22 @@ class Writer {
     driver_name_ = driver->GetDescription();
   }
 
+  Writer(const Writer&) = delete;
+  Writer& operator=(const Writer&) = delete;
+
+  /// Left without close(): a failure or an interrupt, and the file will be removed. Nothing of
+  /// it needs finishing (a GeoPackage would build its deferred spatial index at close, which
+  /// takes many seconds on millions of features), so drop the open transaction and ask GDAL
+  /// not to flush.
+  ~Writer() {
+    if (!dataset_) return;
+    CPLErrorStateBackuper keep_error_state;  // what happens here must not mask the error being thrown
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    if (transaction_open_) dataset_->RollbackTransaction();
+    dataset_->MarkSuppressOnClose();
+    CPLPopErrorHandler();
+  }
+
   /// Closes the dataset; throws if GDAL reported any error meanwhile.
   void close() {
     layer_name_.clear();
@@ -490,9 +506,11 @@ class Writer {
   }
   void start_transaction() {
     if (dataset_->StartTransaction(FALSE) != OGRERR_NONE) fail("cannot start a transaction");
+    transaction_open_ = true;
     in_transaction_ = 0;
   }
   void commit() {
+    transaction_open_ = false;
     if (dataset_->CommitTransaction() != OGRERR_NONE) fail("cannot commit a transaction");
     check("committing a transaction");
     in_transaction_ = 0;
@@ -510,7 +528,7 @@ class Writer {
   DatasetPtr dataset_;
   OGRLayer* layer_ = nullptr;
   std::string layer_name_, driver_name_;
-  bool transactions_ = false;
+  bool transactions_ = false, transaction_open_ = false;
   std::uint64_t in_transaction_ = 0, since_progress_ = 0;
   double total_work_, work_done_ = 0, layer_work_ = 0, layer_done_ = 0;
 };

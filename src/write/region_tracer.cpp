@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <exception>
 #include <map>
 #include <stdexcept>
 #include <string>
@@ -18,34 +19,6 @@ using grid::Code;
 struct Edge {
   LonLat from, to;
 };
-
-bool same_point(const LonLat& a, const LonLat& b) { return a.lon == b.lon && a.lat == b.lat; }
-
-bool point_less(const LonLat& a, const LonLat& b) { return a.lon < b.lon || (a.lon == b.lon && a.lat < b.lat); }
-
-/// Marks an edge that lies on the border of the lon/lat rectangle (latitude +-90).
-constexpr int kAcrossBorder = -1;
-
-/// The cell as drawn (counter-clockwise ring) and, for each edge k (ring[k] -> ring[k+1]),
-/// the neighbour slot across it. Returns the number of corners.
-int drawn_ring(const Cell& c, int level, LonLat ring[grid::kMaxPolygonCorners], int across[grid::kMaxPolygonCorners]) {
-  const int n = grid::cell_polygon(c, level, ring);
-  if (n == 4) {  // the pole quadrilateral: left side, bottom, right side, the pole line
-    across[0] = grid::kNeighbourLeft;
-    across[1] = grid::kNeighbourVertical;
-    across[2] = grid::kNeighbourRight;
-    across[3] = kAcrossBorder;
-  } else if (grid::is_up(c)) {  // apex, lower left, lower right
-    across[0] = grid::kNeighbourLeft;
-    across[1] = grid::kNeighbourVertical;
-    across[2] = grid::kNeighbourRight;
-  } else {  // upper left, bottom, upper right
-    across[0] = grid::kNeighbourLeft;
-    across[1] = grid::kNeighbourRight;
-    across[2] = grid::kNeighbourVertical;
-  }
-  return n;
-}
 
 /// Angle (radians, in (0, 2 pi]) turned clockwise from direction d to direction t.
 double clockwise_angle(double dx, double dy, double tx, double ty) {
@@ -197,6 +170,25 @@ Region link_rings(std::vector<Edge>& edges) {
 
 }  // namespace
 
+int drawn_ring(const Cell& c, int level, LonLat ring[grid::kMaxPolygonCorners], int across[grid::kMaxPolygonCorners]) {
+  const int n = grid::cell_polygon(c, level, ring);
+  if (n == 4) {  // the pole quadrilateral: left side, bottom, right side, the pole line
+    across[0] = grid::kNeighbourLeft;
+    across[1] = grid::kNeighbourVertical;
+    across[2] = grid::kNeighbourRight;
+    across[3] = kAcrossPoleLine;
+  } else if (grid::is_up(c)) {  // apex, lower left, lower right
+    across[0] = grid::kNeighbourLeft;
+    across[1] = grid::kNeighbourVertical;
+    across[2] = grid::kNeighbourRight;
+  } else {  // upper left, bottom, upper right
+    across[0] = grid::kNeighbourLeft;
+    across[1] = grid::kNeighbourRight;
+    across[2] = grid::kNeighbourVertical;
+  }
+  return n;
+}
+
 double planar_ring_area(const std::vector<LonLat>& ring) {
   double twice = 0;
   const std::size_t n = ring.size();
@@ -236,7 +228,7 @@ std::vector<Region> trace_regions(int level, const std::int32_t* labels, std::in
       for (int k = 0; k < corners; ++k) {
         const LonLat& from = ring[k];
         const LonLat& to = ring[(k + 1) % corners];
-        const bool on_border = across[k] == kAcrossBorder ||
+        const bool on_border = across[k] == kAcrossPoleLine ||
                                (std::fabs(from.lon) == 180.0 && std::fabs(to.lon) == 180.0);  // cut at +-180
         if (on_border || labels[nb[across[k]]] != site) local.push_back({site, {from, to}});
       }
@@ -246,10 +238,18 @@ std::vector<Region> trace_regions(int level, const std::int32_t* labels, std::in
   }
 
   std::vector<Region> regions(static_cast<std::size_t>(site_count));
+  // An exception must not leave an OpenMP region (that terminates): keep the first, rethrow after.
+  std::exception_ptr failure;
 #pragma omp parallel for schedule(dynamic, 1)
   for (std::int32_t site = 0; site < site_count; ++site) {
-    regions[static_cast<std::size_t>(site)] = link_rings(edges_of[static_cast<std::size_t>(site)]);
+    try {
+      regions[static_cast<std::size_t>(site)] = link_rings(edges_of[static_cast<std::size_t>(site)]);
+    } catch (...) {
+#pragma omp critical
+      if (!failure) failure = std::current_exception();
+    }
   }
+  if (failure) std::rethrow_exception(failure);
   return regions;
 }
 

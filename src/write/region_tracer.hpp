@@ -41,4 +41,20 @@ std::vector<Region> trace_regions(int level, const std::int32_t* labels, std::in
 /// Area of a ring in lon/lat (square degrees): positive when counter-clockwise.
 double planar_ring_area(const std::vector<LonLat>& ring);
 
+/// Marks a drawn edge on latitude +-90 (the pole cell's fourth side): no cell lies across it.
+constexpr int kAcrossPoleLine = -1;
+
+/// The cell as the grid draws it (a counter-clockwise ring, not closed) and, for each edge k
+/// (ring[k] -> ring[k + 1]), the grid::NeighbourSlot of the cell across it, or kAcrossPoleLine.
+/// Returns the number of corners (3, or 4 for an octant's pole cell).
+int drawn_ring(const grid::Cell& c, int level, LonLat ring[grid::kMaxPolygonCorners],
+               int across[grid::kMaxPolygonCorners]);
+
+/// Exact equality and a strict order of lon/lat points (degrees): the grid computes a shared
+/// vertex to the same bits from every cell around it.
+inline bool same_point(const LonLat& a, const LonLat& b) { return a.lon == b.lon && a.lat == b.lat; }
+inline bool point_less(const LonLat& a, const LonLat& b) {
+  return a.lon < b.lon || (a.lon == b.lon && a.lat < b.lat);
+}
+
 }  // namespace qtmv::write

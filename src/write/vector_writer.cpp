@@ -84,30 +84,6 @@ using FeaturePtr = std::unique_ptr<OGRFeature, FeatureDeleter>;
 
 // --- cells -----------------------------------------------------------------------------------
 
-/// Marks a drawn edge on latitude +-90 (the pole cell's fourth side), which has no neighbour.
-constexpr int kNoNeighbour = -1;
-
-/// The cell as the grid draws it (counter-clockwise ring) and the neighbour slot across each
-/// edge k (ring[k] -> ring[k + 1]); the same mapping as the region tracer's.
-int drawn_ring(const Cell& c, int level, LonLat ring[grid::kMaxPolygonCorners], int across[grid::kMaxPolygonCorners]) {
-  const int n = grid::cell_polygon(c, level, ring);
-  if (n == 4) {
-    across[0] = grid::kNeighbourLeft;
-    across[1] = grid::kNeighbourVertical;
-    across[2] = grid::kNeighbourRight;
-    across[3] = kNoNeighbour;
-  } else if (grid::is_up(c)) {
-    across[0] = grid::kNeighbourLeft;
-    across[1] = grid::kNeighbourVertical;
-    across[2] = grid::kNeighbourRight;
-  } else {
-    across[0] = grid::kNeighbourLeft;
-    across[1] = grid::kNeighbourRight;
-    across[2] = grid::kNeighbourVertical;
-  }
-  return n;
-}
-
 bool is_boundary(const CellLabels& labels, Code code) {
   if (labels.boundary) return labels.boundary[code] != 0;
   // Not computed: the labeller's rule, a neighbour with another site.
@@ -248,7 +224,7 @@ std::vector<EdgeRef> gather_edges(const CellLabels& labels) {
       int across[grid::kMaxPolygonCorners];
       const int corners = drawn_ring(grid::cell_of(code, level), level, ring, across);
       for (int k = 0; k < corners; ++k) {
-        if (across[k] == kNoNeighbour) continue;
+        if (across[k] == kAcrossPoleLine) continue;
         const std::int32_t other = labels.site[nb[across[k]]];
         if (other > site) {
           local.push_back({static_cast<std::uint64_t>(site) << 32 | static_cast<std::uint32_t>(other),
@@ -263,8 +239,6 @@ std::vector<EdgeRef> gather_edges(const CellLabels& labels) {
   return all;
 }
 
-bool same_point(const LonLat& a, const LonLat& b) { return a.lon == b.lon && a.lat == b.lat; }
-bool point_less(const LonLat& a, const LonLat& b) { return a.lon < b.lon || (a.lon == b.lon && a.lat < b.lat); }
 
 struct Segment {
   LonLat from, to;

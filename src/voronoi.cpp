@@ -183,7 +183,12 @@ class StagedOutput {
         // A dataset that is a directory (-overwrite): the old one goes aside, then away.
         const fs::path old = temp_dir_ / (".old." + from.filename().string());
         fs::rename(to, old, ec);
-        if (!ec) fs::rename(from, to, ec);
+        if (!ec) {
+          fs::rename(from, to, ec);
+          // The temporary directory is removed on the way out: bring the old dataset back first.
+          std::error_code ignored;
+          if (ec) fs::rename(old, to, ignored);
+        }
       } else {
         fs::rename(from, to, ec);
       }
@@ -387,11 +392,9 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   sites::ReadOptions read_options = options.read;
   read_options.progress = [&](double f, const char* stage) { return progress.report(0.0, kReadEnd, f, stage); };
   // The reader's count of sites without a cell comes before labelling; the pipeline reports the
-  // final one (below), so the reader's is dropped rather than shown with another number.
-  read_options.messages = [&](Severity severity, const std::string& message) {
-    if (severity == Severity::warning && message.find("have no cell of their own") != std::string::npos) return;
-    say(severity, message);
-  };
+  // final one (below) instead.
+  read_options.warn_sites_without_cell = false;
+  read_options.messages = [&](Severity severity, const std::string& message) { say(severity, message); };
   sites::SiteSet sites;
   try {
     if (!progress.report(0.0, kReadEnd, 0.0, "read")) throw Interrupted("interrupted");

@@ -413,7 +413,7 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
       if (++summary.sites_without_own_cell <= 10) without_cell_fids += (without_cell_fids.empty() ? "" : ", ") + std::to_string(r.fid);
     }
   }
-  if (summary.sites_without_own_cell > 0) {
+  if (summary.sites_without_own_cell > 0 && options.warn_sites_without_cell) {
     say(Severity::warning, where_from + ": " + std::to_string(summary.sites_without_own_cell) +
                                " site(s) have no cell of their own at level " + std::to_string(options.level) +
                                " (FIDs " + without_cell_fids + (summary.sites_without_own_cell > 10 ? ", ..." : "") +

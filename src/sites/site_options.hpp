@@ -47,6 +47,9 @@ struct ReadOptions {
   WrapMode wrap = WrapMode::automatic;       ///< -wrap auto|none
   DistanceRule distance = DistanceRule::exact;  ///< -distance exact|cell
   bool strict = false;           ///< -strict: a skipped feature is an error
+  /// Warn about sites left with no cell of their own by the claims. A caller that labels the
+  /// grid afterwards turns this off and reports the final count itself.
+  bool warn_sites_without_cell = true;
   ProgressFunc progress;         ///< may be empty
   MessageSink messages;          ///< may be empty (messages are then dropped)
 };

@@ -405,6 +405,25 @@ TEST(QtmvoronoiCli, SingleLayerFilesAndCsv) {
   EXPECT_NE(bare.err.find("-oo X_POSSIBLE_NAMES"), std::string::npos) << bare.err;
 }
 
+TEST(QtmvoronoiCli, SitesWithoutACellAreReportedOnceAfterLabelling) {
+  // At level 3 (512 cells) many of the 241 country centres win no cell: one warning, with the
+  // count after labelling, and every site keeps its row.
+  const std::string dir = test_dir();
+  const std::string dst = dir + "/few.gpkg";
+  const Result r = run(concat({"-level", "3", "-layers", "regions", kCentres, dst}, kCsvOptions));
+  ASSERT_EQ(r.status, 0) << r.err;
+  std::size_t warnings = 0;
+  for (std::size_t at = r.err.find("no cell of their own"); at != std::string::npos;
+       at = r.err.find("no cell of their own", at + 1)) {
+    ++warnings;
+  }
+  EXPECT_EQ(warnings, 1u) << r.err;
+  EXPECT_NE(r.err.find("got no cell of their own at level 3"), std::string::npos) << r.err;
+  const auto ds = open(dst, GDAL_OF_VECTOR);
+  ASSERT_TRUE(ds);
+  EXPECT_EQ(ds->GetLayerByName("regions")->GetFeatureCount(), 241);
+}
+
 TEST(QtmvoronoiCli, OverwriteSemantics) {
   const std::string dir = test_dir();
   const std::string dst = dir + "/out.gpkg";

@@ -22,6 +22,7 @@
 #include <ogrsf_frmts.h>
 #include <gtest/gtest.h>
 
+#include "../test_temp_dir.hpp"
 #include "child_process.hpp"
 #include "grid/qtm.hpp"
 #include "label/labeller.hpp"
@@ -50,7 +51,7 @@ std::string read_all(const std::string& path) { return qtmv::test::read_file(pat
 // A fresh directory for one test.
 std::string test_dir() {
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::path(::testing::TempDir()) / (std::string("qtmvoronoi_") + info->name());
+  const fs::path dir = fs::path(qtmv::test::process_temp_dir()) / info->name();
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir.string();

@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include "../test_temp_dir.hpp"
+
 #include <cpl_vsi.h>
 #include <gdal_priv.h>
 #include <ogr_api.h>
@@ -30,11 +32,11 @@ struct TestFeature {
   std::shared_ptr<OGRGeometry> geometry = nullptr;  ///< used instead of wkt when set (NaN coordinates)
 };
 
-/// A fresh path in the test's temporary directory (what a previous run left there is removed).
+/// A fresh path in the test process's temporary directory (removed when the tests end).
 inline std::string temp_path(const std::string& name) {
   static int counter = 0;
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const std::string path = ::testing::TempDir() + "qtmv_sites_" + info->test_suite_name() + "_" + info->name() + "_" +
+  const std::string path = qtmv::test::process_temp_dir() + "/" + info->test_suite_name() + "_" + info->name() + "_" +
                            std::to_string(counter++) + "_" + name;
   VSIUnlink(path.c_str());
   for (const char* ext : {".shp", ".shx", ".dbf", ".prj", ".cpg"}) VSIUnlink((path + ext).c_str());

@@ -521,6 +521,17 @@ DeviceTree build_on_device(int device, const Piece* pieces, std::int32_t piece_c
     std::uint64_t keep_all = ~std::uint64_t{0};
     QTMV_CUDA_CHECK(cudaMemPoolSetAttribute(pool, cudaMemPoolAttrReleaseThreshold, &keep_all));
   }
+  // A build that throws (too large: label_cells then builds on the host) gives the pool's memory
+  // back too, or the tiles would be sized from too little free memory. Errors are moot there.
+  struct TrimOnThrow {
+    cudaMemPool_t pool;
+    bool done = false;
+    ~TrimOnThrow() {
+      if (done) return;
+      cudaDeviceSynchronize();
+      cudaMemPoolTrimTo(pool, std::size_t{256} << 20);
+    }
+  } trim_on_throw{pool};
   DeviceTree t;
   {
   Buffer<DevPending> pending, next;
@@ -662,6 +673,7 @@ DeviceTree build_on_device(int device, const Piece* pieces, std::int32_t piece_c
   }  // the scratch goes back to the pool here
   QTMV_CUDA_CHECK(cudaDeviceSynchronize());
   QTMV_CUDA_CHECK(cudaMemPoolTrimTo(pool, std::size_t{256} << 20));
+  trim_on_throw.done = true;
   return t;
 }
 

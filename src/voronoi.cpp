@@ -337,13 +337,9 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
     throw VoronoiError("-co is for raster output; " + format.driver + " output is vector: use -lco or -dsco");
   }
   if (!format.raster) {
-    for (const std::string& layer : vector_options.layers) {
-      const auto& names = write::kVectorLayerNames;
-      if (std::find(std::begin(names), std::end(names), layer) == std::end(names)) {
-        throw VoronoiError("-layers: no layer '" + layer + "': choose from regions, boundary_cells, voronoi_edges, cells");
-      }
+    if (const std::string problem = write::check_layer_names(vector_options.layers); !problem.empty()) {
+      throw VoronoiError("-layers: " + problem);
     }
-    if (vector_options.layers.empty()) throw VoronoiError("-layers: no layer named");
     // A driver without multi-layer files (Shapefile, GeoJSON, FlatGeobuf, CSV...) writing to one
     // file of its own extension holds one layer: say so now, not after all the work.
     GDALDriver* driver = GetGDALDriverManager()->GetDriverByName(format.driver.c_str());

@@ -685,25 +685,30 @@ void write_cells(Writer& w, const Input& in, double work) {
   w.end_layer();
 }
 
-std::string valid_layer_list() {
-  std::string list;
-  for (const char* name : kVectorLayerNames) list += (list.empty() ? "" : ", ") + std::string(name);
-  return list;
-}
-
 }  // namespace
+
+std::string check_layer_names(const std::vector<std::string>& layers) {
+  std::string valid;
+  for (const char* name : kVectorLayerNames) valid += (valid.empty() ? "" : ", ") + std::string(name);
+  if (layers.empty()) return "no layer named: choose from " + valid;
+  for (const std::string& name : layers) {
+    if (std::find(std::begin(kVectorLayerNames), std::end(kVectorLayerNames), name) == std::end(kVectorLayerNames)) {
+      return "no layer '" + name + "': choose from " + valid;
+    }
+  }
+  return {};
+}
 
 void write_vector(const std::string& path, const CellLabels& labels, const sites::SiteTable& table,
                   const VectorOptions& options) {
   // Everything that can be refused is refused before the destination is created.
+  if (const std::string problem = check_layer_names(options.layers); !problem.empty()) {
+    throw WriteError(path + ": " + problem);
+  }
   std::vector<std::string> layers;
   for (const std::string& name : options.layers) {
-    if (std::find(std::begin(kVectorLayerNames), std::end(kVectorLayerNames), name) == std::end(kVectorLayerNames)) {
-      throw WriteError(path + ": unknown layer '" + name + "' (valid layers: " + valid_layer_list() + ")");
-    }
     if (std::find(layers.begin(), layers.end(), name) == layers.end()) layers.push_back(name);
   }
-  if (layers.empty()) throw WriteError(path + ": no layer to write (valid layers: " + valid_layer_list() + ")");
 
   if (!grid::is_valid_level(labels.level)) throw std::invalid_argument("write_vector: bad level " + std::to_string(labels.level));
   if (!labels.site) throw std::invalid_argument("write_vector: no site labels");

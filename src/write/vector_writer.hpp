@@ -46,6 +46,10 @@ namespace qtmv::write {
 /// Names accepted in VectorOptions::layers, in their default order.
 extern const char* const kVectorLayerNames[4];
 
+/// Checks a list of layer names: empty when every one is a layer of kVectorLayerNames and the
+/// list is not empty, otherwise what is wrong ("no layer 'x': choose from regions, ...").
+std::string check_layer_names(const std::vector<std::string>& layers);
+
 /// Creates `path` with options.driver and writes the layers of options.layers. `labels` must
 /// hold site ids 0 .. table.sites.size() - 1 for every cell (std::invalid_argument otherwise).
 /// Throws WriteError naming the destination, the layer and GDAL's message when GDAL reports

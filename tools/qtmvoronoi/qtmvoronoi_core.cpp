@@ -190,13 +190,11 @@ Options parse_command_line(const std::vector<std::string>& args) {
       o.progress = true;
     } else if (name == "-layers") {
       run.vector.layers = split_list(value());
-      if (run.vector.layers.empty()) throw UsageError("-layers: no layer named");
+      if (const std::string problem = write::check_layer_names(run.vector.layers); !problem.empty()) {
+        throw UsageError("-layers: " + problem);
+      }
       for (std::size_t k = 0; k < run.vector.layers.size(); ++k) {
         const std::string& layer = run.vector.layers[k];
-        const auto& names = write::kVectorLayerNames;
-        if (std::find(std::begin(names), std::end(names), layer) == std::end(names)) {
-          throw UsageError("-layers: no layer '" + layer + "': choose from regions, boundary_cells, voronoi_edges, cells");
-        }
         if (std::find(run.vector.layers.begin(), run.vector.layers.begin() + k, layer) != run.vector.layers.begin() + k) {
           throw UsageError("-layers: '" + layer + "' named twice");
         }

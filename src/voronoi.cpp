@@ -231,7 +231,7 @@ constexpr double kReadEnd = 0.15, kLabelEnd = 0.55;
 std::string VoronoiSummary::line() const {
   std::ostringstream s;
   s << sites << " site" << (sites == 1 ? "" : "s") << " read, " << skipped << " skipped; level " << level << ", "
-    << cells << " cells; " << device << "; read " << seconds(read_seconds) << ", label " << seconds(label_seconds)
+    << cells << " cells; " << device << "; read " << seconds(read_seconds) << " (rasterise " << seconds(rasterise_seconds) << "), label " << seconds(label_seconds)
     << " (prepare " << seconds(prepare_seconds) << "), write " << seconds(write_seconds) << "; total "
     << seconds(total_seconds);
   return s.str();
@@ -405,6 +405,7 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   summary.sites = sites.summary.sites;
   summary.skipped = sites.summary.skipped;
   summary.read_seconds = now_seconds() - t0;
+  summary.rasterise_seconds = sites.summary.rasterise_seconds;
 
   // --- label ---------------------------------------------------------------------------------------
   t0 = now_seconds();

@@ -58,6 +58,7 @@ struct VoronoiSummary {
   std::uint64_t sites_without_cell = 0;  ///< sites that got no cell in the labels
   std::string device;              ///< where the labelling ran
   double read_seconds = 0;         ///< reading and rasterising the sites (s)
+  double rasterise_seconds = 0;    ///< of read_seconds, tracing and filling the sites' cells (s)
   double prepare_seconds = 0;      ///< the labeller's candidates and tree (s)
   double label_seconds = 0;        ///< labelling every cell, boundaries included (s)
   double write_seconds = 0;        ///< regions/rasters, the dataset, its close and rename (s)

@@ -9,6 +9,7 @@
 #include <ogr_spatialref.h>
 #include <ogrsf_frmts.h>
 
+#include <chrono>
 #include <cmath>
 #include <memory>
 #include <sstream>
@@ -274,6 +275,7 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
 
   std::vector<grid::LonLat> lonlat;
   std::vector<int> transformed_ok;
+  std::chrono::steady_clock::duration rasterise{};  // tracing, filling and claims, within the read
   errors.take();
   layer->ResetReading();
   for (OGRFeatureUniquePtr feature(layer->GetNextFeature()); feature; feature.reset(layer->GetNextFeature())) {
@@ -352,6 +354,7 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
     if (!usable) continue;
 
     // --- one site ---
+    const auto rasterise_start = std::chrono::steady_clock::now();
     builder.begin_site();
     SiteRecord record;
     record.fid = fid;
@@ -376,6 +379,7 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
       }
     }
     builder.end_site();
+    rasterise += std::chrono::steady_clock::now() - rasterise_start;
     record.attributes.reset(feature.release());
     out.table.sites.push_back(std::move(record));
     ++summary.sites;
@@ -401,8 +405,11 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
 
   // --- claims, counts, summary --------------------------------------------------------------------
   summary.vertex_steps = builder.vertex_steps();
+  const auto claims_start = std::chrono::steady_clock::now();
   out.geometry = builder.take_geometry();
   const SiteCellCounts counts = resolve_claims(out.geometry, options.distance);
+  rasterise += std::chrono::steady_clock::now() - claims_start;
+  summary.rasterise_seconds = std::chrono::duration<double>(rasterise).count();
   std::string without_cell_fids;
   for (std::size_t s = 0; s < out.table.sites.size(); ++s) {
     SiteRecord& r = out.table.sites[s];

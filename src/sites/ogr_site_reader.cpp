@@ -16,6 +16,7 @@
 #include <utility>
 #include <vector>
 
+#include "gdal/error_capture.hpp"
 #include "grid/qtm_checks.hpp"
 #include "sites/site_builder.hpp"
 #include "sites/site_cells.hpp"
@@ -41,38 +42,6 @@ DistanceRule parse_distance_rule(const std::string& text) {
 }
 
 namespace {
-
-/// Collects GDAL's error messages while alive, instead of printing them.
-class GdalErrorCapture {
- public:
-  GdalErrorCapture() {
-    CPLErrorReset();
-    CPLPushErrorHandlerEx(&GdalErrorCapture::handle, this);
-  }
-  ~GdalErrorCapture() { CPLPopErrorHandler(); }
-  GdalErrorCapture(const GdalErrorCapture&) = delete;
-  GdalErrorCapture& operator=(const GdalErrorCapture&) = delete;
-
-  /// The messages so far, joined, and forgets them.
-  std::string take() {
-    std::string out;
-    for (const auto& m : messages_) out += (out.empty() ? "" : "; ") + m;
-    messages_.clear();
-    failed_ = false;
-    return out;
-  }
-  /// Whether an error (not a warning) came since the last take().
-  bool failed() const { return failed_; }
-
- private:
-  static void CPL_STDCALL handle(CPLErr error_class, CPLErrorNum, const char* message) {
-    auto* self = static_cast<GdalErrorCapture*>(CPLGetErrorHandlerUserData());
-    self->messages_.emplace_back(message ? message : "");
-    if (error_class >= CE_Failure) self->failed_ = true;
-  }
-  std::vector<std::string> messages_;
-  bool failed_ = false;
-};
 
 std::string with_gdal_message(std::string text, const std::string& gdal) {
   if (!gdal.empty()) text += " (GDAL: " + gdal + ")";
@@ -186,7 +155,7 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   };
 
   // --- the dataset and the layer ----------------------------------------------------------------
-  GdalErrorCapture errors;
+  gdal::ErrorCapture errors;
   CPLStringList open_options;
   for (const std::string& option : options.open_options) open_options.AddString(option.c_str());
   GDALDatasetUniquePtr dataset(GDALDataset::Open(dataset_name.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, nullptr,
@@ -324,7 +293,7 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
     if (!usable) continue;
     if (transform) {
       transformed_ok.assign(n, FALSE);
-      GdalErrorCapture transform_errors;
+      gdal::ErrorCapture transform_errors;
       const std::vector<double> x0 = parts.x, y0 = parts.y;
       transform->Transform(static_cast<int>(n), parts.x.data(), parts.y.data(), nullptr, transformed_ok.data());
       for (std::size_t k = 0; k < n && usable; ++k) {

@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "gdal/error_capture.hpp"
 #include "grid/qtm.hpp"
 
 namespace qtmv::write {
@@ -32,52 +33,6 @@ constexpr std::uint64_t kMemStagingLimit = std::uint64_t{1} << 30;
 /// A row strip: at least this many pixels per RasterIO, at most this many bytes of buffer.
 constexpr std::uint64_t kStripPixels = std::uint64_t{1} << 20;
 constexpr std::uint64_t kStripBytesMax = std::uint64_t{64} << 20;
-
-/// Collects GDAL's messages while alive; failures are reported by the caller, warnings are
-/// passed on to the previous handler when it ends (GDAL 3.6 has no CPLCallPreviousHandler).
-class ErrorCapture {
- public:
-  ErrorCapture() {
-    CPLErrorReset();
-    CPLPushErrorHandlerEx(&ErrorCapture::handle, this);
-  }
-  ~ErrorCapture() {
-    CPLPopErrorHandler();
-    for (const auto& w : warnings_) CPLError(CE_Warning, CPLE_AppDefined, "%s", w.c_str());
-  }
-  ErrorCapture(const ErrorCapture&) = delete;
-  ErrorCapture& operator=(const ErrorCapture&) = delete;
-
-  bool failed() const { return !failures_.empty(); }
-  /// The failures so far, the first few distinct ones joined, and forgets them.
-  std::string take() {
-    std::vector<std::string> distinct;
-    for (const auto& m : failures_) {
-      if (std::find(distinct.begin(), distinct.end(), m) == distinct.end()) distinct.push_back(m);
-    }
-    std::string out;
-    for (std::size_t k = 0; k < std::min<std::size_t>(distinct.size(), 3); ++k) out += (k ? "; " : "") + distinct[k];
-    if (distinct.size() > 3) out += "; (" + std::to_string(distinct.size() - 3) + " more)";
-    failures_.clear();
-    return out.empty() ? "no message from GDAL" : out;
-  }
-  /// Forgets everything (after a clean-up whose messages would only confuse).
-  void discard() {
-    failures_.clear();
-    warnings_.clear();
-  }
-
- private:
-  static void CPL_STDCALL handle(CPLErr error_class, CPLErrorNum, const char* message) {
-    auto* self = static_cast<ErrorCapture*>(CPLGetErrorHandlerUserData());
-    if (error_class >= CE_Failure) {
-      self->failures_.emplace_back(message ? message : "");
-    } else if (error_class == CE_Warning) {
-      self->warnings_.emplace_back(message ? message : "");
-    }
-  }
-  std::vector<std::string> failures_, warnings_;
-};
 
 bool is_vsi(const std::string& path) { return path.rfind("/vsi", 0) == 0; }
 
@@ -277,7 +232,7 @@ void write_raster(const std::string& path, const CellLabels& labels, const sites
   }
 
   if (GDALGetDriverCount() == 0) GDALAllRegister();
-  ErrorCapture errors;
+  gdal::ErrorCapture errors(gdal::ErrorCapture::Warnings::pass_on);
   const std::string& name = options.driver;
   GDALDriverH driver = GDALGetDriverByName(name.c_str());
   if (driver == nullptr) throw WriteError(path + ": unknown raster driver '" + name + "' (see --formats)");
@@ -311,7 +266,10 @@ void write_raster(const std::string& path, const CellLabels& labels, const sites
     if (co.FetchNameValue("NUM_THREADS") == nullptr) co.SetNameValue("NUM_THREADS", "ALL_CPUS");
   }
 
-  const auto gdal_error = [&](const std::string& what) { return WriteError(path + ": " + what + ": " + errors.take()); };
+  const auto gdal_error = [&](const std::string& what) {
+    const std::string gdal = errors.take();
+    return WriteError(path + ": " + what + ": " + (gdal.empty() ? "no message from GDAL" : gdal));
+  };
   const auto band_label = [](int b) { return "band " + std::to_string(b + 1) + " (" + kBandNames[b] + ")"; };
 
   Output out;
@@ -450,7 +408,7 @@ void write_raster(const std::string& path, const CellLabels& labels, const sites
     }
   } catch (...) {
     out.remove_all();
-    errors.discard();
+    errors.take();  // what the clean-up said would only confuse
     throw;
   }
 }

@@ -16,6 +16,7 @@
 #include <ogr_spatialref.h>
 #include <ogrsf_frmts.h>
 
+#include "gdal/error_capture.hpp"
 #include "grid/qtm.hpp"
 #include "write/region_tracer.hpp"
 
@@ -33,44 +34,6 @@ constexpr std::uint64_t kProgressEvery = 1024;          // features between prog
 constexpr std::size_t kEdgePairBlock = 4096;            // voronoi_edges pairs computed at once
 
 // --- GDAL errors -----------------------------------------------------------------------------
-
-/// Catches GDAL's failures while it lives (GDAL 3.6's GDALClose returns nothing, and not every
-/// failure shows in a return code). Warnings are handed on to the handler below it.
-class ErrorTrap {
- public:
-  ErrorTrap() { push(); }
-  ~ErrorTrap() { CPLPopErrorHandler(); }
-  ErrorTrap(const ErrorTrap&) = delete;
-  ErrorTrap& operator=(const ErrorTrap&) = delete;
-
-  bool failed() const { return failures_ > 0; }
-  /// The first failure's message, and how many more there were.
-  std::string message() const {
-    if (failures_ <= 1) return first_;
-    return first_ + " (and " + std::to_string(failures_ - 1) + " more errors)";
-  }
-
- private:
-  void push() {
-    CPLPushErrorHandlerEx(&ErrorTrap::handle, this);
-    CPLSetCurrentErrorHandlerCatchDebug(FALSE);
-  }
-  static void CPL_STDCALL handle(CPLErr type, CPLErrorNum number, const char* message) {
-    auto* self = static_cast<ErrorTrap*>(CPLGetErrorHandlerUserData());
-    if (type == CE_Failure || type == CE_Fatal) {
-      if (self->failures_++ == 0) self->first_ = message ? message : "";
-      return;
-    }
-    // GDAL 3.6 has no CPLCallPreviousHandler: step aside and raise it again.
-    const std::string copy = message ? message : "";
-    CPLPopErrorHandler();
-    CPLError(type, number, "%s", copy.c_str());
-    self->push();
-  }
-
-  int failures_ = 0;
-  std::string first_;
-};
 
 struct DatasetCloser {
   void operator()(GDALDataset* dataset) const { GDALClose(dataset); }
@@ -363,7 +326,7 @@ CPLStringList string_list(const std::vector<std::string>& items) {
 /// The dataset being written: layers, fields, transactions, progress and errors.
 class Writer {
  public:
-  Writer(const std::string& path, const VectorOptions& options, ErrorTrap& trap, double total_work)
+  Writer(const std::string& path, const VectorOptions& options, gdal::ErrorCapture& trap, double total_work)
       : path_(path), options_(options), trap_(trap), total_work_(std::max(total_work, 1.0)) {
     srs_.importFromEPSG(4326);
     srs_.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
@@ -470,7 +433,7 @@ class Writer {
     std::string message = path_;
     if (!layer_name_.empty()) message += ", layer " + layer_name_;
     message += ": " + what;
-    if (trap_.failed()) message += ": " + trap_.message();
+    if (trap_.failed()) message += ": " + trap_.take();
     throw WriteError(message);
   }
 
@@ -497,7 +460,7 @@ class Writer {
 
   std::string path_;
   const VectorOptions& options_;
-  ErrorTrap& trap_;
+  gdal::ErrorCapture& trap_;
   OGRSpatialReference srs_;
   DatasetPtr dataset_;
   OGRLayer* layer_ = nullptr;
@@ -750,7 +713,8 @@ void write_vector(const std::string& path, const CellLabels& labels, const sites
   double total = 0;
   for (double x : work) total += x;
 
-  ErrorTrap trap;  // outlives the dataset, which is closed inside it even on a throw
+  // Outlives the dataset, which is closed inside it even on a throw.
+  gdal::ErrorCapture trap(gdal::ErrorCapture::Warnings::pass_on);
   Writer writer(path, options, trap, total);
   writer.open(driver);
   for (std::size_t k = 0; k < layers.size(); ++k) {

@@ -47,61 +47,159 @@ __global__ void tree_label_kernel(TreeView tree, grid::Code first, std::uint64_t
   }
 }
 
-/// Labels (and boundary flags, no distances) by jump cell: one block per cell of the jump level.
-/// When the jump table sends a jump cell straight to a uniform leaf, all its cells get the
-/// leaf's site without a look-up, the flags of its inner cells are 0, and only its edge cells
-/// (gathered in shared memory so that whole warps work on them) take tree_label_cell; other
-/// jump cells take tree_label_cell for every cell. Cells outside [first, first + count) are
-/// skipped. Same labels and flags as tree_label_kernel.
-__global__ void tree_paint_kernel(TreeView tree, grid::Code jump_first, grid::Code first, std::uint64_t count,
-                                  std::int32_t* site, std::uint8_t* boundary) {
-  __shared__ grid::Code edge[kBlock];
-  __shared__ int edge_count;
-  const int level = tree.level, k = level - tree.jump_level;
-  const grid::Code jump_code = jump_first + blockIdx.x;
-  const grid::Cell jc = fast_cell_of(jump_code, tree.jump_level);
-  const JumpEntry jump = tree.jump[jump_code];
-  const TreeNode node = tree.nodes[jump.node];
-  const bool uniform = node.count == kUniform;
-  const std::uint64_t cells = std::uint64_t{1} << (2 * k);
-  for (std::uint64_t chunk = 0; chunk < cells; chunk += blockDim.x) {
-    if (uniform && threadIdx.x == 0) edge_count = 0;
-    if (uniform) __syncthreads();
-    const std::uint64_t m = chunk + threadIdx.x;
-    grid::Code code = 0;
-    grid::Cell cell{};
-    bool active = m < cells;
-    if (active) {
-      cell = descendant(jc, k, static_cast<std::uint32_t>(m));
-      code = grid::code_of(cell, level);
-      active = code >= first && code - first < count;
-    }
-    if (!uniform) {
-      if (active) {
-        const std::uint64_t out = code - first;
-        tree_label_cell(tree, code, site + out, nullptr, boundary ? boundary + out : nullptr);
+/// Labels (and boundary flags, no distances) in code order, written coalesced: each warp takes
+/// kPaintSpan = 128 x kPaintRounds consecutive outputs, 4 per lane per round (one 16-byte site store and one
+/// 4-byte flag store per lane). A cell in a uniform leaf gets the leaf's site without a search,
+/// and flag 0 when it lies inside that leaf (which may be coarser than the jump cell); its flag
+/// is otherwise left pending (kFlagPending) for tree_flag_kernel. Cells of list leaves are
+/// queued per warp in shared memory and then take tree_label, 32 at a time, so that whole warps
+/// work on them and no warp waits for another; their flags are left pending too. Same labels as
+/// tree_label_kernel, and, once tree_flag_kernel has run, the same flags.
+constexpr int kPaintRounds = 8;
+constexpr int kPaintWarps = kBlock / 32;
+constexpr int kPaintSpan = 32 * 4 * kPaintRounds;  // outputs per warp
+constexpr std::uint8_t kFlagPending = 2;
+
+__global__ void __launch_bounds__(kBlock, 4) tree_paint_kernel(TreeView tree, grid::Code first, std::uint64_t count,
+                                                               std::int32_t* site, std::uint8_t* boundary) {
+  __shared__ std::uint16_t queue[kPaintWarps][kPaintSpan];
+  const int level = tree.level, jl = tree.jump_level;
+  const unsigned lane = threadIdx.x & 31u, warp = threadIdx.x >> 5;
+  const std::uint64_t warp_out = (static_cast<std::uint64_t>(blockIdx.x) * kPaintWarps + warp) * kPaintSpan;
+  if (warp_out >= count) return;  // whole warps leave together: the ballots below need all lanes
+  std::uint16_t* q = queue[warp];
+  int queued = 0;
+  const std::uint32_t rows = 1u << level;
+  grid::Code last_jump = ~grid::Code{0};
+  int jump_level = 0;
+  int node_count = 0, node_value = 0;
+  for (int round = 0; round < kPaintRounds; ++round) {
+    const std::uint32_t local = static_cast<std::uint32_t>(round * 128) + 4 * lane;
+    const std::uint64_t out = warp_out + local;
+    std::int32_t s[4] = {-1, -1, -1, -1};
+    std::uint32_t flags = 0;  // byte j: the flag of cell out + j (0, or kFlagPending)
+    unsigned slow = 0;        // bit j: cell out + j is queued
+    if (out < count) {
+      grid::Cell c = fast_cell_of(first + out, level);
+#pragma unroll
+      for (int j = 0; j < 4; ++j) {
+        if (out + j < count) {
+          const grid::Code jcode = grid::code_of(ancestor(c, level, jl), jl);
+          if (jcode != last_jump) {
+            last_jump = jcode;
+            const int2 e = __ldg(reinterpret_cast<const int2*>(tree.jump + jcode));
+            jump_level = e.y;
+            const int2 n = __ldg(reinterpret_cast<const int2*>(tree.nodes + e.x));
+            node_count = n.x;
+            node_value = n.y;
+          }
+          // find_leaf's walk, from the jump entry.
+          int leaf_level = jump_level, leaf_count = node_count, leaf_value = node_value;
+          while (leaf_count == kInternal) {
+            const int2 n = __ldg(reinterpret_cast<const int2*>(tree.nodes + leaf_value +
+                                                               child_digit(ancestor(c, level, leaf_level + 1))));
+            leaf_count = n.x;
+            leaf_value = n.y;
+            ++leaf_level;
+          }
+          if (leaf_count == kUniform) {
+            s[j] = leaf_value;
+            if (boundary && !interior_of_ancestor(c, level, leaf_level)) {
+              flags |= std::uint32_t{kFlagPending} << (8 * j);
+            }
+          } else {
+            slow |= 1u << j;
+            if (boundary) flags |= std::uint32_t{kFlagPending} << (8 * j);
+          }
+          // The next code's cell.
+          if (++c.col > 2 * c.row) {
+            c.col = 0;
+            if (++c.row == rows) {
+              c.row = 0;
+              ++c.octant;
+            }
+          }
+        }
       }
-      continue;
-    }
-    if (active) {
-      const std::uint64_t out = code - first;
-      site[out] = node.value;
-      if (boundary) {
-        // Inside the uniform leaf (which may be coarser than the jump cell), not just the jump cell.
-        if (interior_of_ancestor(cell, level, jump.level)) {
-          boundary[out] = 0;
-        } else {
-          edge[atomicAdd(&edge_count, 1)] = code;
+      if (out + 4 <= count) {
+        *reinterpret_cast<int4*>(site + out) = make_int4(s[0], s[1], s[2], s[3]);
+        if (boundary) *reinterpret_cast<std::uint32_t*>(boundary + out) = flags;
+      } else {
+#pragma unroll
+        for (int j = 0; j < 4; ++j) {
+          if (out + j < count) {
+            site[out + j] = s[j];
+            if (boundary) boundary[out + j] = static_cast<std::uint8_t>(flags >> (8 * j));
+          }
         }
       }
     }
-    __syncthreads();
-    const int edges = edge_count;
-    for (int e = threadIdx.x; e < edges; e += blockDim.x) {
-      const std::uint64_t out = edge[e] - first;
-      tree_label_cell(tree, edge[e], site + out, nullptr, boundary + out);
+    // Queue the cells of list leaves in code order (warp-aggregated).
+#pragma unroll
+    for (int j = 0; j < 4; ++j) {
+      const bool mine = (slow >> j) & 1u;
+      const unsigned ballot = __ballot_sync(0xffffffffu, mine);
+      if (mine) q[queued + __popc(ballot & ((1u << lane) - 1u))] = static_cast<std::uint16_t>(local + j);
+      queued += __popc(ballot);
     }
-    __syncthreads();
+  }
+  __syncwarp();  // the queue, before other lanes read it
+  for (int e = static_cast<int>(lane); e < queued; e += 32) {
+    const std::uint64_t out = warp_out + q[e];
+    site[out] = tree_label(tree, fast_cell_of(first + out, level));
+  }
+}
+
+/// The pending flags that tree_paint_kernel left, from the labels it wrote: a cell is a boundary
+/// cell when one of its three edge neighbours has another site. A neighbour inside
+/// [first, first + count) reads its label there; one outside is looked up in the tree
+/// (tree_label, as tree_label_cell does). 4 outputs per thread.
+__global__ void __launch_bounds__(kBlock) tree_flag_kernel(TreeView tree, grid::Code first, std::uint64_t count,
+                                                           const std::int32_t* site, std::uint8_t* boundary) {
+  const std::uint64_t out = (static_cast<std::uint64_t>(blockIdx.x) * blockDim.x + threadIdx.x) * 4;
+  if (out >= count) return;
+  const int n = count - out < 4 ? static_cast<int>(count - out) : 4;
+  std::uint32_t flags = 0;
+  if (n == 4) {
+    flags = *reinterpret_cast<const std::uint32_t*>(boundary + out);
+  } else {
+    for (int j = 0; j < n; ++j) flags |= std::uint32_t{boundary[out + j]} << (8 * j);
+  }
+  if (!(flags & 0x02020202u)) return;
+  const int level = tree.level;
+  const std::uint32_t rows = 1u << level;
+  grid::Cell c = fast_cell_of(first + out, level);
+#pragma unroll 1
+  for (int j = 0; j < n; ++j) {
+    if ((flags >> (8 * j)) & kFlagPending) {
+      const std::int32_t own = __ldg(site + out + j);
+      grid::Cell nb[3];
+      grid::neighbours(c, level, nb);
+      bool flag = false, inside[3];
+#pragma unroll
+      for (int k = 0; k < 3; ++k) {
+        const grid::Code code = grid::code_of(nb[k], level);
+        inside[k] = code >= first && code - first < count;
+        if (inside[k]) flag = flag || __ldg(site + (code - first)) != own;
+      }
+#pragma unroll
+      for (int k = 0; k < 3; ++k) {
+        if (!flag && !inside[k]) flag = tree_label(tree, nb[k]) != own;
+      }
+      flags = (flags & ~(0xffu << (8 * j))) | (static_cast<std::uint32_t>(flag) << (8 * j));
+    }
+    if (++c.col > 2 * c.row) {
+      c.col = 0;
+      if (++c.row == rows) {
+        c.row = 0;
+        ++c.octant;
+      }
+    }
+  }
+  if (n == 4) {
+    *reinterpret_cast<std::uint32_t*>(boundary + out) = flags;
+  } else {
+    for (int j = 0; j < n; ++j) boundary[out + j] = static_cast<std::uint8_t>(flags >> (8 * j));
   }
 }
 
@@ -837,14 +935,15 @@ float Labeller::run(grid::Code first, std::uint64_t count, bool want_distance, b
       tree_label_kernel<<<blocks_for(count), kBlock>>>(view, first, count, m.site, metres, boundary);
       QTMV_CUDA_CHECK_LAUNCH("tree_label_kernel");
     } else {
-      // The jump cells whose rows the range touches.
-      const int k = m.level - m.jump_level;
-      const grid::Cell c0 = grid::cell_of(first, m.level), c1 = grid::cell_of(first + count - 1, m.level);
-      const std::uint32_t r0 = c0.row >> k, r1 = c1.row >> k;
-      const grid::Code j0 = grid::code_of({c0.octant, r0, 0}, m.jump_level);
-      const grid::Code j1 = grid::code_of({c1.octant, r1, 2 * r1}, m.jump_level);
-      tree_paint_kernel<<<static_cast<unsigned int>(j1 - j0 + 1), kBlock>>>(view, j0, first, count, m.site, boundary);
+      // Labels, flags 0 inside uniform leaves and pending elsewhere; then the pending flags.
+      const std::uint64_t blocks = (count + kPaintWarps * kPaintSpan - 1) / (kPaintWarps * kPaintSpan);
+      if (blocks > 0x7fffffffu) throw std::invalid_argument("Labeller::run: too many cells for one launch");
+      tree_paint_kernel<<<static_cast<unsigned int>(blocks), kBlock>>>(view, first, count, m.site, boundary);
       QTMV_CUDA_CHECK_LAUNCH("tree_paint_kernel");
+      if (boundary) {
+        tree_flag_kernel<<<blocks_for((count + 3) / 4), kBlock>>>(view, first, count, m.site, boundary);
+        QTMV_CUDA_CHECK_LAUNCH("tree_flag_kernel");
+      }
     }
   } else {
     brute_label_kernel<<<blocks_for(count), kBlock>>>(m.pieces, m.piece_count, m.level, first, count, m.site, metres);

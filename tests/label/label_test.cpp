@@ -662,6 +662,50 @@ TEST(LabelDeviceTree, MatchesTheHostTree) {
   }
 }
 
+// The paint kernel (labels + flags, no distances) on ranges that start and end anywhere: at
+// odd codes, inside the first rows of an octant (rows shorter than a warp's run of codes),
+// across octant boundaries, one or a few cells. Labels and flags must be the CPU's.
+TEST(LabelDeviceTree, OddRangesMatchTheCpu) {
+  if (cuda_device_count() == 0) GTEST_SKIP() << "no CUDA GPU";
+  for (const int level : {2, 5, 8}) {
+    const SiteGeometry g = random_points(level, level < 3 ? 5 : 200, 900 + level);
+    const LabelInput in = g.input();
+    LabelOptions options;
+    options.want_distance = false;
+    options.device = "cpu";
+    const LabelResult cpu = label_all(in, options);
+    const std::uint64_t cells = grid::cell_count(level), octant = grid::cells_per_octant(level);
+    cuda::Labeller gpu(0, make_candidates(in, Rule::exact), level, false);
+    gpu.reserve(cells, false, true);
+    const std::vector<std::pair<std::uint64_t, std::uint64_t>> ranges = {
+        {0, 1},          {1, 1},           {1, 3},          {2, 7},          {3, 4097},
+        {0, cells},      {1, cells - 1},   {5, cells - 10}, {cells - 1, 1},  {cells - 5, 5},
+        {octant - 3, 7}, {octant - 1, 2},  {octant - 513, 1031},             {7, 2 * octant - 9},
+        {cells / 3, cells / 3 + 1},        {3 * octant + 11, 3 * octant / 2 - 1}};
+    for (const auto& r : ranges) {
+      const std::uint64_t first = std::min(r.first, cells - 1);
+      const std::uint64_t count = std::min(r.second, cells - first);
+      if (count == 0) continue;
+      gpu.run(first, count, false, true);
+      std::vector<std::int32_t> site(count, -7);
+      std::vector<std::uint8_t> flag(count, 7);
+      gpu.download(0, count, site.data(), nullptr, flag.data());
+      std::uint64_t bad = 0;
+      for (std::uint64_t k = 0; k < count; ++k) {
+        bad += site[k] != cpu.site[first + k] || flag[k] != cpu.boundary[first + k];
+      }
+      EXPECT_EQ(bad, 0u) << "level " << level << ", codes " << first << " + " << count;
+      // Labels alone.
+      gpu.run(first, count, false, false);
+      std::fill(site.begin(), site.end(), -7);
+      gpu.download(0, count, site.data(), nullptr, nullptr);
+      bad = 0;
+      for (std::uint64_t k = 0; k < count; ++k) bad += site[k] != cpu.site[first + k];
+      EXPECT_EQ(bad, 0u) << "level " << level << ", labels only, codes " << first << " + " << count;
+    }
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(Cpu, LabelDevice, ::testing::Values(std::string("cpu")));
 INSTANTIATE_TEST_SUITE_P(Cuda, LabelDevice, ::testing::Values(std::string("cuda")));
 

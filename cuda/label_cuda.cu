@@ -366,6 +366,17 @@ __device__ inline std::int32_t group_of_item(const unsigned long long* start, st
   return lo;
 }
 
+/// Work item t of a level: the group of four sibling nodes it serves (*group), the position in
+/// their shared parent list (*position) and the piece found there.
+__device__ inline Piece item_piece(const DevPending* pending, std::int32_t groups, const unsigned long long* start,
+                                   unsigned long long t, const std::int32_t* parent_lists, const Piece* pieces,
+                                   std::int32_t* group, unsigned long long* position) {
+  const std::int32_t g = group_of_item(start, groups, t);
+  *group = g;
+  *position = t - start[4 * g] / 4;
+  return pieces[parent_lists[pending[4 * g].parent_offset + *position]];
+}
+
 /// Pass 1: the nearest candidate's squared chord per node.
 __global__ void level_min_kernel(const DevPending* pending, std::int32_t groups, const unsigned long long* start,
                                  unsigned long long items, const std::int32_t* parent_lists, const Piece* pieces,
@@ -374,9 +385,8 @@ __global__ void level_min_kernel(const DevPending* pending, std::int32_t groups,
   std::int32_t g = -1;
   unsigned long long bits[4] = {~0ull, ~0ull, ~0ull, ~0ull};
   if (t < items) {
-    g = group_of_item(start, groups, t);
-    const unsigned long long pos = t - start[4 * g] / 4;
-    const Piece piece = pieces[parent_lists[pending[4 * g].parent_offset + pos]];
+    unsigned long long pos;
+    const Piece piece = item_piece(pending, groups, start, t, parent_lists, pieces, &g, &pos);
     for (int c = 0; c < 4; ++c) {
       bits[c] = static_cast<unsigned long long>(__double_as_longlong(piece_chord2(centre[4 * g + c], piece)));
     }
@@ -395,9 +405,8 @@ __global__ void level_keep_kernel(const DevPending* pending, std::int32_t groups
   std::int32_t g = -1;
   std::int32_t lo[4] = {INT_MAX, INT_MAX, INT_MAX, INT_MAX}, hi[4] = {INT_MIN, INT_MIN, INT_MIN, INT_MIN};
   if (t < items) {
-    g = group_of_item(start, groups, t);
-    const unsigned long long pos = t - start[4 * g] / 4;
-    const Piece piece = pieces[parent_lists[pending[4 * g].parent_offset + pos]];
+    unsigned long long pos;
+    const Piece piece = item_piece(pending, groups, start, t, parent_lists, pieces, &g, &pos);
     for (int c = 0; c < 4; ++c) {
       const double d2 = piece_chord2(centre[4 * g + c], piece);
       const bool kept = d2 <= threshold[4 * g + c];
@@ -431,9 +440,8 @@ __global__ void level_best_kernel(const DevPending* pending, std::int32_t groups
   std::int32_t g = -1;
   unsigned long long k[4] = {~0ull, ~0ull, ~0ull, ~0ull};
   if (t < items) {
-    g = group_of_item(start, groups, t);
-    const unsigned long long pos = t - start[4 * g] / 4;
-    const Piece piece = pieces[parent_lists[pending[4 * g].parent_offset + pos]];
+    unsigned long long pos;
+    const Piece piece = item_piece(pending, groups, start, t, parent_lists, pieces, &g, &pos);
     for (int c = 0; c < 4; ++c) {
       const double d2 = piece_chord2(centre[4 * g + c], piece);
       if (static_cast<unsigned long long>(__double_as_longlong(d2)) == min_bits[4 * g + c]) {

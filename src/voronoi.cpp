@@ -327,12 +327,11 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
     if (!options.vector.dataset_options.empty() || !options.vector.layer_options.empty()) {
       throw VoronoiError("-dsco and -lco are for vector output; " + format.driver + " output is a raster: use -co");
     }
-    const bool resolution = raster_options.x_resolution != 0 || raster_options.y_resolution != 0;
-    const bool size = raster_options.width != 0 || raster_options.height != 0;
-    if (raster_options.layout == write::RasterOptions::Layout::qtm && (resolution || size)) {
-      throw VoronoiError("-tr and -ts are for -raster lonlat: the QTM-coded raster's size follows the level");
+    try {
+      write::raster_size(level, raster_options);  // -tr, -ts and -raster checked as the writer will
+    } catch (const write::WriteError& e) {
+      throw VoronoiError(e.what());
     }
-    if (resolution && size) throw VoronoiError("-tr and -ts exclude each other");
   } else if (!options.raster.creation_options.empty()) {
     throw VoronoiError("-co is for raster output; " + format.driver + " output is vector: use -lco or -dsco");
   }

@@ -205,20 +205,26 @@ __global__ void __launch_bounds__(kBlock) tree_flag_kernel(TreeView tree, grid::
 
 // --- brute: the paper's Kernel Function 1, candidates tiled through shared memory ----------
 
-__global__ void brute_label_kernel(const Piece* pieces, int piece_count, int level, grid::Code first,
-                                   std::uint64_t count, std::int32_t* site, float* metres) {
+/// The best of all pieces for x, the pieces read through shared memory a block's tile at a time.
+/// Every thread of the block must call it (it synchronises), active or not.
+__device__ Best tiled_best(const Vec3& x, const Piece* pieces, int piece_count) {
   __shared__ Piece tile[kBlock];
-  const std::uint64_t k = static_cast<std::uint64_t>(blockIdx.x) * blockDim.x + threadIdx.x;
-  const bool active = k < count;
-  const Vec3 x = grid::cell_centre_vector(active ? first + k : first, level);
   Best best = no_best();
   for (int base = 0; base < piece_count; base += kBlock) {
     const int n = piece_count - base < kBlock ? piece_count - base : kBlock;
     __syncthreads();
     if (static_cast<int>(threadIdx.x) < n) tile[threadIdx.x] = pieces[base + threadIdx.x];
     __syncthreads();
-    for (int p = 0; p < n; ++p) consider(best, piece_chord2(x, tile[p]), tile[p]);
+    consider_all(best, x, tile, n);
   }
+  return best;
+}
+
+__global__ void brute_label_kernel(const Piece* pieces, int piece_count, int level, grid::Code first,
+                                   std::uint64_t count, std::int32_t* site, float* metres) {
+  const std::uint64_t k = static_cast<std::uint64_t>(blockIdx.x) * blockDim.x + threadIdx.x;
+  const bool active = k < count;
+  const Best best = tiled_best(grid::cell_centre_vector(active ? first + k : first, level), pieces, piece_count);
   if (!active) return;
   site[k] = best.site;
   if (metres) metres[k] = static_cast<float>(chord2_to_metres(best.chord2));
@@ -239,9 +245,8 @@ __global__ void brute_boundary_kernel(const Piece* pieces, int piece_count, int 
       if (code >= first && code - first < count) {
         other = site[code - first];
       } else {
-        const Vec3 x = grid::cell_centre_vector(code, level);
         Best best = no_best();
-        for (int p = 0; p < piece_count; ++p) consider(best, piece_chord2(x, pieces[p]), pieces[p]);
+        consider_all(best, grid::cell_centre_vector(code, level), pieces, piece_count);
         other = best.site;
       }
       flag = other != site[k];
@@ -253,18 +258,9 @@ __global__ void brute_boundary_kernel(const Piece* pieces, int piece_count, int 
 /// The float64 brute-force label of each code of a list (the benchmark's reference).
 __global__ void brute_codes_kernel(const Piece* pieces, int piece_count, int level, const grid::Code* codes,
                                    std::uint64_t count, std::int32_t* site) {
-  __shared__ Piece tile[kBlock];
   const std::uint64_t k = static_cast<std::uint64_t>(blockIdx.x) * blockDim.x + threadIdx.x;
   const bool active = k < count;
-  const Vec3 x = grid::cell_centre_vector(active ? codes[k] : 0, level);
-  Best best = no_best();
-  for (int base = 0; base < piece_count; base += kBlock) {
-    const int n = piece_count - base < kBlock ? piece_count - base : kBlock;
-    __syncthreads();
-    if (static_cast<int>(threadIdx.x) < n) tile[threadIdx.x] = pieces[base + threadIdx.x];
-    __syncthreads();
-    for (int p = 0; p < n; ++p) consider(best, piece_chord2(x, tile[p]), tile[p]);
-  }
+  const Best best = tiled_best(grid::cell_centre_vector(active ? codes[k] : 0, level), pieces, piece_count);
   if (active) site[k] = best.site;
 }
 

@@ -94,6 +94,12 @@ QTMV_HD inline void consider(Best& best, double chord2, const Piece& p) {
   }
 }
 
+/// Considers `count` pieces for the point x (unit vector): the brute-force step of the
+/// float64 reference and of the brute kernels.
+QTMV_HD inline void consider_all(Best& best, const Vec3& x, const Piece* pieces, std::int64_t count) {
+  for (std::int64_t p = 0; p < count; ++p) consider(best, piece_chord2(x, pieces[p]), pieces[p]);
+}
+
 /// Distance (metres) of a squared chord on the sphere of kEarthRadiusMetres.
 QTMV_HD inline double chord2_to_metres(double chord2) { return chord2_to_angle(chord2) * kEarthRadiusMetres; }
 

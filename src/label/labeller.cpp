@@ -270,7 +270,7 @@ std::vector<Piece> make_candidates(const LabelInput& in, Rule rule) {
 Best reference_best(const std::vector<Piece>& candidates, grid::Code code, int level) {
   const Vec3 x = grid::cell_centre_vector(code, level);
   Best best = no_best();
-  for (const Piece& p : candidates) consider(best, piece_chord2(x, p), p);
+  consider_all(best, x, candidates.data(), static_cast<std::int64_t>(candidates.size()));
   return best;
 }
 

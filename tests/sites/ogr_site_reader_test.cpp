@@ -183,7 +183,7 @@ TEST(OgrSiteReader, LayerWhereSqlAndClaims) {
       OGRGeometry* g = nullptr;
       OGRGeometryFactory::createFromWkt(wkt, nullptr, &g);
       f->SetGeometryDirectly(g);
-      layer->CreateFeature(f.get());
+      ASSERT_EQ(layer->CreateFeature(f.get()), OGRERR_NONE) << wkt;
     }
   }
   std::vector<std::string> messages;

@@ -23,8 +23,6 @@ $B --csv --no-header --sites "uniform:1000;uniform:10000;uniform:100000" --level
 $B --csv --no-header --sites "arcs:1000" --level 12 --device cuda --repeat 3
 $B --csv --no-header --sites "$C" --level 13 --device cuda --repeat 3 --distance
 timeout 240 $B --csv --no-header --sites "uniform:135000" --level 15 --device cuda --repeat 3
-# The same with the tree built on the host (the way before 2026-11-21's device build), for comparison.
-$B --csv --no-header --sites "$C" --level 13 --device cuda --repeat 3 --host-tree
-$B --csv --no-header --sites "uniform:135000" --level 13 --device cuda --repeat 3 --host-tree
-$B --csv --no-header --sites "arcs:1000" --level 12 --device cuda --repeat 1 --host-tree
 } 2>&1 | tee "$out/bench.csv"
+# The docs' figures and Table 3 (bench/figures.sh): CSV, PNG where matplotlib is installed.
+QTMV_BENCH=$B bash bench/figures.sh "$out/figures.csv" 2>&1 | tail -20

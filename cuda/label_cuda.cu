@@ -48,78 +48,134 @@ __global__ void tree_label_kernel(TreeView tree, grid::Code first, std::uint64_t
 }
 
 /// Labels (and boundary flags, no distances) in code order, written coalesced: each warp takes
-/// kPaintSpan = 128 x kPaintRounds consecutive outputs, 4 per lane per round (one 16-byte site store and one
-/// 4-byte flag store per lane). A cell in a uniform leaf gets the leaf's site without a search,
-/// and flag 0 when it lies inside that leaf (which may be coarser than the jump cell); its flag
-/// is otherwise left pending (kFlagPending) for tree_flag_kernel. Cells of list leaves are
-/// queued per warp in shared memory and then take tree_label, 32 at a time, so that whole warps
-/// work on them and no warp waits for another; their flags are left pending too. Same labels as
+/// a span of kPaintSpan = 128 x kPaintRounds consecutive outputs, 4 per lane per round (one
+/// 16-byte site store and one 4-byte flag store per lane). A span that lies in one row first
+/// tabulates the jump cells it crosses (a row's cells fall into consecutive jump cells of one
+/// jump row): the site of those in a uniform leaf and clean (jump_clean), so that their cells
+/// take it with flag 0 from a shared-memory look-up. Other cells go one by one: a cell in a
+/// uniform leaf gets the leaf's site, and flag 0 when it lies inside that leaf, else
+/// kBoundaryPending; cells of list leaves are queued per warp in shared memory and then take
+/// tree_label, 32 at a time, so that whole warps work on them; their flags are left pending too.
+/// span_pending[span] tells tree_flag_kernel whether the span has pending flags. Same labels as
 /// tree_label_kernel, and, once tree_flag_kernel has run, the same flags.
 constexpr int kPaintRounds = 8;
 constexpr int kPaintWarps = kBlock / 32;
 constexpr int kPaintSpan = 32 * 4 * kPaintRounds;  // outputs per warp
-constexpr std::uint8_t kFlagPending = 2;
+constexpr int kPaintTable = 128;                   // jump cells a one-row span may tabulate
+static_assert(kPaintSpan == 4 * kBlock, "tree_flag_kernel takes one span per block");
+constexpr std::uint64_t kPaintMinCells = std::uint64_t{1} << 21;  // fewer go cell by cell
 
-__global__ void __launch_bounds__(kBlock, 4) tree_paint_kernel(TreeView tree, grid::Code first, std::uint64_t count,
-                                                               std::int32_t* site, std::uint8_t* boundary) {
+/// Steps cell c (of a level with `rows` rows per octant) `step` codes on.
+__device__ inline void advance_cell(grid::Cell& c, std::uint32_t step, std::uint32_t rows) {
+  c.col += step;
+  while (c.col > 2 * c.row) {
+    c.col -= 2 * c.row + 1;
+    if (++c.row == rows) {
+      c.row = 0;
+      ++c.octant;
+    }
+  }
+}
+
+/// Column of the ancestor k levels up of the cell in column `col` of a row whose local row (in
+/// its ancestor) is `local_row`: ancestor()'s rule.
+__device__ inline std::uint32_t ancestor_col(std::uint32_t col, std::uint32_t local_row, int k) {
+  return ((col >> (k + 1)) << 1) | ((col & ((2u << k) - 1u)) > 2 * local_row ? 1u : 0u);
+}
+
+__global__ void __launch_bounds__(kBlock, 4) tree_paint_kernel(TreeView tree, const std::uint8_t* jump_clean,
+                                                               grid::Code first, std::uint64_t count,
+                                                               std::int32_t* site, std::uint8_t* boundary,
+                                                               std::uint8_t* span_pending) {
   __shared__ std::uint16_t queue[kPaintWarps][kPaintSpan];
-  const int level = tree.level, jl = tree.jump_level;
+  __shared__ std::int32_t table[kPaintWarps][kPaintTable];
+  const int level = tree.level, jl = tree.jump_level, k = level - jl;
   const unsigned lane = threadIdx.x & 31u, warp = threadIdx.x >> 5;
-  const std::uint64_t warp_out = (static_cast<std::uint64_t>(blockIdx.x) * kPaintWarps + warp) * kPaintSpan;
+  const std::uint64_t span = static_cast<std::uint64_t>(blockIdx.x) * kPaintWarps + warp;
+  const std::uint64_t warp_out = span * kPaintSpan;
   if (warp_out >= count) return;  // whole warps leave together: the ballots below need all lanes
   std::uint16_t* q = queue[warp];
   int queued = 0;
+  bool pending = false;
   const std::uint32_t rows = 1u << level;
-  grid::Code last_jump = ~grid::Code{0};
-  int jump_level = 0;
-  int node_count = 0, node_value = 0;
+  // The jump cell last looked up, its entry's node and whether it is clean.
+  grid::Cell jump_cell{-1, 0, 0};
+  int jump_level = 0, node_count = 0, node_value = 0;
+  bool clean = false;
+  auto look_up = [&](const grid::Cell& a) {
+    if (a.col == jump_cell.col && a.row == jump_cell.row && a.octant == jump_cell.octant) return;
+    jump_cell = a;
+    const grid::Code jcode = grid::code_of(a, jl);
+    const int2 e = __ldg(reinterpret_cast<const int2*>(tree.jump + jcode));
+    jump_level = e.y;
+    const int2 n = __ldg(reinterpret_cast<const int2*>(tree.nodes + e.x));
+    node_count = n.x;
+    node_value = n.y;
+    clean = boundary && __ldg(jump_clean + jcode);
+  };
+  // The span's first cell, and the table when the span lies in one row.
+  const grid::Cell c0 = grid::cell_of(first + warp_out, level);
+  const std::uint64_t span_cells = count - warp_out < kPaintSpan ? count - warp_out : kPaintSpan;
+  const std::uint32_t local_row = c0.row & ((1u << k) - 1u);
+  const std::uint32_t jc0 = ancestor_col(c0.col, local_row, k);
+  const bool one_row = c0.col + (span_cells - 1) <= 2 * c0.row;
+  const bool tabulated =
+      one_row && ancestor_col(c0.col + static_cast<std::uint32_t>(span_cells - 1), local_row, k) - jc0 < kPaintTable;
+  if (tabulated) {
+    const std::uint32_t entries = ancestor_col(c0.col + static_cast<std::uint32_t>(span_cells - 1), local_row, k) - jc0 + 1;
+    for (std::uint32_t t = lane; t < entries; t += 32) {
+      const grid::Code jcode = grid::code_of(grid::Cell{c0.octant, c0.row >> k, jc0 + t}, jl);
+      const TreeNode n = tree.nodes[__ldg(&tree.jump[jcode].node)];
+      table[warp][t] = n.count == kUniform && (!boundary || __ldg(jump_clean + jcode)) ? n.value : -1;
+    }
+    __syncwarp();
+  }
+  grid::Cell c = c0;
+  advance_cell(c, 4 * lane, rows);  // the lane's first cell of the round
   for (int round = 0; round < kPaintRounds; ++round) {
     const std::uint32_t local = static_cast<std::uint32_t>(round * 128) + 4 * lane;
     const std::uint64_t out = warp_out + local;
     std::int32_t s[4] = {-1, -1, -1, -1};
-    std::uint32_t flags = 0;  // byte j: the flag of cell out + j (0, or kFlagPending)
+    std::uint32_t flags = 0;  // byte j: the flag of cell out + j (0 or kBoundaryPending)
     unsigned slow = 0;        // bit j: cell out + j is queued
     if (out < count) {
-      grid::Cell c = fast_cell_of(first + out, level);
+      unsigned todo = 0;  // bit j: cell out + j goes one by one
+      if (tabulated) {
+#pragma unroll
+        for (int j = 0; j < 4; ++j) {
+          if (out + j < count) {
+            s[j] = table[warp][ancestor_col(c.col + j, local_row, k) - jc0];
+            if (s[j] < 0) todo |= 1u << j;
+          }
+        }
+      } else {
+        todo = out + 4 <= count ? 0xfu : (1u << (count - out)) - 1u;
+      }
+      grid::Cell cc = c;
 #pragma unroll
       for (int j = 0; j < 4; ++j) {
-        if (out + j < count) {
-          const grid::Code jcode = grid::code_of(ancestor(c, level, jl), jl);
-          if (jcode != last_jump) {
-            last_jump = jcode;
-            const int2 e = __ldg(reinterpret_cast<const int2*>(tree.jump + jcode));
-            jump_level = e.y;
-            const int2 n = __ldg(reinterpret_cast<const int2*>(tree.nodes + e.x));
-            node_count = n.x;
-            node_value = n.y;
-          }
+        if ((todo >> j) & 1u) {
+          look_up(ancestor(cc, level, jl));
           // find_leaf's walk, from the jump entry.
           int leaf_level = jump_level, leaf_count = node_count, leaf_value = node_value;
           while (leaf_count == kInternal) {
             const int2 n = __ldg(reinterpret_cast<const int2*>(tree.nodes + leaf_value +
-                                                               child_digit(ancestor(c, level, leaf_level + 1))));
+                                                               child_digit(ancestor(cc, level, leaf_level + 1))));
             leaf_count = n.x;
             leaf_value = n.y;
             ++leaf_level;
           }
           if (leaf_count == kUniform) {
             s[j] = leaf_value;
-            if (boundary && !interior_of_ancestor(c, level, leaf_level)) {
-              flags |= std::uint32_t{kFlagPending} << (8 * j);
+            if (boundary && !clean && !interior_of_ancestor(cc, level, leaf_level)) {
+              flags |= std::uint32_t{kBoundaryPending} << (8 * j);
             }
           } else {
             slow |= 1u << j;
-            if (boundary) flags |= std::uint32_t{kFlagPending} << (8 * j);
-          }
-          // The next code's cell.
-          if (++c.col > 2 * c.row) {
-            c.col = 0;
-            if (++c.row == rows) {
-              c.row = 0;
-              ++c.octant;
-            }
+            if (boundary) flags |= std::uint32_t{kBoundaryPending} << (8 * j);
           }
         }
+        if (j < 3) advance_cell(cc, 1, rows);
       }
       if (out + 4 <= count) {
         *reinterpret_cast<int4*>(site + out) = make_int4(s[0], s[1], s[2], s[3]);
@@ -134,72 +190,82 @@ __global__ void __launch_bounds__(kBlock, 4) tree_paint_kernel(TreeView tree, gr
         }
       }
     }
+    pending = pending || flags != 0;
+    if (tabulated) {
+      c.col += 128;  // the span's cells are all in this row
+    } else {
+      advance_cell(c, 128, rows);
+    }
     // Queue the cells of list leaves in code order (warp-aggregated).
+    if (__any_sync(0xffffffffu, slow != 0)) {
 #pragma unroll
-    for (int j = 0; j < 4; ++j) {
-      const bool mine = (slow >> j) & 1u;
-      const unsigned ballot = __ballot_sync(0xffffffffu, mine);
-      if (mine) q[queued + __popc(ballot & ((1u << lane) - 1u))] = static_cast<std::uint16_t>(local + j);
-      queued += __popc(ballot);
+      for (int j = 0; j < 4; ++j) {
+        const bool mine = (slow >> j) & 1u;
+        const unsigned ballot = __ballot_sync(0xffffffffu, mine);
+        if (mine) q[queued + __popc(ballot & ((1u << lane) - 1u))] = static_cast<std::uint16_t>(local + j);
+        queued += __popc(ballot);
+      }
     }
   }
+  pending = __any_sync(0xffffffffu, pending);
+  if (span_pending && lane == 0) span_pending[span] = pending;
   __syncwarp();  // the queue, before other lanes read it
   for (int e = static_cast<int>(lane); e < queued; e += 32) {
     const std::uint64_t out = warp_out + q[e];
-    site[out] = tree_label(tree, fast_cell_of(first + out, level));
+    site[out] = tree_label(tree, grid::cell_of(first + out, level));
   }
 }
 
 /// The pending flags that tree_paint_kernel left, from the labels it wrote: a cell is a boundary
 /// cell when one of its three edge neighbours has another site. A neighbour inside
 /// [first, first + count) reads its label there; one outside is looked up in the tree
-/// (tree_label, as tree_label_cell does). 4 outputs per thread.
+/// (tree_label, as tree_label_cell does). One paint span per block, skipped when it has no
+/// pending flag; each warp gathers the pending cells of its 128 outputs and settles them 32 at a
+/// time.
 __global__ void __launch_bounds__(kBlock) tree_flag_kernel(TreeView tree, grid::Code first, std::uint64_t count,
-                                                           const std::int32_t* site, std::uint8_t* boundary) {
-  const std::uint64_t out = (static_cast<std::uint64_t>(blockIdx.x) * blockDim.x + threadIdx.x) * 4;
-  if (out >= count) return;
-  const int n = count - out < 4 ? static_cast<int>(count - out) : 4;
+                                                           const std::int32_t* site, std::uint8_t* boundary,
+                                                           const std::uint8_t* span_pending) {
+  __shared__ std::uint8_t queue[kPaintWarps][128];
+  if (!span_pending[blockIdx.x]) return;
+  const unsigned lane = threadIdx.x & 31u, warp = threadIdx.x >> 5;
+  const std::uint64_t warp_out = static_cast<std::uint64_t>(blockIdx.x) * kPaintSpan + warp * 128;
+  if (warp_out >= count) return;  // whole warps leave together
+  const std::uint64_t out = warp_out + 4 * lane;
   std::uint32_t flags = 0;
-  if (n == 4) {
+  if (out + 4 <= count) {
     flags = *reinterpret_cast<const std::uint32_t*>(boundary + out);
   } else {
-    for (int j = 0; j < n; ++j) flags |= std::uint32_t{boundary[out + j]} << (8 * j);
+    for (std::uint64_t j = 0; out + j < count; ++j) flags |= std::uint32_t{boundary[out + j]} << (8 * j);
   }
-  if (!(flags & 0x02020202u)) return;
+  std::uint8_t* q = queue[warp];
+  int queued = 0;
+#pragma unroll
+  for (int j = 0; j < 4; ++j) {
+    const bool mine = ((flags >> (8 * j)) & 0xffu) == kBoundaryPending;
+    const unsigned ballot = __ballot_sync(0xffffffffu, mine);
+    if (mine) q[queued + __popc(ballot & ((1u << lane) - 1u))] = static_cast<std::uint8_t>(4 * lane + j);
+    queued += __popc(ballot);
+  }
+  __syncwarp();
   const int level = tree.level;
-  const std::uint32_t rows = 1u << level;
-  grid::Cell c = fast_cell_of(first + out, level);
-#pragma unroll 1
-  for (int j = 0; j < n; ++j) {
-    if ((flags >> (8 * j)) & kFlagPending) {
-      const std::int32_t own = __ldg(site + out + j);
-      grid::Cell nb[3];
-      grid::neighbours(c, level, nb);
-      bool flag = false, inside[3];
+  for (int e = static_cast<int>(lane); e < queued; e += 32) {
+    const std::uint64_t local = warp_out + q[e];
+    const grid::Code code = first + local;
+    const grid::Cell c = grid::cell_of(code, level);
+    const std::int32_t own = __ldg(site + local);
+    grid::Code nb[3];
+    grid::neighbours(c, code, level, nb);
+    bool flag = false, inside[3];
 #pragma unroll
-      for (int k = 0; k < 3; ++k) {
-        const grid::Code code = grid::code_of(nb[k], level);
-        inside[k] = code >= first && code - first < count;
-        if (inside[k]) flag = flag || __ldg(site + (code - first)) != own;
-      }
+    for (int n = 0; n < 3; ++n) {
+      inside[n] = nb[n] >= first && nb[n] - first < count;
+      if (inside[n]) flag = flag || __ldg(site + (nb[n] - first)) != own;
+    }
 #pragma unroll
-      for (int k = 0; k < 3; ++k) {
-        if (!flag && !inside[k]) flag = tree_label(tree, nb[k]) != own;
-      }
-      flags = (flags & ~(0xffu << (8 * j))) | (static_cast<std::uint32_t>(flag) << (8 * j));
+    for (int n = 0; n < 3; ++n) {
+      if (!flag && !inside[n]) flag = tree_label(tree, grid::cell_of(nb[n], level)) != own;
     }
-    if (++c.col > 2 * c.row) {
-      c.col = 0;
-      if (++c.row == rows) {
-        c.row = 0;
-        ++c.octant;
-      }
-    }
-  }
-  if (n == 4) {
-    *reinterpret_cast<std::uint32_t*>(boundary + out) = flags;
-  } else {
-    for (int j = 0; j < n; ++j) boundary[out + j] = static_cast<std::uint8_t>(flags >> (8 * j));
+    boundary[local] = flag;
   }
 }
 
@@ -237,7 +303,7 @@ __global__ void brute_boundary_kernel(const Piece* pieces, int piece_count, int 
   const std::uint64_t stride = static_cast<std::uint64_t>(gridDim.x) * blockDim.x;
   for (std::uint64_t k = static_cast<std::uint64_t>(blockIdx.x) * blockDim.x + threadIdx.x; k < count; k += stride) {
     grid::Cell nb[3];
-    grid::neighbours(fast_cell_of(first + k, level), level, nb);
+    grid::neighbours(grid::cell_of(first + k, level), level, nb);
     std::uint8_t flag = 0;
     for (int s = 0; s < 3 && !flag; ++s) {
       const grid::Code code = grid::code_of(nb[s], level);
@@ -536,7 +602,12 @@ __global__ void level_write_lists_kernel(const DevPending* pending, std::int32_t
 __global__ void jump_kernel(const TreeNode* nodes, int jump_level, std::uint64_t count, JumpEntry* jump) {
   const std::uint64_t k = static_cast<std::uint64_t>(blockIdx.x) * blockDim.x + threadIdx.x;
   if (k >= count) return;
-  jump[k] = walk_to_jump_level(nodes, fast_cell_of(k, jump_level), jump_level);
+  jump[k] = walk_to_jump_level(nodes, grid::cell_of(k, jump_level), jump_level);
+}
+
+__global__ void jump_clean_kernel(TreeView tree, std::uint64_t count, std::uint8_t* clean) {
+  const std::uint64_t k = static_cast<std::uint64_t>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (k < count) clean[k] = jump_cell_clean(tree, k);
 }
 
 template <typename T>
@@ -810,22 +881,36 @@ struct Labeller::Impl {
   std::int32_t* lists = nullptr;
   JumpEntry* jump = nullptr;
   int jump_level = 0;
+  std::uint8_t* jump_clean = nullptr;  ///< per jump cell: jump_cell_clean
   TreeInfo tree_info;
   std::int32_t* site = nullptr;
   float* metres = nullptr;
   std::uint8_t* boundary = nullptr;
+  std::uint8_t* span_pending = nullptr;  ///< per paint span: flags left for tree_flag_kernel
   std::uint64_t capacity = 0;
   std::size_t bytes = 0;
   std::size_t output_bytes = 0;
   cudaEvent_t start = nullptr, stop = nullptr;
 
+  TreeView view() const { return {nodes, lists, pieces, jump, jump_level, level}; }
+  /// jump_clean for the tree now on the device.
+  void mark_clean_jump_cells() {
+    const std::uint64_t count = grid::cell_count(jump_level);
+    jump_clean = device_alloc<std::uint8_t>(count, &bytes);
+    jump_clean_kernel<<<blocks_for(count), kBlock>>>(view(), count, jump_clean);
+    QTMV_CUDA_CHECK_LAUNCH("jump_clean_kernel");
+    QTMV_CUDA_CHECK(cudaDeviceSynchronize());  // part of the preparation, and its errors surface here
+  }
+
   void free_outputs() {
     cudaFree(site);
     cudaFree(metres);
     cudaFree(boundary);
+    cudaFree(span_pending);
     site = nullptr;
     metres = nullptr;
     boundary = nullptr;
+    span_pending = nullptr;
     bytes -= output_bytes;
     output_bytes = 0;
     capacity = 0;
@@ -837,6 +922,7 @@ struct Labeller::Impl {
     cudaFree(nodes);
     cudaFree(lists);
     cudaFree(jump);
+    cudaFree(jump_clean);
     if (start) cudaEventDestroy(start);
     if (stop) cudaEventDestroy(stop);
   }
@@ -859,6 +945,7 @@ Labeller::Labeller(int device, const std::vector<Piece>& candidates, const Tree*
     m.lists = device_copy(tree->lists, &m.bytes);
     m.jump = device_copy(tree->jump, &m.bytes);
     m.jump_level = tree->jump_level;
+    m.mark_clean_jump_cells();
   }
 }
 
@@ -880,6 +967,7 @@ Labeller::Labeller(int device, const std::vector<Piece>& candidates, int level, 
   m.lists = t.lists;
   m.jump = t.jump;
   m.jump_level = t.jump_level;
+  m.mark_clean_jump_cells();
   m.bytes += t.node_count * sizeof(TreeNode) + t.list_count * sizeof(std::int32_t) + t.jump_count * sizeof(JumpEntry);
   m.tree_info = {t.node_count, t.list_count, t.jump_count, t.jump_level, t.mean_candidates};
 }
@@ -915,7 +1003,10 @@ void Labeller::reserve(std::uint64_t max_cells, bool want_distance, bool want_bo
   m.site = device_alloc<std::int32_t>(max_cells, &m.bytes);
   // brute needs the labels of a whole tile for its boundary pass; distances on request.
   if (want_distance) m.metres = device_alloc<float>(max_cells, &m.bytes);
-  if (want_boundary) m.boundary = device_alloc<std::uint8_t>(max_cells, &m.bytes);
+  if (want_boundary) {
+    m.boundary = device_alloc<std::uint8_t>(max_cells, &m.bytes);
+    m.span_pending = device_alloc<std::uint8_t>((max_cells + kPaintSpan - 1) / kPaintSpan, &m.bytes);
+  }
   m.output_bytes = m.bytes - before;
   m.capacity = max_cells;
 }
@@ -931,21 +1022,24 @@ float Labeller::run(grid::Code first, std::uint64_t count, bool want_distance, b
   std::uint8_t* boundary = want_boundary ? m.boundary : nullptr;
   QTMV_CUDA_CHECK(cudaEventRecord(m.start));
   if (m.hier) {
-    const TreeView view{m.nodes, m.lists, m.pieces, m.jump, m.jump_level, m.level};
+    const TreeView view = m.view();
     if (count == 0) {
       // nothing to label
-    } else if (metres) {
-      // With distances the tree has no uniform leaves: cell by cell.
+    } else if (metres || count < kPaintMinCells) {
+      // With distances the tree has no uniform leaves: cell by cell. So too for few cells, which
+      // would give the paint kernel too few warps to hide its latency.
       tree_label_kernel<<<blocks_for(count), kBlock>>>(view, first, count, m.site, metres, boundary);
       QTMV_CUDA_CHECK_LAUNCH("tree_label_kernel");
     } else {
       // Labels, flags 0 inside uniform leaves and pending elsewhere; then the pending flags.
       const std::uint64_t blocks = (count + kPaintWarps * kPaintSpan - 1) / (kPaintWarps * kPaintSpan);
       if (blocks > 0x7fffffffu) throw std::invalid_argument("Labeller::run: too many cells for one launch");
-      tree_paint_kernel<<<static_cast<unsigned int>(blocks), kBlock>>>(view, first, count, m.site, boundary);
+      tree_paint_kernel<<<static_cast<unsigned int>(blocks), kBlock>>>(view, m.jump_clean, first, count, m.site,
+                                                                        boundary, m.span_pending);
       QTMV_CUDA_CHECK_LAUNCH("tree_paint_kernel");
       if (boundary) {
-        tree_flag_kernel<<<blocks_for((count + 3) / 4), kBlock>>>(view, first, count, m.site, boundary);
+        tree_flag_kernel<<<blocks_for((count + 3) / 4), kBlock>>>(view, first, count, m.site, boundary,
+                                                                   m.span_pending);
         QTMV_CUDA_CHECK_LAUNCH("tree_flag_kernel");
       }
     }

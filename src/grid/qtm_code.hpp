@@ -69,9 +69,9 @@ QTMV_HD constexpr Code code_of(const Cell& c, int level) {
 
 /// Cell of a valid code.
 QTMV_HD inline Cell cell_of(Code code, int level) {
-  const std::uint64_t per_octant = cells_per_octant(level);
-  const int octant = static_cast<int>(code / per_octant);
-  const std::uint64_t k = code - static_cast<std::uint64_t>(octant) * per_octant;
+  // cells_per_octant is 4^level: a shift and a mask, not a 64-bit division (slow on GPUs).
+  const int octant = static_cast<int>(code >> (2 * level));
+  const std::uint64_t k = code & (cells_per_octant(level) - 1);
   // k < 2^48, so the double square root is within one of the integer one; correct it.
   std::uint64_t row = static_cast<std::uint64_t>(sqrt(static_cast<double>(k)));
   while (row * row > k) --row;

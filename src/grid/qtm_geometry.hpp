@@ -105,10 +105,12 @@ QTMV_HD inline LonLat cell_centre(Code code, int level) { return cell_centre(cel
 
 /// Unit vector of a cell's centre, computed with the deterministic sincos_deg so that the
 /// CPU and CUDA code get the same bits.
-QTMV_HD inline Vec3 cell_centre_vector(Code code, int level) {
-  const LonLat p = cell_centre(code, level);
+QTMV_HD inline Vec3 cell_centre_vector(const Cell& c, int level) {
+  const LonLat p = cell_centre(c, level);
   return unit_vector(p.lon, p.lat);
 }
+
+QTMV_HD inline Vec3 cell_centre_vector(Code code, int level) { return cell_centre_vector(cell_of(code, level), level); }
 
 /// Grid vertex (r, k), 0 <= k <= r <= 2^L, of an octant (degrees). The pole (r = 0) gets the
 /// longitude of the octant's lon' = 0 side.

@@ -42,8 +42,10 @@ constexpr double kDegree = kPi / 180.0;  ///< one degree (radians)
 /// at most 45 degrees, goes through Taylor series whose truncation error (< 1e-19) lies
 /// far below double precision.
 QTMV_HD inline void sincos_deg(double x, double* s, double* c) {
-  const double q = x / 90.0;
-  // Round to the nearest quadrant without depending on the math library's rint.
+  // Round to the nearest quadrant without depending on the math library's rint. A product in
+  // place of the division (slow on GPUs) may round a tie the other way: r then lands at the
+  // other end of [-45, 45] degrees, where the series is just as accurate.
+  const double q = x * (1.0 / 90.0);
   long long n = static_cast<long long>(q >= 0 ? q + 0.5 : q - 0.5);
   const double r = (x - 90.0 * static_cast<double>(n)) * kDegree;  // |r| <= pi/4 (+rounding)
   const double r2 = r * r;

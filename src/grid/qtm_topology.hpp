@@ -33,11 +33,24 @@ QTMV_HD inline void neighbours(const Cell& c, int level, Cell out[3]) {
   }
 }
 
-QTMV_HD inline void neighbours(Code code, int level, Code out[3]) {
+/// The neighbours' codes of cell c, whose code is `code`. Inside the octant they follow from the
+/// code (row i starts at code i^2 of its octant): left code - 1, right code + 1, above a down
+/// cell code - 2i, below an up cell code + 2i + 2; only cells on the octant's edges need the cells.
+QTMV_HD inline void neighbours(const Cell& c, Code code, int level, Code out[3]) {
+  const std::uint64_t i = c.row, j = c.col;
+  const bool inside = j > 0 && j < 2 * i && ((j & 1u) != 0 || i + 1 < rows_per_octant(level));
+  if (inside) {
+    out[kNeighbourLeft] = code - 1;
+    out[kNeighbourRight] = code + 1;
+    out[kNeighbourVertical] = (j & 1u) != 0 ? code - 2 * i : code + 2 * i + 2;
+    return;
+  }
   Cell n[3];
-  neighbours(cell_of(code, level), level, n);
+  neighbours(c, level, n);
   for (int k = 0; k < 3; ++k) out[k] = code_of(n[k], level);
 }
+
+QTMV_HD inline void neighbours(Code code, int level, Code out[3]) { neighbours(cell_of(code, level), code, level, out); }
 
 /// The parent at level - 1 (level >= 1): the cell of level - 1 that holds the child's
 /// centre. The planar test of the spec is done in integers, so it is exact.

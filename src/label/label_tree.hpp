@@ -60,33 +60,16 @@ struct TreeView {
   int level;                   ///< the labelling level L
 };
 
-/// Cell of a code, as grid::cell_of but with shifts in place of 64-bit divisions (which are
-/// slow on GPUs). Same result: the tests compare the two.
-QTMV_HD inline grid::Cell fast_cell_of(grid::Code code, int level) {
-  const int octant = static_cast<int>(code >> (2 * level));
-  const std::uint64_t k = code & (grid::cells_per_octant(level) - 1);
-  std::uint64_t row = static_cast<std::uint64_t>(sqrt(static_cast<double>(k)));
-  while (row * row > k) --row;
-  while ((row + 1) * (row + 1) <= k) ++row;
-  return {octant, static_cast<std::uint32_t>(row), static_cast<std::uint32_t>(k - row * row)};
-}
-
-/// The ancestor at level `to` (<= from) of cell c of level `from`: the cell of level `to`
-/// that holds c's centre, decided in exact integer arithmetic from the planar centroid.
+/// The ancestor at level `to` (<= from) of cell c of level `from`. Row r of an ancestor k = from - to
+/// levels up holds rows r 2^k .. r 2^k + 2^k - 1 below it; in the local row lr of those, the up
+/// ancestor (column 2a) holds columns a 2^(k+1) .. a 2^(k+1) + 2 lr and the down ancestor (column
+/// 2a + 1) the rest of the block of 2^(k+1) columns. Shifts and masks only (the tests compare it
+/// with grid::parent applied k times).
 QTMV_HD inline grid::Cell ancestor(const grid::Cell& c, int from, int to) {
-  if (to == from) return c;
-  const std::uint32_t a = c.col / 2;
-  // Centroid in units of 1/(3 * 2^from) of the octant's plane (< 2^27 up to level 24).
-  const std::uint32_t ww = grid::is_up(c) ? 3 * a + 1 : 3 * a + 2;
-  const std::uint32_t vv = grid::is_up(c) ? 3 * c.row + 2 : 3 * c.row + 1;
-  const int shift = from - to;
-  // floor(x / (3 * 2^shift)) = floor(x / 3) >> shift, with a division by a constant.
-  const std::uint32_t i = (vv / 3) >> shift, pa = (ww / 3) >> shift;
-  const std::uint32_t side = 3u << shift;
-  const std::uint32_t fw = ww - pa * side, fv = vv - i * side;
-  std::uint32_t j = fw <= fv ? 2 * pa : 2 * pa + 1;
-  if (j > 2 * i) j = 2 * i;
-  return {c.octant, i, j};
+  const int k = from - to;
+  const std::uint32_t local_row = c.row & ((1u << k) - 1u);
+  const std::uint32_t offset = c.col & ((2u << k) - 1u);
+  return {c.octant, c.row >> k, ((c.col >> (k + 1)) << 1) | (offset > 2 * local_row ? 1u : 0u)};
 }
 
 /// Position (0..3) of cell c among its parent's children, in grid::children() order.
@@ -114,20 +97,18 @@ QTMV_HD inline std::int32_t find_leaf(const TreeView& t, const grid::Cell& c, in
 
 /// True when all three edge neighbours of cell c (level `level`) lie in c's ancestor at
 /// `leaf_level`, so that a uniform leaf settles c's boundary flag without looking further.
-/// Within an up ancestor, row r (from its top, 0..2^k - 1) holds columns base .. base + 2r;
-/// within a down ancestor, base + 2r + 1 .. base + 2^(k+1) - 1, with base = 2 a 2^k. The first and
-/// last cell of a row have a neighbour outside, and so do the up cells of an up ancestor's
-/// last row (below) and the down cells of a down ancestor's first row (above).
+/// In ancestor()'s terms (local row lr of 2^k, column offset in the block of 2^(k+1)), an up
+/// ancestor holds offsets 0 .. 2 lr and a down one 2 lr + 1 .. 2^(k+1) - 1. The first and last cell
+/// of such a run have a neighbour outside, and so do the up cells of an up ancestor's last row
+/// (below) and the down cells of a down ancestor's first row (above).
 QTMV_HD inline bool interior_of_ancestor(const grid::Cell& c, int level, int leaf_level) {
   const int k = level - leaf_level;
-  const grid::Cell anc = ancestor(c, level, leaf_level);
-  const std::uint32_t r = c.row - (anc.row << k);
-  const std::uint32_t base = (anc.col / 2) << (k + 1);
-  const std::uint32_t last_row = (1u << k) - 1;
-  if (grid::is_up(anc)) {
-    return c.col > base && c.col < base + 2 * r && !(grid::is_up(c) && r == last_row);
+  const std::uint32_t lr = c.row & ((1u << k) - 1u);
+  const std::uint32_t offset = c.col & ((2u << k) - 1u);
+  if (offset <= 2 * lr) {  // up ancestor
+    return offset > 0 && offset < 2 * lr && !(grid::is_up(c) && lr == (1u << k) - 1u);
   }
-  return c.col > base + 2 * r + 1 && c.col < base + (2u << k) - 1 && !(!grid::is_up(c) && r == 0);
+  return offset > 2 * lr + 1 && offset < (2u << k) - 1 && !(!grid::is_up(c) && lr == 0);
 }
 
 /// The m-th (0 <= m < 4^k) of the cells k levels below cell a, row by row from a's apex: local
@@ -153,6 +134,24 @@ QTMV_HD inline JumpEntry walk_to_jump_level(const TreeNode* nodes, const grid::C
   return {node, level};
 }
 
+/// True when jump cell `jump_code` lies in a uniform leaf and so do its three edge neighbours (of
+/// the jump level), all with one site: then no cell below it is a boundary cell, since a cell's
+/// edge neighbours lie in its own jump cell or in the one across that edge.
+QTMV_HD inline bool jump_cell_clean(const TreeView& t, grid::Code jump_code) {
+  const TreeNode own = t.nodes[t.jump[jump_code].node];
+  if (own.count != kUniform) return false;
+  grid::Cell nb[3];
+  grid::neighbours(grid::cell_of(jump_code, t.jump_level), t.jump_level, nb);
+  for (const grid::Cell& n : nb) {
+    const TreeNode other = t.nodes[t.jump[grid::code_of(n, t.jump_level)].node];
+    if (other.count != kUniform || other.value != own.value) return false;
+  }
+  return true;
+}
+
+/// A boundary flag not settled yet: a neighbour lies in a list leaf, whose label is needed.
+constexpr std::uint8_t kBoundaryPending = 2;
+
 /// The best candidate of a list leaf for the point x (unit vector).
 QTMV_HD inline Best best_of_list(const TreeView& t, const TreeNode& leaf, const Vec3& x) {
   Best best = no_best();
@@ -168,7 +167,7 @@ QTMV_HD inline std::int32_t tree_label(const TreeView& t, const grid::Cell& c) {
   int leaf_level;
   const TreeNode leaf = t.nodes[find_leaf(t, c, &leaf_level)];
   if (leaf.count == kUniform) return leaf.value;
-  return best_of_list(t, leaf, grid::cell_centre_vector(grid::code_of(c, t.level), t.level)).site;
+  return best_of_list(t, leaf, grid::cell_centre_vector(c, t.level)).site;
 }
 
 /// Label, optional distance and optional boundary flag of one cell. A cell is a boundary cell
@@ -177,7 +176,7 @@ QTMV_HD inline std::int32_t tree_label(const TreeView& t, const grid::Cell& c) {
 /// *candidates_out (when not null) gets the number of candidates tested for the cell's own label.
 QTMV_HD inline void tree_label_cell(const TreeView& t, grid::Code code, std::int32_t* site_out, float* metres_out,
                                     std::uint8_t* boundary_out) {
-  const grid::Cell c = fast_cell_of(code, t.level);
+  const grid::Cell c = grid::cell_of(code, t.level);
   int leaf_level;
   const std::int32_t leaf_index = find_leaf(t, c, &leaf_level);
   const TreeNode leaf = t.nodes[leaf_index];
@@ -185,7 +184,7 @@ QTMV_HD inline void tree_label_cell(const TreeView& t, grid::Code code, std::int
   if (leaf.count == kUniform) {
     site = leaf.value;
   } else {
-    const Best best = best_of_list(t, leaf, grid::cell_centre_vector(code, t.level));
+    const Best best = best_of_list(t, leaf, grid::cell_centre_vector(c, t.level));
     site = best.site;
     if (metres_out) *metres_out = static_cast<float>(chord2_to_metres(best.chord2));
   }
@@ -208,7 +207,7 @@ QTMV_HD inline void tree_label_cell(const TreeView& t, grid::Code code, std::int
     if (other.count == kUniform) {
       other_site = other.value;
     } else {
-      other_site = best_of_list(t, other, grid::cell_centre_vector(grid::code_of(nb[k], t.level), t.level)).site;
+      other_site = best_of_list(t, other, grid::cell_centre_vector(nb[k], t.level)).site;
     }
     boundary = other_site != site;
   }

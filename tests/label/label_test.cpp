@@ -118,17 +118,15 @@ TEST(LabelMath, BetterOrdersByDistanceThenFixedThenSite) {
   EXPECT_EQ(c.site, 3);  // away from distance 0, fixed pieces are ordinary points
 }
 
-TEST(LabelTree, FastCellOfAndAncestorAgreeWithTheGrid) {
+TEST(LabelTree, AncestorAndChildDigitAgreeWithTheGrid) {
   std::mt19937_64 rng(3);
   for (int level = 0; level <= 24; ++level) {
     std::uniform_int_distribution<Code> pick(0, grid::cell_count(level) - 1);
     for (int trial = 0; trial < 2000; ++trial) {
       const Code code = trial < 8 ? std::min<Code>(trial, grid::cell_count(level) - 1) : pick(rng);
-      const Cell c = fast_cell_of(code, level);
-      const Cell g = grid::cell_of(code, level);
-      ASSERT_TRUE(c.octant == g.octant && c.row == g.row && c.col == g.col) << code << " at level " << level;
+      const Cell c = grid::cell_of(code, level);
       Cell up = c;
-      for (int to = level - 1; to >= 0 && to >= level - 8; --to) {
+      for (int to = level - 1; to >= 0; --to) {
         const Cell child = up;
         up = grid::parent(up);
         const Cell anc = ancestor(c, level, to);
@@ -662,12 +660,13 @@ TEST(LabelDeviceTree, MatchesTheHostTree) {
   }
 }
 
-// The paint kernel (labels + flags, no distances) on ranges that start and end anywhere: at
-// odd codes, inside the first rows of an octant (rows shorter than a warp's run of codes),
-// across octant boundaries, one or a few cells. Labels and flags must be the CPU's.
+// Labels + flags without distances on ranges that start and end anywhere: at odd codes, inside
+// the first rows of an octant (rows shorter than a warp's run of codes), across octant
+// boundaries, one or a few cells. Labels and flags must be the CPU's. Ranges of 2^21 cells or
+// more go through the paint kernel (level 11 here), smaller ones cell by cell.
 TEST(LabelDeviceTree, OddRangesMatchTheCpu) {
   if (cuda_device_count() == 0) GTEST_SKIP() << "no CUDA GPU";
-  for (const int level : {2, 5, 8}) {
+  for (const int level : {2, 5, 8, 11}) {
     const SiteGeometry g = random_points(level, level < 3 ? 5 : 200, 900 + level);
     const LabelInput in = g.input();
     LabelOptions options;

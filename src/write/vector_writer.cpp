@@ -18,6 +18,7 @@
 
 #include "gdal/error_capture.hpp"
 #include "grid/qtm.hpp"
+#include "write/gpkg_rows.hpp"
 #include "write/region_tracer.hpp"
 
 namespace qtmv::write {
@@ -288,17 +289,15 @@ OGRMultiPolygon* make_multipolygon(const Region& region) {
   return multi;
 }
 
-/// Sets the feature's polygon (created by the caller with one ring) to the cell, in place.
-void set_cell_polygon(OGRFeature& feature, Code code, int level) {
-  LonLat ring[grid::kMaxPolygonCorners];
-  const int n = grid::cell_polygon(grid::cell_of(code, level), level, ring);
+/// Sets the feature's polygon (made by cell_feature) to the ring of `n` points, in place.
+void set_ring(OGRFeature& feature, const LonLat* ring, int n) {
   OGRLinearRing* r = feature.GetGeometryRef()->toPolygon()->getExteriorRing();
   r->setNumPoints(n + 1, FALSE);
   for (int k = 0; k < n; ++k) r->setPoint(k, ring[k].lon, ring[k].lat);
   r->setPoint(n, ring[0].lon, ring[0].lat);
 }
 
-/// A feature whose geometry is an empty polygon with one ring, for set_cell_polygon.
+/// A feature whose geometry is an empty polygon with one ring, for set_ring.
 FeaturePtr cell_feature(OGRLayer* layer) {
   FeaturePtr feature(OGRFeature::CreateFeature(layer->GetLayerDefn()));
   auto* polygon = new OGRPolygon;
@@ -307,11 +306,14 @@ FeaturePtr cell_feature(OGRLayer* layer) {
   return feature;
 }
 
-void set_fid_field(OGRFeature& feature, int field, std::int64_t fid) {
-  if (fid == OGRNullFID) {
-    feature.SetFieldNull(field);
-  } else {
-    feature.SetField(field, static_cast<GIntBig>(fid));
+/// A site's FID as a field value: null for OGRNullFID.
+RowValue fid_value(std::int64_t fid) { return fid == OGRNullFID ? RowValue{} : RowValue::of(fid); }
+
+void set_value(OGRFeature& feature, int field, const RowValue& value) {
+  switch (value.kind) {
+    case RowValue::Kind::null: feature.SetFieldNull(field); break;
+    case RowValue::Kind::integer: feature.SetField(field, static_cast<GIntBig>(value.integer)); break;
+    case RowValue::Kind::real: feature.SetField(field, value.real); break;
   }
 }
 
@@ -375,6 +377,8 @@ class Writer {
     if (per_cell && EQUAL(driver_name_.c_str(), "GPKG") && lco.FetchNameValue("SPATIAL_INDEX") == nullptr) {
       lco.SetNameValue("SPATIAL_INDEX", "NO");
     }
+    const char* spatial_index = lco.FetchNameValue("SPATIAL_INDEX");
+    no_spatial_index_ = spatial_index && !CPLTestBool(spatial_index);
     layer_ = dataset_->CreateLayer(name, &srs_, type, lco.List());
     if (!layer_) fail("cannot create the layer");
     check("creating the layer");
@@ -400,6 +404,30 @@ class Writer {
     feature.SetFID(OGRNullFID);  // CreateFeature sets it: let the driver assign the next one
     if (layer_->CreateFeature(&feature) != OGRERR_NONE) fail("cannot write a feature");
     if (trap_.failed()) check("writing a feature");
+    count_row();
+  }
+
+  /// Rows straight into the current layer's GeoPackage table (see gpkg_rows.hpp), for a layer
+  /// without a spatial index; null where that does not apply.
+  std::unique_ptr<GpkgRows> direct_rows(const std::vector<int>& fields) {
+    if (!no_spatial_index_) return nullptr;
+    std::unique_ptr<GpkgRows> rows = guard([&] { return GpkgRows::open(*dataset_, *layer_, fields); });
+    check("preparing the layer's rows");
+    return rows;
+  }
+
+  /// Runs `work` (direct rows), its WriteError named as our own failures are.
+  template <class Work>
+  auto guard(Work&& work) -> decltype(work()) {
+    try {
+      return work();
+    } catch (const WriteError& e) {
+      fail(e.what());
+    }
+  }
+
+  /// Books one row written (by write() or direct rows): transactions, progress, interrupts.
+  void count_row() {
     ++in_transaction_;
     if (transactions_ && in_transaction_ >= kTransactionFeatures) {
       commit();
@@ -465,7 +493,7 @@ class Writer {
   DatasetPtr dataset_;
   OGRLayer* layer_ = nullptr;
   std::string layer_name_, driver_name_;
-  bool transactions_ = false, transaction_open_ = false;
+  bool transactions_ = false, transaction_open_ = false, no_spatial_index_ = false;
   std::uint64_t in_transaction_ = 0, since_progress_ = 0;
   double total_work_, work_done_ = 0, layer_work_ = 0, layer_done_ = 0;
 };
@@ -478,6 +506,40 @@ std::string unique_field_name(const std::string& name, const OGRFeatureDefn* sou
   for (int k = 2; taken(candidate); ++k) candidate = "qtmv_" + name + "_" + std::to_string(k);
   return candidate;
 }
+
+/// Where a per-cell layer's polygons go: straight into its GeoPackage table (GpkgRows), or
+/// else through OGR, one reused feature at a time. Values come in the order of `fields`.
+class CellRows {
+ public:
+  CellRows(Writer& w, OGRLayer* layer, std::vector<int> fields)
+      : w_(w), fields_(std::move(fields)), direct_(w.direct_rows(fields_)) {
+    if (!direct_) feature_ = cell_feature(layer);
+  }
+
+  void add(Code code, int level, const RowValue* values) {
+    LonLat ring[grid::kMaxPolygonCorners];
+    const int n = grid::cell_polygon(grid::cell_of(code, level), level, ring);
+    if (direct_) {
+      w_.guard([&] { direct_->add(ring, n, values); });
+      w_.count_row();
+      return;
+    }
+    set_ring(*feature_, ring, n);
+    for (std::size_t k = 0; k < fields_.size(); ++k) set_value(*feature_, fields_[k], values[k]);
+    w_.write(*feature_);
+  }
+
+  /// After the last add(), before the layer ends.
+  void finish() {
+    if (direct_) w_.guard([&] { direct_->finish(); });
+  }
+
+ private:
+  Writer& w_;
+  std::vector<int> fields_;
+  std::unique_ptr<GpkgRows> direct_;
+  FeaturePtr feature_;
+};
 
 // --- the layers ------------------------------------------------------------------------------
 
@@ -532,7 +594,7 @@ void write_regions(Writer& w, const Input& in, double work) {
         w.fail("cannot copy the attributes of site " + std::to_string(s));
       }
     }
-    set_fid_field(*feature, fid_index, site.fid);
+    set_value(*feature, fid_index, fid_value(site.fid));
     feature->SetField(cells_index, static_cast<GIntBig>(in.cells_of[s]));
     feature->SetField(area_index, areas[s]);
     feature->SetGeometryDirectly(make_multipolygon(regions[s]));  // empty for a site without cells
@@ -550,17 +612,17 @@ void write_boundary_cells(Writer& w, const Input& in, double work, std::uint64_t
   const int code_index = w.add_field(code_field);
   const int fid_index = w.add_field(fid_field);
   w.begin_features();
-  FeaturePtr feature = cell_feature(layer);
+  CellRows rows(w, layer, {code_index, fid_index});
   const Code cells = grid::cell_count(level);
   std::uint64_t done = 0;
   for (Code code = 0; code < cells; ++code) {
     if (!is_boundary(in.labels, code)) continue;
-    set_cell_polygon(*feature, code, level);
-    feature->SetField(code_index, static_cast<GIntBig>(code));
-    set_fid_field(*feature, fid_index, in.table.sites[static_cast<std::size_t>(in.labels.site[code])].fid);
-    w.write(*feature);
+    const RowValue values[] = {RowValue::of(static_cast<std::int64_t>(code)),
+                               fid_value(in.table.sites[static_cast<std::size_t>(in.labels.site[code])].fid)};
+    rows.add(code, level, values);
     if (++done % kProgressEvery == 0) w.layer_progress(static_cast<double>(done), static_cast<double>(count));
   }
+  rows.finish();
   w.end_layer();
 }
 
@@ -607,8 +669,8 @@ void write_voronoi_edges(Writer& w, const Input& in, double work) {
         multi->addGeometryDirectly(ls);
       }
       feature->SetGeometryDirectly(multi);
-      set_fid_field(*feature, a_index, in.table.sites[a].fid);
-      set_fid_field(*feature, b_index, in.table.sites[b].fid);
+      set_value(*feature, a_index, fid_value(in.table.sites[a].fid));
+      set_value(*feature, b_index, fid_value(in.table.sites[b].fid));
       feature->SetField(length_index, lines.length_m);
       w.write(*feature);
     }
@@ -630,21 +692,18 @@ void write_cells(Writer& w, const Input& in, double work) {
   const int distance_index = w.add_field(distance_field);
   const int boundary_index = w.add_field(boundary_field);
   w.begin_features();
-  FeaturePtr feature = cell_feature(layer);
+  CellRows rows(w, layer, {code_index, fid_index, distance_index, boundary_index});
   const Code cells = grid::cell_count(level);
   for (Code code = 0; code < cells; ++code) {
-    set_cell_polygon(*feature, code, level);
-    feature->SetField(code_index, static_cast<GIntBig>(code));
-    set_fid_field(*feature, fid_index, in.table.sites[static_cast<std::size_t>(in.labels.site[code])].fid);
-    if (in.labels.distance_m) {
-      feature->SetField(distance_index, static_cast<double>(in.labels.distance_m[code]));
-    } else {
-      feature->SetFieldNull(distance_index);
-    }
-    feature->SetField(boundary_index, is_boundary(in.labels, code) ? 1 : 0);
-    w.write(*feature);
+    const RowValue values[] = {
+        RowValue::of(static_cast<std::int64_t>(code)),
+        fid_value(in.table.sites[static_cast<std::size_t>(in.labels.site[code])].fid),
+        in.labels.distance_m ? RowValue::of(static_cast<double>(in.labels.distance_m[code])) : RowValue{},
+        RowValue::of(std::int64_t{is_boundary(in.labels, code) ? 1 : 0})};
+    rows.add(code, level, values);
     if ((code + 1) % kProgressEvery == 0) w.layer_progress(static_cast<double>(code + 1), static_cast<double>(cells));
   }
+  rows.finish();
   w.end_layer();
 }
 

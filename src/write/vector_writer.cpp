@@ -18,6 +18,7 @@
 
 #include "gdal/error_capture.hpp"
 #include "grid/qtm.hpp"
+#include "write/first_exception.hpp"
 #include "write/gpkg_rows.hpp"
 #include "write/region_tracer.hpp"
 
@@ -174,6 +175,7 @@ std::vector<EdgeRef> gather_edges(const CellLabels& labels) {
   const int level = labels.level;
   const auto n = static_cast<std::int64_t>(grid::cell_count(level));
   std::vector<EdgeRef> all;
+  FirstException failure;
 #pragma omp parallel
   {
     std::vector<EdgeRef> local;
@@ -184,21 +186,24 @@ std::vector<EdgeRef> gather_edges(const CellLabels& labels) {
       Code nb[3];
       grid::neighbours(code, level, nb);
       if (labels.site[nb[0]] <= site && labels.site[nb[1]] <= site && labels.site[nb[2]] <= site) continue;
-      LonLat ring[grid::kMaxPolygonCorners];
-      int across[grid::kMaxPolygonCorners];
-      const int corners = drawn_ring(grid::cell_of(code, level), level, ring, across);
-      for (int k = 0; k < corners; ++k) {
-        if (across[k] == kAcrossPoleLine) continue;
-        const std::int32_t other = labels.site[nb[across[k]]];
-        if (other > site) {
-          local.push_back({static_cast<std::uint64_t>(site) << 32 | static_cast<std::uint32_t>(other),
-                           code << 2 | static_cast<std::uint64_t>(k)});
+      failure.run([&] {
+        LonLat ring[grid::kMaxPolygonCorners];
+        int across[grid::kMaxPolygonCorners];
+        const int corners = drawn_ring(grid::cell_of(code, level), level, ring, across);
+        for (int k = 0; k < corners; ++k) {
+          if (across[k] == kAcrossPoleLine) continue;
+          const std::int32_t other = labels.site[nb[across[k]]];
+          if (other > site) {
+            local.push_back({static_cast<std::uint64_t>(site) << 32 | static_cast<std::uint32_t>(other),
+                             code << 2 | static_cast<std::uint64_t>(k)});
+          }
         }
-      }
+      });
     }
 #pragma omp critical
-    all.insert(all.end(), local.begin(), local.end());
+    failure.run([&] { all.insert(all.end(), local.begin(), local.end()); });
   }
+  failure.rethrow();
   std::sort(all.begin(), all.end());
   return all;
 }
@@ -575,14 +580,16 @@ void write_regions(Writer& w, const Input& in, double work) {
   const std::vector<Region> regions = trace_regions(level, in.labels.site, in.site_count);
   w.layer_progress(0.25, 1.0);
   std::vector<double> areas(regions.size(), 0.0);
+  FirstException failure;
 #pragma omp parallel
   {
     std::vector<double> scratch;
 #pragma omp for schedule(dynamic, 16)
     for (std::int32_t s = 0; s < in.site_count; ++s) {
-      areas[s] = region_area(regions[s], level, scratch);
+      failure.run([&] { areas[s] = region_area(regions[s], level, scratch); });
     }
   }
+  failure.rethrow();
   w.layer_progress(0.5, 1.0);
 
   w.begin_features();
@@ -652,11 +659,15 @@ void write_voronoi_edges(Writer& w, const Input& in, double work) {
     const std::size_t last = std::min(pairs, first + kEdgePairBlock);
     block.assign(last - first, {});
     // Linking and measuring in parallel; OGR writes one feature at a time.
+    FirstException failure;
 #pragma omp parallel for schedule(dynamic, 16)
     for (std::int64_t p = static_cast<std::int64_t>(first); p < static_cast<std::int64_t>(last); ++p) {
-      block[static_cast<std::size_t>(p) - first] =
-          link_pair(edges.data() + pair_start[p], edges.data() + pair_start[p + 1], level);
+      failure.run([&] {
+        block[static_cast<std::size_t>(p) - first] =
+            link_pair(edges.data() + pair_start[p], edges.data() + pair_start[p + 1], level);
+      });
     }
+    failure.rethrow();
     for (std::size_t p = first; p < last; ++p) {
       const PairLines& lines = block[p - first];
       const std::uint64_t key = edges[pair_start[p]].key;

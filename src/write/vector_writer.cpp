@@ -578,7 +578,7 @@ void write_regions(Writer& w, const Input& in, double work) {
   const int area_index = w.add_field(area_field);
 
   const std::vector<Region> regions = trace_regions(level, in.labels.site, in.site_count);
-  w.layer_progress(0.25, 1.0);
+  w.layer_progress(0.3, 1.0);
   std::vector<double> areas(regions.size(), 0.0);
   FirstException failure;
 #pragma omp parallel
@@ -590,7 +590,7 @@ void write_regions(Writer& w, const Input& in, double work) {
     }
   }
   failure.rethrow();
-  w.layer_progress(0.5, 1.0);
+  w.layer_progress(0.85, 1.0);
 
   w.begin_features();
   for (std::int32_t s = 0; s < in.site_count; ++s) {
@@ -606,7 +606,7 @@ void write_regions(Writer& w, const Input& in, double work) {
     feature->SetField(area_index, areas[s]);
     feature->SetGeometryDirectly(make_multipolygon(regions[s]));  // empty for a site without cells
     w.write(*feature);
-    if (s % 256 == 0) w.layer_progress(0.5 + 0.5 * s / in.site_count, 1.0);
+    if (s % 256 == 0) w.layer_progress(0.85 + 0.15 * s / in.site_count, 1.0);
   }
   w.end_layer();
 }
@@ -772,15 +772,24 @@ void write_vector(const std::string& path, const CellLabels& labels, const sites
     throw WriteError(path + ": the " + options.driver + " driver cannot create vector datasets");
   }
 
-  // Progress shares: about one unit per feature (edges: about one pair per two boundary cells).
+  // Progress shares: each layer's expected time in microseconds, from the level 11 run of
+  // bench/RESULTS.md (issue 5) on 2 cores: regions trace and measure every cell, then write a
+  // feature per site; boundary_cells and cells cost per row; voronoi_edges gathers over every
+  // cell and writes about 3 pairs per site. In GeoPackage the close builds the R-trees of regions
+  // and voronoi_edges, about 9 us per feature.
+  const double cell_count = static_cast<double>(cells), sites = static_cast<double>(site_count);
+  const bool rtrees = EQUAL(options.driver.c_str(), "GPKG");
   std::vector<double> work;
+  double close_work = 1;
   for (const std::string& name : layers) {
-    if (name == "regions") work.push_back(static_cast<double>(site_count) + 1);
-    if (name == "boundary_cells") work.push_back(static_cast<double>(boundary_count) + 1);
-    if (name == "voronoi_edges") work.push_back(static_cast<double>(site_count) * 3 + 1);
-    if (name == "cells") work.push_back(static_cast<double>(cells));
+    if (name == "regions") work.push_back(0.12 * cell_count + 4 * sites + 1);
+    if (name == "boundary_cells") work.push_back(0.4 * static_cast<double>(boundary_count) + 1);
+    if (name == "voronoi_edges") work.push_back(0.08 * cell_count + 3 * 2.5 * sites + 1);
+    if (name == "cells") work.push_back(0.3 * cell_count + 1);
+    if (rtrees && name == "regions") close_work += 9 * sites;
+    if (rtrees && name == "voronoi_edges") close_work += 9 * 3 * sites;
   }
-  double total = 0;
+  double total = close_work;
   for (double x : work) total += x;
 
   // Outlives the dataset, which is closed inside it even on a throw.

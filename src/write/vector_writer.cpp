@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <future>
 #include <memory>
 #include <stdexcept>
 #include <utility>
@@ -33,7 +34,8 @@ using grid::Code;
 
 constexpr std::uint64_t kTransactionFeatures = 100000;  // features per transaction
 constexpr std::uint64_t kProgressEvery = 1024;          // features between progress calls
-constexpr std::size_t kEdgePairBlock = 4096;            // voronoi_edges pairs computed at once
+constexpr std::size_t kEdgePairBlock = 4096;            // voronoi_edges pairs measured at once
+constexpr std::size_t kRegionBlock = 4096;              // regions measured at once
 
 // --- GDAL errors -----------------------------------------------------------------------------
 
@@ -46,6 +48,30 @@ struct FeatureDeleter {
   void operator()(OGRFeature* feature) const { OGRFeature::DestroyFeature(feature); }
 };
 using FeaturePtr = std::unique_ptr<OGRFeature, FeatureDeleter>;
+
+// --- measuring ahead of writing ----------------------------------------------------------------
+
+/// Runs measure(first, last), which returns the results of items first .. last - 1 (geodesics,
+/// in parallel with OpenMP), on a helper thread one block ahead of write(first, last, results)
+/// on this thread: OGR writes one feature at a time, so measuring the next block overlaps
+/// writing this one, and no more than two blocks are held. An exception from either side comes
+/// out of here (after the helper has finished its block).
+template <class Measure, class Write>
+void measure_ahead(std::size_t count, std::size_t block, const Measure& measure, const Write& write) {
+  using Results = decltype(measure(std::size_t{0}, std::size_t{0}));
+  const auto ahead = [&](std::size_t first) {
+    return std::async(std::launch::async, [&measure, first, last = std::min(count, first + block)] {
+      return measure(first, last);
+    });
+  };
+  std::future<Results> next;
+  if (count > 0) next = ahead(0);
+  for (std::size_t first = 0; first < count; first += block) {
+    const Results results = next.get();
+    if (first + block < count) next = ahead(first + block);
+    write(first, std::min(count, first + block), results);
+  }
+}
 
 // --- cells -----------------------------------------------------------------------------------
 
@@ -579,35 +605,40 @@ void write_regions(Writer& w, const Input& in, double work) {
 
   const std::vector<Region> regions = trace_regions(level, in.labels.site, in.site_count);
   w.layer_progress(0.3, 1.0);
-  std::vector<double> areas(regions.size(), 0.0);
-  FirstException failure;
-#pragma omp parallel
-  {
-    std::vector<double> scratch;
-#pragma omp for schedule(dynamic, 16)
-    for (std::int32_t s = 0; s < in.site_count; ++s) {
-      failure.run([&] { areas[s] = region_area(regions[s], level, scratch); });
-    }
-  }
-  failure.rethrow();
-  w.layer_progress(0.85, 1.0);
 
   w.begin_features();
-  for (std::int32_t s = 0; s < in.site_count; ++s) {
-    const sites::SiteRecord& site = in.table.sites[static_cast<std::size_t>(s)];
-    FeaturePtr feature(OGRFeature::CreateFeature(layer->GetLayerDefn()));
-    if (site.attributes && !field_map.empty()) {
-      if (feature->SetFieldsFrom(site.attributes.get(), field_map.data(), TRUE) != OGRERR_NONE) {
-        w.fail("cannot copy the attributes of site " + std::to_string(s));
+  const auto measure = [&](std::size_t first, std::size_t last) {
+    std::vector<double> areas(last - first, 0.0);
+    FirstException failure;
+#pragma omp parallel
+    {
+      std::vector<double> scratch;
+#pragma omp for schedule(dynamic, 16)
+      for (std::int64_t s = static_cast<std::int64_t>(first); s < static_cast<std::int64_t>(last); ++s) {
+        failure.run([&] { areas[static_cast<std::size_t>(s) - first] = region_area(regions[s], level, scratch); });
       }
     }
-    set_value(*feature, fid_index, fid_value(site.fid));
-    feature->SetField(cells_index, static_cast<GIntBig>(in.cells_of[s]));
-    feature->SetField(area_index, areas[s]);
-    feature->SetGeometryDirectly(make_multipolygon(regions[s]));  // empty for a site without cells
-    w.write(*feature);
-    if (s % 256 == 0) w.layer_progress(0.85 + 0.15 * s / in.site_count, 1.0);
-  }
+    failure.rethrow();
+    return areas;
+  };
+  const auto write = [&](std::size_t first, std::size_t last, const std::vector<double>& areas) {
+    for (std::size_t s = first; s < last; ++s) {
+      const sites::SiteRecord& site = in.table.sites[s];
+      FeaturePtr feature(OGRFeature::CreateFeature(layer->GetLayerDefn()));
+      if (site.attributes && !field_map.empty()) {
+        if (feature->SetFieldsFrom(site.attributes.get(), field_map.data(), TRUE) != OGRERR_NONE) {
+          w.fail("cannot copy the attributes of site " + std::to_string(s));
+        }
+      }
+      set_value(*feature, fid_index, fid_value(site.fid));
+      feature->SetField(cells_index, static_cast<GIntBig>(in.cells_of[s]));
+      feature->SetField(area_index, areas[s - first]);
+      feature->SetGeometryDirectly(make_multipolygon(regions[s]));  // empty for a site without cells
+      w.write(*feature);
+    }
+    w.layer_progress(0.3 + 0.7 * static_cast<double>(last) / static_cast<double>(in.site_count), 1.0);
+  };
+  measure_ahead(static_cast<std::size_t>(in.site_count), kRegionBlock, measure, write);
   w.end_layer();
 }
 
@@ -654,11 +685,8 @@ void write_voronoi_edges(Writer& w, const Input& in, double work) {
 
   w.begin_features();
   FeaturePtr feature(OGRFeature::CreateFeature(layer->GetLayerDefn()));
-  std::vector<PairLines> block;
-  for (std::size_t first = 0; first < pairs; first += kEdgePairBlock) {
-    const std::size_t last = std::min(pairs, first + kEdgePairBlock);
-    block.assign(last - first, {});
-    // Linking and measuring in parallel; OGR writes one feature at a time.
+  const auto measure = [&](std::size_t first, std::size_t last) {
+    std::vector<PairLines> block(last - first);
     FirstException failure;
 #pragma omp parallel for schedule(dynamic, 16)
     for (std::int64_t p = static_cast<std::int64_t>(first); p < static_cast<std::int64_t>(last); ++p) {
@@ -668,6 +696,9 @@ void write_voronoi_edges(Writer& w, const Input& in, double work) {
       });
     }
     failure.rethrow();
+    return block;
+  };
+  const auto write = [&](std::size_t first, std::size_t last, const std::vector<PairLines>& block) {
     for (std::size_t p = first; p < last; ++p) {
       const PairLines& lines = block[p - first];
       const std::uint64_t key = edges[pair_start[p]].key;
@@ -686,7 +717,8 @@ void write_voronoi_edges(Writer& w, const Input& in, double work) {
       w.write(*feature);
     }
     w.layer_progress(0.2 + 0.8 * static_cast<double>(last) / static_cast<double>(pairs), 1.0);
-  }
+  };
+  measure_ahead(pairs, kEdgePairBlock, measure, write);
   w.end_layer();
 }
 

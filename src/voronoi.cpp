@@ -223,8 +223,20 @@ class Progress {
   bool cancelled_ = false;
 };
 
-// Slices of the whole run (fractions) given to each stage.
-constexpr double kReadEnd = 0.15, kLabelEnd = 0.55;
+// Where each stage's slice of the whole run ends (fractions), in proportion to its expected
+// time per cell at level 11 on the 2-core development machine (bench/RESULTS.md, issue 5):
+// labelling on the CPU ~50 ns (a GPU far less), vector output ~400 ns (the cells layer ~300 ns
+// more), a raster ~100 ns. Reading gets a fixed 5%.
+struct StageEnds {
+  double read, label;
+};
+
+StageEnds stage_ends(bool raster, bool cells_layer, bool label_on_cpu) {
+  const double label = label_on_cpu ? 50 : 5;
+  const double write = raster ? 100 : 400 + (cells_layer ? 300 : 0);
+  const double read = 0.05;
+  return {read, read + (1 - read) * label / (label + write)};
+}
 
 }  // namespace
 
@@ -376,6 +388,7 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
 
   StagedOutput output(destination, options.overwrite);
   Progress progress(options.progress);
+  const StageEnds ends = stage_ends(format.raster, wants_cells_layer, labels_on_cpu(label_options));
   VoronoiSummary summary;
   summary.driver = format.driver;
   summary.raster = format.raster;
@@ -385,14 +398,14 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   // --- read ----------------------------------------------------------------------------------------
   double t0 = now_seconds();
   sites::ReadOptions read_options = options.read;
-  read_options.progress = [&](double f, const char* stage) { return progress.report(0.0, kReadEnd, f, stage); };
+  read_options.progress = [&](double f, const char* stage) { return progress.report(0.0, ends.read, f, stage); };
   // The reader's count of sites without a cell comes before labelling; the pipeline reports the
   // final one (below) instead.
   read_options.warn_sites_without_cell = false;
   read_options.messages = [&](Severity severity, const std::string& message) { say(severity, message); };
   sites::SiteSet sites;
   try {
-    if (!progress.report(0.0, kReadEnd, 0.0, "read")) throw Interrupted("interrupted");
+    if (!progress.report(0.0, ends.read, 0.0, "read")) throw Interrupted("interrupted");
     sites = sites::read_sites(source, read_options);
   } catch (const Interrupted&) {
     throw;
@@ -421,7 +434,7 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   }
   // The labeller reports between tiles, on this thread: throwing there stops it cleanly.
   label_options.progress = [&](double f, const char* stage) {
-    if (!progress.report(kReadEnd, kLabelEnd, f, stage)) throw Interrupted("interrupted");
+    if (!progress.report(ends.read, ends.label, f, stage)) throw Interrupted("interrupted");
   };
   label_options.log = [&](const std::string& message) { say(Severity::info, message); };
   label::LabelStats stats;
@@ -462,10 +475,10 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   const write::CellLabels labels{level, site.data(), distance.empty() ? nullptr : distance.data(),
                                  boundary.empty() ? nullptr : boundary.data()};
   const write::ProgressFunc write_progress = [&](double f, const char* stage) {
-    return progress.report(kLabelEnd, 1.0, f, stage);
+    return progress.report(ends.label, 1.0, f, stage);
   };
   try {
-    if (!progress.report(kLabelEnd, 1.0, 0.0, "write")) throw Interrupted("interrupted");
+    if (!progress.report(ends.label, 1.0, 0.0, "write")) throw Interrupted("interrupted");
     if (format.raster) {
       raster_options.progress = write_progress;
       write::write_raster(path, labels, sites.table, raster_options);
@@ -483,7 +496,7 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
       write::write_vector(path, labels, sites.table, vector_options);
     }
     // A stop asked for during the close is honoured too: nothing is renamed yet.
-    if (!progress.report(kLabelEnd, 1.0, 1.0, "write")) throw Interrupted("interrupted");
+    if (!progress.report(ends.label, 1.0, 1.0, "write")) throw Interrupted("interrupted");
   } catch (const Interrupted&) {
     throw;
   } catch (const std::exception& e) {

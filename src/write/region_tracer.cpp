@@ -2,12 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <exception>
 #include <map>
 #include <stdexcept>
 #include <string>
 
 #include "grid/qtm_checks.hpp"
+#include "write/first_exception.hpp"
 
 namespace qtmv::write {
 namespace {
@@ -213,43 +213,42 @@ std::vector<Region> trace_regions(int level, const std::int32_t* labels, std::in
 
   // Boundary edges of every region, gathered per site.
   std::vector<std::vector<Edge>> edges_of(static_cast<std::size_t>(site_count));
+  FirstException failure;
 #pragma omp parallel
   {
     std::vector<std::pair<std::int32_t, Edge>> local;
 #pragma omp for schedule(static)
     for (std::int64_t code = 0; code < n; ++code) {
-      const Cell cell = grid::cell_of(static_cast<Code>(code), level);
-      const std::int32_t site = labels[code];
-      LonLat ring[grid::kMaxPolygonCorners];
-      int across[grid::kMaxPolygonCorners];
-      const int corners = drawn_ring(cell, level, ring, across);
-      Code nb[3];
-      grid::neighbours(static_cast<Code>(code), level, nb);
-      for (int k = 0; k < corners; ++k) {
-        const LonLat& from = ring[k];
-        const LonLat& to = ring[(k + 1) % corners];
-        const bool on_border = across[k] == kAcrossPoleLine ||
-                               (std::fabs(from.lon) == 180.0 && std::fabs(to.lon) == 180.0);  // cut at +-180
-        if (on_border || labels[nb[across[k]]] != site) local.push_back({site, {from, to}});
-      }
+      failure.run([&] {
+        const Cell cell = grid::cell_of(static_cast<Code>(code), level);
+        const std::int32_t site = labels[code];
+        LonLat ring[grid::kMaxPolygonCorners];
+        int across[grid::kMaxPolygonCorners];
+        const int corners = drawn_ring(cell, level, ring, across);
+        Code nb[3];
+        grid::neighbours(static_cast<Code>(code), level, nb);
+        for (int k = 0; k < corners; ++k) {
+          const LonLat& from = ring[k];
+          const LonLat& to = ring[(k + 1) % corners];
+          const bool on_border = across[k] == kAcrossPoleLine ||
+                                 (std::fabs(from.lon) == 180.0 && std::fabs(to.lon) == 180.0);  // cut at +-180
+          if (on_border || labels[nb[across[k]]] != site) local.push_back({site, {from, to}});
+        }
+      });
     }
 #pragma omp critical
-    for (const auto& [site, edge] : local) edges_of[static_cast<std::size_t>(site)].push_back(edge);
+    failure.run([&] {
+      for (const auto& [site, edge] : local) edges_of[static_cast<std::size_t>(site)].push_back(edge);
+    });
   }
+  failure.rethrow();
 
   std::vector<Region> regions(static_cast<std::size_t>(site_count));
-  // An exception must not leave an OpenMP region (that terminates): keep the first, rethrow after.
-  std::exception_ptr failure;
 #pragma omp parallel for schedule(dynamic, 1)
   for (std::int32_t site = 0; site < site_count; ++site) {
-    try {
-      regions[static_cast<std::size_t>(site)] = link_rings(edges_of[static_cast<std::size_t>(site)]);
-    } catch (...) {
-#pragma omp critical
-      if (!failure) failure = std::current_exception();
-    }
+    failure.run([&] { regions[static_cast<std::size_t>(site)] = link_rings(edges_of[static_cast<std::size_t>(site)]); });
   }
-  if (failure) std::rethrow_exception(failure);
+  failure.rethrow();
   return regions;
 }
 

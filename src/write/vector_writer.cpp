@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <future>
 #include <memory>
 #include <stdexcept>
 #include <utility>
@@ -18,6 +19,8 @@
 
 #include "gdal/error_capture.hpp"
 #include "grid/qtm.hpp"
+#include "write/first_exception.hpp"
+#include "write/gpkg_rows.hpp"
 #include "write/region_tracer.hpp"
 
 namespace qtmv::write {
@@ -31,7 +34,8 @@ using grid::Code;
 
 constexpr std::uint64_t kTransactionFeatures = 100000;  // features per transaction
 constexpr std::uint64_t kProgressEvery = 1024;          // features between progress calls
-constexpr std::size_t kEdgePairBlock = 4096;            // voronoi_edges pairs computed at once
+constexpr std::size_t kEdgePairBlock = 4096;            // voronoi_edges pairs measured at once
+constexpr std::size_t kRegionBlock = 4096;              // regions measured at once
 
 // --- GDAL errors -----------------------------------------------------------------------------
 
@@ -44,6 +48,30 @@ struct FeatureDeleter {
   void operator()(OGRFeature* feature) const { OGRFeature::DestroyFeature(feature); }
 };
 using FeaturePtr = std::unique_ptr<OGRFeature, FeatureDeleter>;
+
+// --- measuring ahead of writing ----------------------------------------------------------------
+
+/// Runs measure(first, last), which returns the results of items first .. last - 1 (geodesics,
+/// in parallel with OpenMP), on a helper thread one block ahead of write(first, last, results)
+/// on this thread: OGR writes one feature at a time, so measuring the next block overlaps
+/// writing this one, and no more than two blocks are held. An exception from either side comes
+/// out of here (after the helper has finished its block).
+template <class Measure, class Write>
+void measure_ahead(std::size_t count, std::size_t block, const Measure& measure, const Write& write) {
+  using Results = decltype(measure(std::size_t{0}, std::size_t{0}));
+  const auto ahead = [&](std::size_t first) {
+    return std::async(std::launch::async, [&measure, first, last = std::min(count, first + block)] {
+      return measure(first, last);
+    });
+  };
+  std::future<Results> next;
+  if (count > 0) next = ahead(0);
+  for (std::size_t first = 0; first < count; first += block) {
+    const Results results = next.get();
+    if (first + block < count) next = ahead(first + block);
+    write(first, std::min(count, first + block), results);
+  }
+}
 
 // --- cells -----------------------------------------------------------------------------------
 
@@ -173,6 +201,7 @@ std::vector<EdgeRef> gather_edges(const CellLabels& labels) {
   const int level = labels.level;
   const auto n = static_cast<std::int64_t>(grid::cell_count(level));
   std::vector<EdgeRef> all;
+  FirstException failure;
 #pragma omp parallel
   {
     std::vector<EdgeRef> local;
@@ -183,21 +212,24 @@ std::vector<EdgeRef> gather_edges(const CellLabels& labels) {
       Code nb[3];
       grid::neighbours(code, level, nb);
       if (labels.site[nb[0]] <= site && labels.site[nb[1]] <= site && labels.site[nb[2]] <= site) continue;
-      LonLat ring[grid::kMaxPolygonCorners];
-      int across[grid::kMaxPolygonCorners];
-      const int corners = drawn_ring(grid::cell_of(code, level), level, ring, across);
-      for (int k = 0; k < corners; ++k) {
-        if (across[k] == kAcrossPoleLine) continue;
-        const std::int32_t other = labels.site[nb[across[k]]];
-        if (other > site) {
-          local.push_back({static_cast<std::uint64_t>(site) << 32 | static_cast<std::uint32_t>(other),
-                           code << 2 | static_cast<std::uint64_t>(k)});
+      failure.run([&] {
+        LonLat ring[grid::kMaxPolygonCorners];
+        int across[grid::kMaxPolygonCorners];
+        const int corners = drawn_ring(grid::cell_of(code, level), level, ring, across);
+        for (int k = 0; k < corners; ++k) {
+          if (across[k] == kAcrossPoleLine) continue;
+          const std::int32_t other = labels.site[nb[across[k]]];
+          if (other > site) {
+            local.push_back({static_cast<std::uint64_t>(site) << 32 | static_cast<std::uint32_t>(other),
+                             code << 2 | static_cast<std::uint64_t>(k)});
+          }
         }
-      }
+      });
     }
 #pragma omp critical
-    all.insert(all.end(), local.begin(), local.end());
+    failure.run([&] { all.insert(all.end(), local.begin(), local.end()); });
   }
+  failure.rethrow();
   std::sort(all.begin(), all.end());
   return all;
 }
@@ -288,17 +320,15 @@ OGRMultiPolygon* make_multipolygon(const Region& region) {
   return multi;
 }
 
-/// Sets the feature's polygon (created by the caller with one ring) to the cell, in place.
-void set_cell_polygon(OGRFeature& feature, Code code, int level) {
-  LonLat ring[grid::kMaxPolygonCorners];
-  const int n = grid::cell_polygon(grid::cell_of(code, level), level, ring);
+/// Sets the feature's polygon (made by cell_feature) to the ring of `n` points, in place.
+void set_ring(OGRFeature& feature, const LonLat* ring, int n) {
   OGRLinearRing* r = feature.GetGeometryRef()->toPolygon()->getExteriorRing();
   r->setNumPoints(n + 1, FALSE);
   for (int k = 0; k < n; ++k) r->setPoint(k, ring[k].lon, ring[k].lat);
   r->setPoint(n, ring[0].lon, ring[0].lat);
 }
 
-/// A feature whose geometry is an empty polygon with one ring, for set_cell_polygon.
+/// A feature whose geometry is an empty polygon with one ring, for set_ring.
 FeaturePtr cell_feature(OGRLayer* layer) {
   FeaturePtr feature(OGRFeature::CreateFeature(layer->GetLayerDefn()));
   auto* polygon = new OGRPolygon;
@@ -307,11 +337,14 @@ FeaturePtr cell_feature(OGRLayer* layer) {
   return feature;
 }
 
-void set_fid_field(OGRFeature& feature, int field, std::int64_t fid) {
-  if (fid == OGRNullFID) {
-    feature.SetFieldNull(field);
-  } else {
-    feature.SetField(field, static_cast<GIntBig>(fid));
+/// A site's FID as a field value: null for OGRNullFID.
+RowValue fid_value(std::int64_t fid) { return fid == OGRNullFID ? RowValue{} : RowValue::of(fid); }
+
+void set_value(OGRFeature& feature, int field, const RowValue& value) {
+  switch (value.kind) {
+    case RowValue::Kind::null: feature.SetFieldNull(field); break;
+    case RowValue::Kind::integer: feature.SetField(field, static_cast<GIntBig>(value.integer)); break;
+    case RowValue::Kind::real: feature.SetField(field, value.real); break;
   }
 }
 
@@ -375,6 +408,8 @@ class Writer {
     if (per_cell && EQUAL(driver_name_.c_str(), "GPKG") && lco.FetchNameValue("SPATIAL_INDEX") == nullptr) {
       lco.SetNameValue("SPATIAL_INDEX", "NO");
     }
+    const char* spatial_index = lco.FetchNameValue("SPATIAL_INDEX");
+    no_spatial_index_ = spatial_index && !CPLTestBool(spatial_index);
     layer_ = dataset_->CreateLayer(name, &srs_, type, lco.List());
     if (!layer_) fail("cannot create the layer");
     check("creating the layer");
@@ -400,6 +435,30 @@ class Writer {
     feature.SetFID(OGRNullFID);  // CreateFeature sets it: let the driver assign the next one
     if (layer_->CreateFeature(&feature) != OGRERR_NONE) fail("cannot write a feature");
     if (trap_.failed()) check("writing a feature");
+    count_row();
+  }
+
+  /// Rows straight into the current layer's GeoPackage table (see gpkg_rows.hpp), for a layer
+  /// without a spatial index; null where that does not apply.
+  std::unique_ptr<GpkgRows> direct_rows(const std::vector<int>& fields) {
+    if (!no_spatial_index_) return nullptr;
+    std::unique_ptr<GpkgRows> rows = guard([&] { return GpkgRows::open(*dataset_, *layer_, fields); });
+    check("preparing the layer's rows");
+    return rows;
+  }
+
+  /// Runs `work` (direct rows), its WriteError named as our own failures are.
+  template <class Work>
+  auto guard(Work&& work) -> decltype(work()) {
+    try {
+      return work();
+    } catch (const WriteError& e) {
+      fail(e.what());
+    }
+  }
+
+  /// Books one row written (by write() or direct rows): transactions, progress, interrupts.
+  void count_row() {
     ++in_transaction_;
     if (transactions_ && in_transaction_ >= kTransactionFeatures) {
       commit();
@@ -465,7 +524,7 @@ class Writer {
   DatasetPtr dataset_;
   OGRLayer* layer_ = nullptr;
   std::string layer_name_, driver_name_;
-  bool transactions_ = false, transaction_open_ = false;
+  bool transactions_ = false, transaction_open_ = false, no_spatial_index_ = false;
   std::uint64_t in_transaction_ = 0, since_progress_ = 0;
   double total_work_, work_done_ = 0, layer_work_ = 0, layer_done_ = 0;
 };
@@ -478,6 +537,40 @@ std::string unique_field_name(const std::string& name, const OGRFeatureDefn* sou
   for (int k = 2; taken(candidate); ++k) candidate = "qtmv_" + name + "_" + std::to_string(k);
   return candidate;
 }
+
+/// Where a per-cell layer's polygons go: straight into its GeoPackage table (GpkgRows), or
+/// else through OGR, one reused feature at a time. Values come in the order of `fields`.
+class CellRows {
+ public:
+  CellRows(Writer& w, OGRLayer* layer, std::vector<int> fields)
+      : w_(w), fields_(std::move(fields)), direct_(w.direct_rows(fields_)) {
+    if (!direct_) feature_ = cell_feature(layer);
+  }
+
+  void add(Code code, int level, const RowValue* values) {
+    LonLat ring[grid::kMaxPolygonCorners];
+    const int n = grid::cell_polygon(grid::cell_of(code, level), level, ring);
+    if (direct_) {
+      w_.guard([&] { direct_->add(ring, n, values); });
+      w_.count_row();
+      return;
+    }
+    set_ring(*feature_, ring, n);
+    for (std::size_t k = 0; k < fields_.size(); ++k) set_value(*feature_, fields_[k], values[k]);
+    w_.write(*feature_);
+  }
+
+  /// After the last add(), before the layer ends.
+  void finish() {
+    if (direct_) w_.guard([&] { direct_->finish(); });
+  }
+
+ private:
+  Writer& w_;
+  std::vector<int> fields_;
+  std::unique_ptr<GpkgRows> direct_;
+  FeaturePtr feature_;
+};
 
 // --- the layers ------------------------------------------------------------------------------
 
@@ -511,34 +604,41 @@ void write_regions(Writer& w, const Input& in, double work) {
   const int area_index = w.add_field(area_field);
 
   const std::vector<Region> regions = trace_regions(level, in.labels.site, in.site_count);
-  w.layer_progress(0.25, 1.0);
-  std::vector<double> areas(regions.size(), 0.0);
-#pragma omp parallel
-  {
-    std::vector<double> scratch;
-#pragma omp for schedule(dynamic, 16)
-    for (std::int32_t s = 0; s < in.site_count; ++s) {
-      areas[s] = region_area(regions[s], level, scratch);
-    }
-  }
-  w.layer_progress(0.5, 1.0);
+  w.layer_progress(0.3, 1.0);
 
   w.begin_features();
-  for (std::int32_t s = 0; s < in.site_count; ++s) {
-    const sites::SiteRecord& site = in.table.sites[static_cast<std::size_t>(s)];
-    FeaturePtr feature(OGRFeature::CreateFeature(layer->GetLayerDefn()));
-    if (site.attributes && !field_map.empty()) {
-      if (feature->SetFieldsFrom(site.attributes.get(), field_map.data(), TRUE) != OGRERR_NONE) {
-        w.fail("cannot copy the attributes of site " + std::to_string(s));
+  const auto measure = [&](std::size_t first, std::size_t last) {
+    std::vector<double> areas(last - first, 0.0);
+    FirstException failure;
+#pragma omp parallel
+    {
+      std::vector<double> scratch;
+#pragma omp for schedule(dynamic, 16)
+      for (std::int64_t s = static_cast<std::int64_t>(first); s < static_cast<std::int64_t>(last); ++s) {
+        failure.run([&] { areas[static_cast<std::size_t>(s) - first] = region_area(regions[s], level, scratch); });
       }
     }
-    set_fid_field(*feature, fid_index, site.fid);
-    feature->SetField(cells_index, static_cast<GIntBig>(in.cells_of[s]));
-    feature->SetField(area_index, areas[s]);
-    feature->SetGeometryDirectly(make_multipolygon(regions[s]));  // empty for a site without cells
-    w.write(*feature);
-    if (s % 256 == 0) w.layer_progress(0.5 + 0.5 * s / in.site_count, 1.0);
-  }
+    failure.rethrow();
+    return areas;
+  };
+  const auto write = [&](std::size_t first, std::size_t last, const std::vector<double>& areas) {
+    for (std::size_t s = first; s < last; ++s) {
+      const sites::SiteRecord& site = in.table.sites[s];
+      FeaturePtr feature(OGRFeature::CreateFeature(layer->GetLayerDefn()));
+      if (site.attributes && !field_map.empty()) {
+        if (feature->SetFieldsFrom(site.attributes.get(), field_map.data(), TRUE) != OGRERR_NONE) {
+          w.fail("cannot copy the attributes of site " + std::to_string(s));
+        }
+      }
+      set_value(*feature, fid_index, fid_value(site.fid));
+      feature->SetField(cells_index, static_cast<GIntBig>(in.cells_of[s]));
+      feature->SetField(area_index, areas[s - first]);
+      feature->SetGeometryDirectly(make_multipolygon(regions[s]));  // empty for a site without cells
+      w.write(*feature);
+    }
+    w.layer_progress(0.3 + 0.7 * static_cast<double>(last) / static_cast<double>(in.site_count), 1.0);
+  };
+  measure_ahead(static_cast<std::size_t>(in.site_count), kRegionBlock, measure, write);
   w.end_layer();
 }
 
@@ -550,17 +650,17 @@ void write_boundary_cells(Writer& w, const Input& in, double work, std::uint64_t
   const int code_index = w.add_field(code_field);
   const int fid_index = w.add_field(fid_field);
   w.begin_features();
-  FeaturePtr feature = cell_feature(layer);
+  CellRows rows(w, layer, {code_index, fid_index});
   const Code cells = grid::cell_count(level);
   std::uint64_t done = 0;
   for (Code code = 0; code < cells; ++code) {
     if (!is_boundary(in.labels, code)) continue;
-    set_cell_polygon(*feature, code, level);
-    feature->SetField(code_index, static_cast<GIntBig>(code));
-    set_fid_field(*feature, fid_index, in.table.sites[static_cast<std::size_t>(in.labels.site[code])].fid);
-    w.write(*feature);
+    const RowValue values[] = {RowValue::of(static_cast<std::int64_t>(code)),
+                               fid_value(in.table.sites[static_cast<std::size_t>(in.labels.site[code])].fid)};
+    rows.add(code, level, values);
     if (++done % kProgressEvery == 0) w.layer_progress(static_cast<double>(done), static_cast<double>(count));
   }
+  rows.finish();
   w.end_layer();
 }
 
@@ -585,16 +685,20 @@ void write_voronoi_edges(Writer& w, const Input& in, double work) {
 
   w.begin_features();
   FeaturePtr feature(OGRFeature::CreateFeature(layer->GetLayerDefn()));
-  std::vector<PairLines> block;
-  for (std::size_t first = 0; first < pairs; first += kEdgePairBlock) {
-    const std::size_t last = std::min(pairs, first + kEdgePairBlock);
-    block.assign(last - first, {});
-    // Linking and measuring in parallel; OGR writes one feature at a time.
+  const auto measure = [&](std::size_t first, std::size_t last) {
+    std::vector<PairLines> block(last - first);
+    FirstException failure;
 #pragma omp parallel for schedule(dynamic, 16)
     for (std::int64_t p = static_cast<std::int64_t>(first); p < static_cast<std::int64_t>(last); ++p) {
-      block[static_cast<std::size_t>(p) - first] =
-          link_pair(edges.data() + pair_start[p], edges.data() + pair_start[p + 1], level);
+      failure.run([&] {
+        block[static_cast<std::size_t>(p) - first] =
+            link_pair(edges.data() + pair_start[p], edges.data() + pair_start[p + 1], level);
+      });
     }
+    failure.rethrow();
+    return block;
+  };
+  const auto write = [&](std::size_t first, std::size_t last, const std::vector<PairLines>& block) {
     for (std::size_t p = first; p < last; ++p) {
       const PairLines& lines = block[p - first];
       const std::uint64_t key = edges[pair_start[p]].key;
@@ -607,13 +711,14 @@ void write_voronoi_edges(Writer& w, const Input& in, double work) {
         multi->addGeometryDirectly(ls);
       }
       feature->SetGeometryDirectly(multi);
-      set_fid_field(*feature, a_index, in.table.sites[a].fid);
-      set_fid_field(*feature, b_index, in.table.sites[b].fid);
+      set_value(*feature, a_index, fid_value(in.table.sites[a].fid));
+      set_value(*feature, b_index, fid_value(in.table.sites[b].fid));
       feature->SetField(length_index, lines.length_m);
       w.write(*feature);
     }
     w.layer_progress(0.2 + 0.8 * static_cast<double>(last) / static_cast<double>(pairs), 1.0);
-  }
+  };
+  measure_ahead(pairs, kEdgePairBlock, measure, write);
   w.end_layer();
 }
 
@@ -630,21 +735,18 @@ void write_cells(Writer& w, const Input& in, double work) {
   const int distance_index = w.add_field(distance_field);
   const int boundary_index = w.add_field(boundary_field);
   w.begin_features();
-  FeaturePtr feature = cell_feature(layer);
+  CellRows rows(w, layer, {code_index, fid_index, distance_index, boundary_index});
   const Code cells = grid::cell_count(level);
   for (Code code = 0; code < cells; ++code) {
-    set_cell_polygon(*feature, code, level);
-    feature->SetField(code_index, static_cast<GIntBig>(code));
-    set_fid_field(*feature, fid_index, in.table.sites[static_cast<std::size_t>(in.labels.site[code])].fid);
-    if (in.labels.distance_m) {
-      feature->SetField(distance_index, static_cast<double>(in.labels.distance_m[code]));
-    } else {
-      feature->SetFieldNull(distance_index);
-    }
-    feature->SetField(boundary_index, is_boundary(in.labels, code) ? 1 : 0);
-    w.write(*feature);
+    const RowValue values[] = {
+        RowValue::of(static_cast<std::int64_t>(code)),
+        fid_value(in.table.sites[static_cast<std::size_t>(in.labels.site[code])].fid),
+        in.labels.distance_m ? RowValue::of(static_cast<double>(in.labels.distance_m[code])) : RowValue{},
+        RowValue::of(std::int64_t{is_boundary(in.labels, code) ? 1 : 0})};
+    rows.add(code, level, values);
     if ((code + 1) % kProgressEvery == 0) w.layer_progress(static_cast<double>(code + 1), static_cast<double>(cells));
   }
+  rows.finish();
   w.end_layer();
 }
 
@@ -702,15 +804,24 @@ void write_vector(const std::string& path, const CellLabels& labels, const sites
     throw WriteError(path + ": the " + options.driver + " driver cannot create vector datasets");
   }
 
-  // Progress shares: about one unit per feature (edges: about one pair per two boundary cells).
+  // Progress shares: each layer's expected time in microseconds, from the level 11 run of
+  // bench/RESULTS.md (issue 5) on 2 cores: regions trace and measure every cell, then write a
+  // feature per site; boundary_cells and cells cost per row; voronoi_edges gathers over every
+  // cell and writes about 3 pairs per site. In GeoPackage the close builds the R-trees of regions
+  // and voronoi_edges, about 9 us per feature.
+  const double cell_count = static_cast<double>(cells), sites = static_cast<double>(site_count);
+  const bool rtrees = EQUAL(options.driver.c_str(), "GPKG");
   std::vector<double> work;
+  double close_work = 1;
   for (const std::string& name : layers) {
-    if (name == "regions") work.push_back(static_cast<double>(site_count) + 1);
-    if (name == "boundary_cells") work.push_back(static_cast<double>(boundary_count) + 1);
-    if (name == "voronoi_edges") work.push_back(static_cast<double>(site_count) * 3 + 1);
-    if (name == "cells") work.push_back(static_cast<double>(cells));
+    if (name == "regions") work.push_back(0.12 * cell_count + 4 * sites + 1);
+    if (name == "boundary_cells") work.push_back(0.4 * static_cast<double>(boundary_count) + 1);
+    if (name == "voronoi_edges") work.push_back(0.08 * cell_count + 3 * 2.5 * sites + 1);
+    if (name == "cells") work.push_back(0.3 * cell_count + 1);
+    if (rtrees && name == "regions") close_work += 9 * sites;
+    if (rtrees && name == "voronoi_edges") close_work += 9 * 3 * sites;
   }
-  double total = 0;
+  double total = close_work;
   for (double x : work) total += x;
 
   // Outlives the dataset, which is closed inside it even on a throw.

@@ -6,6 +6,7 @@
 #include <GeographicLib/PolygonArea.hpp>
 #include <gdal_priv.h>
 #include <ogrsf_frmts.h>
+#include <sqlite3.h>
 
 #include <cmath>
 #include <filesystem>
@@ -18,6 +19,7 @@
 
 #include "grid/qtm.hpp"
 #include "label/labeller.hpp"
+#include "write/gpkg_rows.hpp"
 #include "write/vector_writer.hpp"
 
 namespace qtmv::write {
@@ -322,19 +324,30 @@ TEST_F(VectorTest, RegionsWithHolesAndLargePolarRegions) {
   }
 }
 
-TEST_F(VectorTest, OneSiteIsTheWholeEllipsoid) {
-  const int level = 3;
-  label::SiteGeometry g;
-  g.level = level;
-  label::add_point(g, 5, 5, 0);
-  label::LabelOptions lo;
-  lo.device = "cpu";
-  const label::LabelResult result = label::label_all(g.input(), lo);
+/// One site, at (5, 5), FID 1: every cell of the level is its.
+struct OneSite {
+  explicit OneSite(int level_) : level(level_) {
+    label::SiteGeometry g;
+    g.level = level;
+    label::add_point(g, 5, 5, 0);
+    label::LabelOptions lo;
+    lo.device = "cpu";
+    result = label::label_all(g.input(), lo);
+    table.sites.emplace_back();
+    table.sites[0].fid = 1;
+  }
+  CellLabels labels() const { return {level, result.site.data(), nullptr, nullptr}; }
+  int level;
+  label::LabelResult result;
   sites::SiteTable table;
-  table.sites.emplace_back();
-  table.sites[0].fid = 1;
+};
+
+TEST_F(VectorTest, OneSiteIsTheWholeEllipsoid) {
+  const OneSite one(3);
+  const int level = one.level;
+  const label::LabelResult& result = one.result;
   const TempPath out("one_site.gpkg");
-  write_vector(out.path, {level, result.site.data(), nullptr, nullptr}, table, VectorOptions{});
+  write_vector(out.path, one.labels(), one.table, VectorOptions{});
   auto ds = open_vector(out.path);
   ASSERT_TRUE(ds);
   OGRLayer* regions = ds->GetLayerByName("regions");
@@ -506,6 +519,124 @@ TEST_F(VectorTest, GeoPackageCellLayersHaveNoSpatialIndexUnlessAsked) {
       EXPECT_TRUE(has_rtree(*ds, layer)) << layer;
     }
   }
+}
+
+/// Everything a GeoPackage holds that the writer makes, as text: the metadata tables, the schema
+/// (by name: a trigger dropped and made again comes later in sqlite_master) and every row of
+/// every table, blobs in hex and reals to 17 digits.
+std::vector<std::string> gpkg_dump(const std::string& path) {
+  std::vector<std::string> out;
+  sqlite3* db = nullptr;
+  EXPECT_EQ(sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READONLY, nullptr), SQLITE_OK) << path;
+  const auto query = [&](const std::string& sql) {
+    sqlite3_stmt* st = nullptr;
+    EXPECT_EQ(sqlite3_prepare_v2(db, sql.c_str(), -1, &st, nullptr), SQLITE_OK) << sql << ": " << sqlite3_errmsg(db);
+    while (st && sqlite3_step(st) == SQLITE_ROW) {
+      std::string row = sql.substr(0, 40) + ":";
+      for (int c = 0; c < sqlite3_column_count(st); ++c) {
+        char text[64];
+        switch (sqlite3_column_type(st, c)) {
+          case SQLITE_NULL: row += " null"; break;
+          case SQLITE_INTEGER: row += " i" + std::to_string(sqlite3_column_int64(st, c)); break;
+          case SQLITE_FLOAT:
+            std::snprintf(text, sizeof text, " r%.17g", sqlite3_column_double(st, c));
+            row += text;
+            break;
+          case SQLITE_BLOB: {
+            const auto* bytes = static_cast<const unsigned char*>(sqlite3_column_blob(st, c));
+            row += " x";
+            for (int k = 0; k < sqlite3_column_bytes(st, c); ++k) {
+              std::snprintf(text, sizeof text, "%02x", bytes[k]);
+              row += text;
+            }
+            break;
+          }
+          default: row += std::string(" t") + reinterpret_cast<const char*>(sqlite3_column_text(st, c));
+        }
+      }
+      out.push_back(row);
+    }
+    sqlite3_finalize(st);
+  };
+  query("SELECT * FROM gpkg_contents ORDER BY table_name");
+  query("SELECT * FROM gpkg_ogr_contents ORDER BY table_name");
+  query("SELECT * FROM gpkg_geometry_columns ORDER BY table_name");
+  query("SELECT * FROM sqlite_sequence ORDER BY name");
+  query("SELECT type, name, tbl_name, sql FROM sqlite_master ORDER BY name");
+  for (const char* table : {"regions", "boundary_cells", "voronoi_edges", "cells"}) {
+    query(std::string("SELECT * FROM \"") + table + "\" ORDER BY fid");
+  }
+  sqlite3_close(db);
+  return out;
+}
+
+/// Writes `labels` with direct GeoPackage rows and through OGR; both files must be the same.
+/// Returns the number of rows compared.
+std::size_t expect_same_as_ogr(const CellLabels& labels, const sites::SiteTable& table, const VectorOptions& options) {
+  const TempPath direct("direct_rows.gpkg"), ogr("ogr_rows.gpkg");
+  write_vector(direct.path, labels, table, options);
+  {
+    CPLConfigOptionSetter through_ogr("QTMV_GPKG_DIRECT_ROWS", "NO", false);
+    write_vector(ogr.path, labels, table, options);
+  }
+  const std::vector<std::string> expected = gpkg_dump(ogr.path), got = gpkg_dump(direct.path);
+  EXPECT_EQ(got.size(), expected.size());
+  for (std::size_t k = 0; k < std::min(got.size(), expected.size()); ++k) {
+    if (got[k] != expected[k]) {
+      ADD_FAILURE() << "row " << k << ": " << got[k] << "\n expected " << expected[k];
+      break;
+    }
+  }
+  return expected.size();
+}
+
+TEST_F(VectorTest, GeoPackageCellRowsAreWhatOgrWrites) {
+  // Level 7: 131 072 cells, more than one transaction and a last INSERT of fewer rows. One site
+  // without a FID (null site_fid), and labels without distances (null distance_m) for a second file.
+  Scene scene = make_scene(7, 40, 11);
+  scene.table.sites[3].fid = OGRNullFID;
+  CPLConfigOptionSetter fixed_date("OGR_CURRENT_DATE", "2026-11-22T00:00:00.000Z", false);
+  VectorOptions options;
+  options.layers = {"regions", "boundary_cells", "voronoi_edges", "cells"};
+  for (bool with_distance : {true, false}) {
+    SCOPED_TRACE(with_distance ? "with distances" : "without distances");
+    EXPECT_GT(expect_same_as_ogr(scene.labels(with_distance), scene.table, options), grid::cell_count(scene.level));
+  }
+  // No boundary cell at all: the table stays as GDAL leaves an empty one.
+  const OneSite one(3);
+  expect_same_as_ogr(one.labels(), one.table, options);
+}
+
+TEST_F(VectorTest, GeoPackageDirectRowsOnlyWhereTheyApply) {
+  OGRSpatialReference srs;
+  srs.importFromEPSG(4326);
+  const TempPath gpkg("direct_open.gpkg");
+  GDALDatasetUniquePtr ds(GetGDALDriverManager()->GetDriverByName("GPKG")->Create(gpkg.path.c_str(), 0, 0, 0,
+                                                                                   GDT_Unknown, nullptr));
+  ASSERT_TRUE(ds);
+  const char* no_index[] = {"SPATIAL_INDEX=NO", nullptr};
+  OGRLayer* plain = ds->CreateLayer("plain", &srs, wkbPolygon, const_cast<char**>(no_index));
+  OGRFieldDefn code("code", OFTInteger64);
+  ASSERT_EQ(plain->CreateField(&code), OGRERR_NONE);
+  EXPECT_NE(GpkgRows::open(*ds, *plain, {0}), nullptr);
+  {
+    CPLConfigOptionSetter off("QTMV_GPKG_DIRECT_ROWS", "NO", false);
+    EXPECT_EQ(GpkgRows::open(*ds, *plain, {0}), nullptr);
+  }
+  // A table with rows already, or with a trigger of someone else's: OGR features instead.
+  OGRLayer* filled = ds->CreateLayer("filled", &srs, wkbPolygon, const_cast<char**>(no_index));
+  OGRFeature feature(filled->GetLayerDefn());
+  ASSERT_EQ(filled->CreateFeature(&feature), OGRERR_NONE);
+  EXPECT_EQ(GpkgRows::open(*ds, *filled, {}), nullptr);
+  OGRLayer* watched = ds->CreateLayer("watched", &srs, wkbPolygon, const_cast<char**>(no_index));
+  ASSERT_EQ(watched->SyncToDisk(), OGRERR_NONE);
+  ds->ExecuteSQL("CREATE TRIGGER audit AFTER INSERT ON watched BEGIN SELECT 1; END", nullptr, nullptr);
+  EXPECT_EQ(GpkgRows::open(*ds, *watched, {}), nullptr);
+  // Not a GeoPackage.
+  GDALDatasetUniquePtr memory(GetGDALDriverManager()->GetDriverByName("Memory")->Create("", 0, 0, 0, GDT_Unknown, nullptr));
+  ASSERT_TRUE(memory);
+  OGRLayer* in_memory = memory->CreateLayer("m", &srs, wkbPolygon, nullptr);
+  EXPECT_EQ(GpkgRows::open(*memory, *in_memory, {}), nullptr);
 }
 
 TEST_F(VectorTest, UnknownLayerIsRefusedBeforeCreating) {

@@ -26,7 +26,10 @@ using ProgressFunc = std::function<bool(double fraction, const char* stage)>;
 enum class OutputKind { automatic, vector, raster };
 
 struct VoronoiOptions {
-  VoronoiOptions() { read.level = 9; }  // the seed paper's finest level
+  VoronoiOptions() {
+    read.level = 9;                                 // the seed paper's finest level
+    label.algorithm = label::Algorithm::automatic;  // brute force where the tree would not pay
+  }
 
   /// Reader options; read.level is the level of the whole run (0..24), read.distance the rule
   /// (it sets label.rule too). Its progress and messages are replaced by the ones below.

@@ -512,12 +512,17 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
   } else {
     stats.device = "cpu (" + std::to_string(threads) + " threads)";
   }
-  say("labelling on " + stats.device);
 
   const double t0 = now_seconds();
   progress(0.0, "prepare");
   const std::vector<Piece> candidates = make_candidates(input, options.rule);
-  const bool hier = options.algorithm == Algorithm::hier;
+  stats.algorithm = options.algorithm;
+  if (stats.algorithm == Algorithm::automatic) {
+    const double work = static_cast<double>(grid::cell_count(input.level)) * static_cast<double>(candidates.size());
+    stats.algorithm = device.cuda && work <= kBruteWorkLimit ? Algorithm::brute : Algorithm::hier;
+  }
+  const bool hier = stats.algorithm == Algorithm::hier;
+  say("labelling on " + stats.device + (hier ? ", pruned tree (hier)" : ", brute force"));
   // On a GPU the tree is built there (cuda::Labeller's device constructor), inside prepare.
   const bool device_tree = hier && device.cuda && options.tree_on_device;
   std::unique_ptr<cuda::Labeller> gpu_built;

@@ -166,6 +166,11 @@ TEST(QtmvoronoiCore, ParsesOptions) {
   EXPECT_EQ(o.run.label.device, "cpu");
   EXPECT_EQ(o.run.label.algorithm, qtmv::label::Algorithm::brute);
   EXPECT_EQ(o.run.format, "GPKG");
+  // The tool's default, as the library's options struct has it; and -algorithm auto.
+  EXPECT_EQ(parse_command_line({"src.shp", "dst.gpkg"}).run.label.algorithm, qtmv::label::Algorithm::automatic);
+  EXPECT_EQ(parse_command_line({"-algorithm", "AUTO", "src.shp", "dst.gpkg"}).run.label.algorithm,
+            qtmv::label::Algorithm::automatic);
+  EXPECT_EQ(qtmv::VoronoiOptions().label.algorithm, qtmv::label::Algorithm::automatic);
   EXPECT_EQ(o.run.vector.layers, (std::vector<std::string>{"regions", "cells"}));
   EXPECT_EQ(o.run.kind, qtmv::OutputKind::vector);
   EXPECT_TRUE(o.run.overwrite);

@@ -574,6 +574,26 @@ TEST_P(LabelDevice, WithoutDistanceOrBoundary) {
   EXPECT_EQ(bare.site, full.site);
 }
 
+// `automatic` takes brute force on a GPU for small work (cells x candidates <= kBruteWorkLimit)
+// and the tree otherwise and on the CPU; the labels are those of an explicit choice.
+TEST_P(LabelDevice, AutomaticAlgorithm) {
+  const bool gpu = GetParam() != "cpu";
+  for (const int level : {6, 10}) {
+    const SiteGeometry g = random_points(level, 300, 77);
+    LabelOptions options;
+    options.device = GetParam();
+    options.algorithm = Algorithm::automatic;
+    const LabelResult chosen = label_all(g.input(), options);
+    const bool small = static_cast<double>(grid::cell_count(level)) * 300 <= kBruteWorkLimit;
+    EXPECT_EQ(chosen.stats.algorithm, gpu && small ? Algorithm::brute : Algorithm::hier) << "level " << level;
+    options.algorithm = Algorithm::hier;
+    const LabelResult hier = label_all(g.input(), options);
+    EXPECT_EQ(hier.stats.algorithm, Algorithm::hier);
+    EXPECT_EQ(chosen.site, hier.site) << "level " << level;
+    EXPECT_EQ(chosen.boundary, hier.boundary) << "level " << level;
+  }
+}
+
 // The tree built on the GPU is the host's tree, node for node and list entry for list entry,
 // and labels without distances (the benchmarks' case) agree bit for bit between the devices.
 TEST(LabelDeviceTree, MatchesTheHostTree) {

@@ -165,12 +165,14 @@ Options parse_command_line(const std::vector<std::string>& args) {
       run.label.device = v;
     } else if (name == "-algorithm") {
       const std::string v = lower(value());
-      if (v == "hier") {
+      if (v == "auto") {
+        run.label.algorithm = label::Algorithm::automatic;
+      } else if (v == "hier") {
         run.label.algorithm = label::Algorithm::hier;
       } else if (v == "brute") {
         run.label.algorithm = label::Algorithm::brute;
       } else {
-        throw UsageError("-algorithm: '" + v + "' is not one of hier, brute");
+        throw UsageError("-algorithm: '" + v + "' is not one of auto, hier, brute");
       }
     } else if (name == "-threads") {
       run.label.threads = parse_int(arg, value(), 1, 4096, "a number of threads");

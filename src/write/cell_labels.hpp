@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "grid/qtm.hpp"
+
 namespace qtmv::write {
 
 /// The labeller's output for every cell of one level, indexed by cell code (0 .. 8 * 4^level - 1).
@@ -16,6 +18,16 @@ struct CellLabels {
   const float* distance_m = nullptr;       ///< distance to the site (metres); null when not computed
   const std::uint8_t* boundary = nullptr;  ///< 1 on boundary cells, else 0; null when not computed
 };
+
+/// The boundary flag of cell `code`: the labeller's when it computed them, else its rule (one of
+/// the three edge neighbours has another site).
+inline bool is_boundary(const CellLabels& labels, grid::Code code) {
+  if (labels.boundary) return labels.boundary[code] != 0;
+  grid::Code nb[3];
+  grid::neighbours(code, labels.level, nb);
+  const std::int32_t site = labels.site[code];
+  return labels.site[nb[0]] != site || labels.site[nb[1]] != site || labels.site[nb[2]] != site;
+}
 
 /// Called with the fraction done (0..1) and the stage; return false to stop writing.
 using ProgressFunc = std::function<bool(double fraction, const char* stage)>;

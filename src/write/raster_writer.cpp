@@ -78,19 +78,13 @@ struct Filler {
       return;
     }
     out[x] = static_cast<T>(fid_of[s]);
-    out[band_space + x] = static_cast<T>(labels.boundary ? labels.boundary[code] : computed_boundary(code, s));
+    out[band_space + x] = static_cast<T>(is_boundary(labels, code));
     if (bands == 3) out[2 * band_space + x] = static_cast<T>(labels.distance_m[code]);
   }
 
   template <typename T>
   void put_nodata(T* out, std::size_t x, std::size_t band_space) {
     for (int b = 0; b < bands; ++b) out[b * band_space + x] = static_cast<T>(kRasterNodata);
-  }
-
-  std::uint8_t computed_boundary(Code code, std::int32_t s) const {
-    Code n[3];
-    grid::neighbours(code, level, n);
-    return labels.site[n[0]] != s || labels.site[n[1]] != s || labels.site[n[2]] != s;
   }
 
   template <typename T>

@@ -73,17 +73,6 @@ void measure_ahead(std::size_t count, std::size_t block, const Measure& measure,
   }
 }
 
-// --- cells -----------------------------------------------------------------------------------
-
-bool is_boundary(const CellLabels& labels, Code code) {
-  if (labels.boundary) return labels.boundary[code] != 0;
-  // Not computed: the labeller's rule, a neighbour with another site.
-  Code nb[3];
-  grid::neighbours(code, labels.level, nb);
-  const std::int32_t site = labels.site[code];
-  return labels.site[nb[0]] != site || labels.site[nb[1]] != site || labels.site[nb[2]] != site;
-}
-
 // --- geodesic measures -----------------------------------------------------------------------
 
 /// Longitudes (degrees) of the grid vertices strictly between lon_from and lon_to on the

@@ -706,6 +706,17 @@ DeviceTree build_on_device(int device, const Piece* pieces, std::int32_t piece_c
     }
   } trim_on_throw{pool};
   DeviceTree t;
+  // The tree's own arrays are the caller's only once the build returns.
+  struct FreeOnThrow {
+    DeviceTree& t;
+    bool done = false;
+    ~FreeOnThrow() {
+      if (done) return;
+      cudaFree(t.jump);
+      cudaFree(t.nodes);
+      cudaFree(t.lists);
+    }
+  } free_on_throw{t};
   {
   Buffer<DevPending> pending, next;
   Buffer<std::int32_t> parent_lists, next_lists;
@@ -847,6 +858,7 @@ DeviceTree build_on_device(int device, const Piece* pieces, std::int32_t piece_c
   QTMV_CUDA_CHECK(cudaDeviceSynchronize());
   QTMV_CUDA_CHECK(cudaMemPoolTrimTo(pool, std::size_t{256} << 20));
   trim_on_throw.done = true;
+  free_on_throw.done = true;
   return t;
 }
 

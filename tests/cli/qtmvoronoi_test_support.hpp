@@ -1,0 +1,94 @@
+// Helpers for the tests that run the built qtmvoronoi: a directory per test, the pipeline's
+// temporary directories in it, running and signalling the binary, reading outputs back.
+#pragma once
+
+#include <signal.h>
+
+#include <chrono>
+#include <filesystem>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gdal_priv.h>
+#include <gtest/gtest.h>
+
+#include "../test_temp_dir.hpp"
+#include "child_process.hpp"
+
+namespace qtmv::test {
+
+namespace fs = std::filesystem;
+
+/// A fresh directory for the current test (no dot in its name: /vsizip/ would take a test
+/// named Zip... for an archive).
+inline std::string test_dir() {
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  const fs::path dir = fs::path(process_temp_dir()) / (std::string(info->test_suite_name()) + "_" + info->name());
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir.string();
+}
+
+/// Entries of a directory whose names start with a dot: the pipeline's temporary directories.
+inline std::vector<std::string> hidden_entries(const std::string& dir) {
+  std::vector<std::string> names;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(dir, ec)) {
+    if (e.path().filename().string().front() == '.') names.push_back(e.path().filename().string());
+  }
+  return names;
+}
+
+inline pid_t spawn_qtmvoronoi(const std::vector<std::string>& args, const std::string& out, const std::string& err) {
+  return spawn_process(QTMVORONOI_PATH, args, "", out, err);
+}
+
+/// Runs qtmvoronoi; stdout and stderr go to files (outside the directories the tests inspect).
+inline ProcessResult run_qtmvoronoi(const std::vector<std::string>& args, const ChildSetup& setup = {},
+                                    double timeout_seconds = kDefaultTimeoutSeconds) {
+  return run_process(QTMVORONOI_PATH, args, "", setup, timeout_seconds);
+}
+
+inline std::vector<std::string> concat(std::vector<std::string> a, const std::vector<std::string>& b) {
+  a.insert(a.end(), b.begin(), b.end());
+  return a;
+}
+
+inline GDALDatasetUniquePtr open_dataset(const std::string& path, unsigned flags) {
+  GDALAllRegister();
+  return GDALDatasetUniquePtr(GDALDataset::Open(path.c_str(), flags | GDAL_OF_READONLY));
+}
+
+/// Waits (up to a minute) until `ready` holds, polling; false when it never did.
+template <class Predicate>
+bool wait_until(Predicate ready) {
+  const auto start = std::chrono::steady_clock::now();
+  while (!ready()) {
+    if (std::chrono::steady_clock::now() - start > std::chrono::seconds(60)) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  return true;
+}
+
+/// Whether the writer has created `name` inside one of the pipeline's temporary directories of `dir`.
+inline bool writing(const std::string& dir, const std::string& name) {
+  for (const std::string& entry : hidden_entries(dir)) {
+    std::error_code ec;
+    if (fs::exists(fs::path(dir) / entry / name, ec)) return true;
+  }
+  return false;
+}
+
+/// Sends `signal_number` to a running qtmvoronoi and waits for it; `seconds` gets the time from
+/// the signal to its exit.
+inline ProcessResult signal_and_wait(pid_t pid, int signal_number, const std::string& out, const std::string& err,
+                                     double& seconds) {
+  const auto signalled = std::chrono::steady_clock::now();
+  EXPECT_EQ(kill(pid, signal_number), 0);
+  ProcessResult r = wait_process(pid, out, err);
+  seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - signalled).count();
+  return r;
+}
+
+}  // namespace qtmv::test

@@ -134,6 +134,14 @@ std::vector<TestFeature> points(const std::vector<std::string>& wkts) {
   return out;
 }
 
+// A run that succeeds with `message` among its warnings and `kept` regions.
+void expect_kept(const std::string& src, const std::string& dst, const std::string& message, std::size_t kept) {
+  const Result r = run_small({"-layers", "regions", src, dst});
+  expect_success(r, dst);
+  EXPECT_TRUE(contains(r.err, message)) << r.err;
+  EXPECT_EQ(regions(dst).size(), kept);
+}
+
 // ---------------------------------------------------------------------------------------------
 // Files
 
@@ -174,19 +182,13 @@ TEST(CatalogueFiles, ShapefileWithoutShx) {
 TEST(CatalogueFiles, ShapefileWithoutDbfKeepsItsSitesAndSaysTheAttributesAreGone) {
   const std::string dir = test_dir();
   const std::string src = shapefile(dir, "dbf");
-  const Result r = run_small({"-layers", "regions", src, dir + "/out.gpkg"});
-  expect_success(r, dir + "/out.gpkg");
-  EXPECT_TRUE(contains(r.err, "warning: '" + src + "', layer 'pts': no .dbf beside the .shp")) << r.err;
-  EXPECT_EQ(regions(dir + "/out.gpkg").size(), 3u);
+  expect_kept(src, dir + "/out.gpkg", "warning: '" + src + "', layer 'pts': no .dbf beside the .shp", 3);
 }
 
 TEST(CatalogueFiles, ShapefileWithoutPrjIsTakenAsWgs84WithAWarning) {
   const std::string dir = test_dir();
   const std::string src = shapefile(dir, "prj");
-  const Result r = run_small({"-layers", "regions", src, dir + "/out.gpkg"});
-  expect_success(r, dir + "/out.gpkg");
-  EXPECT_TRUE(contains(r.err, "warning: '" + src + "', layer 'pts': the layer has no CRS")) << r.err;
-  EXPECT_EQ(regions(dir + "/out.gpkg").size(), 3u);
+  expect_kept(src, dir + "/out.gpkg", "warning: '" + src + "', layer 'pts': the layer has no CRS", 3);
 }
 
 TEST(CatalogueFiles, DirectoryWithoutData) {
@@ -314,13 +316,10 @@ TEST(CatalogueGeometry, NullGeometryUnderStrictFailsNamingTheFid) {
                  {"'" + src + "', layer 'strict', FID 1: empty geometry (-strict)"}, dir + "/out.gpkg");
 }
 
-// One bad feature among good ones: skipped with its FID and `reason`, the others kept.
+// One bad feature among good ones: skipped with its FID and reason, the others kept.
 void expect_skipped(const std::string& src, const std::string& dst, const std::string& fid_and_reason,
                     std::size_t kept) {
-  const Result r = run_small({"-layers", "regions", src, dst});
-  expect_success(r, dst);
-  EXPECT_TRUE(contains(r.err, fid_and_reason + "; feature skipped")) << r.err;
-  EXPECT_EQ(regions(dst).size(), kept);
+  expect_kept(src, dst, fid_and_reason + "; feature skipped", kept);
 }
 
 TEST(CatalogueGeometry, InfiniteCoordinateFromGeoJson1e400) {
@@ -677,20 +676,11 @@ TEST(CatalogueOutput, DiskFullWritingShapefile) {
 TEST(CatalogueOutput, SigintWhileWritingLeavesNothing) {
   const std::string dir = test_dir();
   const std::string dst = dir + "/cells.gpkg";
-  const std::string out = dir + "/../sigint.out", err = dir + "/../sigint.err";
-  const pid_t pid = qtmv::test::spawn_qtmvoronoi(
-      concat({"-level", "9", "-device", "cpu", "-layers", "cells", kCentres, dst}, kCsvOptions), out, err);
-  ASSERT_GT(pid, 0);
-  ASSERT_TRUE(qtmv::test::wait_until([&] { return qtmv::test::writing(dir, "cells.gpkg"); }))
-      << "the writer never started";
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
   double seconds = 0;
-  const Result r = qtmv::test::signal_and_wait(pid, SIGINT, out, err, seconds);
-  EXPECT_EQ(r.status, 1) << r.err;
-  EXPECT_TRUE(contains(r.err, "qtmvoronoi: interrupted by SIGINT: '" + dst + "' not written")) << r.err;
-  EXPECT_LT(seconds, 1.5);
-  EXPECT_FALSE(fs::exists(dst));
-  EXPECT_TRUE(hidden_entries(dir).empty());
+  const Result r = qtmv::test::interrupt_while_writing(
+      concat({"-level", "9", "-device", "cpu", "-layers", "cells", kCentres, dst}, kCsvOptions), dir, "cells.gpkg",
+      SIGINT, seconds);
+  qtmv::test::expect_interrupted(r, "SIGINT", dst, seconds, 1.5);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -710,23 +700,15 @@ TEST(CatalogueLimits, LevelTooLargeForMemoryFailsBeforeReading) {
 TEST(CatalogueLimits, SigintWhileLabellingStopsWithinASecond) {
   const std::string dir = test_dir();
   const std::string dst = dir + "/out.gpkg";
-  const std::string out = dir + "/../label.out", err = dir + "/../label.err";
-  // Level 12 on the CPU: 134 million cells, seconds of labelling in tiles of 64 MiB.
-  const pid_t pid = qtmv::test::spawn_qtmvoronoi(
-      concat({"-level", "12", "-device", "cpu", "-layers", "regions", kCentres, dst}, kCsvOptions), out, err);
-  ASSERT_GT(pid, 0);
-  // The labeller says where it runs once the read is done and the labels are allocated.
-  ASSERT_TRUE(qtmv::test::wait_until([&] { return contains(qtmv::test::read_file(err), "labelling on cpu"); }))
-      << qtmv::test::read_file(err);
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  // Level 12 on the CPU: 134 million cells, seconds of labelling in tiles of 64 MiB. The
+  // labeller says where it runs once the read is done and the labels are allocated.
   double seconds = 0;
-  const Result r = qtmv::test::signal_and_wait(pid, SIGINT, out, err, seconds);
-  EXPECT_EQ(r.status, 1) << r.err;
-  EXPECT_TRUE(contains(r.err, "interrupted by SIGINT: '" + dst + "' not written")) << r.err;
+  const Result r = qtmv::test::interrupt_when(
+      concat({"-level", "12", "-device", "cpu", "-layers", "regions", kCentres, dst}, kCsvOptions),
+      [](const std::string& err) { return contains(qtmv::test::read_file(err), "labelling on cpu"); }, SIGINT,
+      seconds);
+  qtmv::test::expect_interrupted(r, "SIGINT", dst, seconds, 1.5);
   EXPECT_FALSE(contains(r.err, "sites read,")) << "the run finished before the signal: " << r.err;
-  EXPECT_LT(seconds, 1.5);
-  EXPECT_FALSE(fs::exists(dst));
-  EXPECT_TRUE(hidden_entries(dir).empty());
 }
 
 }  // namespace

@@ -491,20 +491,11 @@ TEST(QtmvoronoiCli, SigtermWhileWritingLeavesNothing) {
   const std::string dir = test_dir();
   const std::string dst = dir + "/cells.gpkg";
   // Every cell of level 9 as a polygon: seconds of writing.
-  const std::string out = dir + "/../sigterm.out", err = dir + "/../sigterm.err";
-  const pid_t pid = qtmv::test::spawn_qtmvoronoi(
-      concat({"-level", "9", "-device", "cpu", "-layers", "cells", kCentres, dst}, kCsvOptions), out, err);
-  ASSERT_GT(pid, 0);
-  ASSERT_TRUE(qtmv::test::wait_until([&] { return qtmv::test::writing(dir, "cells.gpkg"); }))
-      << "the writer never started";
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
   double seconds = 0;
-  const Result r = qtmv::test::signal_and_wait(pid, SIGTERM, out, err, seconds);
-  EXPECT_EQ(r.status, 1) << r.err;
-  EXPECT_NE(r.err.find("interrupted by SIGTERM"), std::string::npos) << r.err;
-  EXPECT_LT(seconds, 3.0);
-  EXPECT_FALSE(fs::exists(dst));
-  EXPECT_TRUE(hidden_entries(dir).empty());
+  const Result r = qtmv::test::interrupt_while_writing(
+      concat({"-level", "9", "-device", "cpu", "-layers", "cells", kCentres, dst}, kCsvOptions), dir, "cells.gpkg",
+      SIGTERM, seconds);
+  qtmv::test::expect_interrupted(r, "SIGTERM", dst, seconds, 3.0);
 }
 
 // ---------------------------------------------------------------------------------------------

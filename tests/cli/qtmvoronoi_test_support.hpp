@@ -40,10 +40,6 @@ inline std::vector<std::string> hidden_entries(const std::string& dir) {
   return names;
 }
 
-inline pid_t spawn_qtmvoronoi(const std::vector<std::string>& args, const std::string& out, const std::string& err) {
-  return spawn_process(QTMVORONOI_PATH, args, "", out, err);
-}
-
 /// Runs qtmvoronoi; stdout and stderr go to files (outside the directories the tests inspect).
 inline ProcessResult run_qtmvoronoi(const std::vector<std::string>& args, const ChildSetup& setup = {},
                                     double timeout_seconds = kDefaultTimeoutSeconds) {
@@ -80,15 +76,42 @@ inline bool writing(const std::string& dir, const std::string& name) {
   return false;
 }
 
-/// Sends `signal_number` to a running qtmvoronoi and waits for it; `seconds` gets the time from
-/// the signal to its exit.
-inline ProcessResult signal_and_wait(pid_t pid, int signal_number, const std::string& out, const std::string& err,
-                                     double& seconds) {
+/// Starts qtmvoronoi with `args`, waits until `ready(path of its stderr)` holds, 300 ms more,
+/// then sends it `signal_number` and waits for it to end; `seconds` gets the time from the
+/// signal to its exit. A run that never gets ready fails the test.
+template <class Ready>
+ProcessResult interrupt_when(const std::vector<std::string>& args, Ready ready, int signal_number, double& seconds) {
+  static int serial = 0;
+  const std::string base = process_temp_dir() + "/interrupted_" + std::to_string(serial++);
+  const std::string out = base + ".out", err = base + ".err";
+  const pid_t pid = spawn_process(QTMVORONOI_PATH, args, "", out, err);
+  EXPECT_GT(pid, 0);
+  EXPECT_TRUE(wait_until([&] { return ready(err); })) << "never got ready: " << read_file(err);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
   const auto signalled = std::chrono::steady_clock::now();
   EXPECT_EQ(kill(pid, signal_number), 0);
   ProcessResult r = wait_process(pid, out, err);
   seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - signalled).count();
   return r;
+}
+
+/// interrupt_when() the writer has created `name` in its temporary directory in `dir`.
+inline ProcessResult interrupt_while_writing(const std::vector<std::string>& args, const std::string& dir,
+                                             const std::string& name, int signal_number, double& seconds) {
+  return interrupt_when(args, [&](const std::string&) { return writing(dir, name); }, signal_number, seconds);
+}
+
+/// What an interrupted run must show: status 1, the signal and the destination named, an exit
+/// within `limit` seconds of the signal, neither the destination nor a temporary directory.
+inline void expect_interrupted(const ProcessResult& r, const std::string& signal_name, const std::string& dst,
+                               double seconds, double limit) {
+  EXPECT_EQ(r.status, 1) << r.err;
+  EXPECT_NE(r.err.find("qtmvoronoi: interrupted by " + signal_name + ": '" + dst + "' not written"),
+            std::string::npos)
+      << r.err;
+  EXPECT_LT(seconds, limit);
+  EXPECT_FALSE(fs::exists(dst));
+  EXPECT_TRUE(hidden_entries(fs::path(dst).parent_path().string()).empty());
 }
 
 }  // namespace qtmv::test

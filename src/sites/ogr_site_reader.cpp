@@ -181,6 +181,10 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
     }
     throw ReadError(with_gdal_message("cannot open '" + dataset_name + "' as a vector dataset", errors.take()));
   }
+  // The open's warnings (an -oo the driver does not know, say) would be dropped below: pass them on.
+  if (const std::string warnings = errors.take(); !warnings.empty()) {
+    say(Severity::warning, "'" + dataset_name + "': GDAL: " + warnings);
+  }
   OGRLayer* layer = nullptr;
   std::string layer_name;
   std::shared_ptr<OGRLayer> sql_result;  // released through the dataset

@@ -135,8 +135,9 @@ std::vector<TestFeature> points(const std::vector<std::string>& wkts) {
 }
 
 // A run that succeeds with `message` among its warnings and `kept` regions.
-void expect_kept(const std::string& src, const std::string& dst, const std::string& message, std::size_t kept) {
-  const Result r = run_small({"-layers", "regions", src, dst});
+void expect_kept(const std::string& src, const std::string& dst, const std::string& message, std::size_t kept,
+                 const std::vector<std::string>& options = {}) {
+  const Result r = run_small(concat(concat({"-layers", "regions"}, options), {src, dst}));
   expect_success(r, dst);
   EXPECT_TRUE(contains(r.err, message)) << r.err;
   EXPECT_EQ(regions(dst).size(), kept);
@@ -604,6 +605,21 @@ TEST(CatalogueOptions, SqlFileMissing) {
                  {"-sql: cannot read '" + dir + "/none.sql'"}, dir + "/out.gpkg");
 }
 
+TEST(CatalogueOptions, SqlFromADeviceIsRefused) {
+  const std::string dir = test_dir();
+  // Read to its end, /dev/zero would fill the memory.
+  expect_failure(run({"-sql", "@/dev/zero", kCountries, dir + "/out.gpkg"}, {}, 20), 2,
+                 {"-sql: cannot read '/dev/zero': not a regular file"}, dir + "/out.gpkg");
+}
+
+TEST(CatalogueOptions, UnknownOpenOptionIsReported) {
+  const std::string dir = test_dir();
+  const std::string src = wkt_csv(dir + "/a.csv", {"POINT (3 4)"});
+  // Was silent: GDAL's warning was dropped with the open's other messages.
+  expect_kept(src, dir + "/out.gpkg", "'" + src + "': GDAL: driver CSV does not support open option NO_SUCH_OPTION", 1,
+              {"-oo", "NO_SUCH_OPTION=1"});
+}
+
 TEST(CatalogueOptions, CudaWithoutAGpuFailsBeforeReading) {
   if (qtmv::label::cuda_device_count() > 0) GTEST_SKIP() << "this host has a CUDA GPU";
   const std::string dir = test_dir();
@@ -648,6 +664,28 @@ TEST(CatalogueOutput, MissingDirectory) {
   expect_failure(run_small({kCountries, dir + "/no/such/out.gpkg"}), 1,
                  {"cannot write '" + dir + "/no/such/out.gpkg': no directory '" + dir + "/no/such'"},
                  dir + "/no/such/out.gpkg");
+}
+
+TEST(CatalogueOutput, OverwriteOntoADirectoryLeavesIt) {
+  const std::string dir = test_dir();
+  const std::string dst = dir + "/out.gpkg";
+  fs::create_directory(dst);
+  write_text(dst + "/keep.txt", "kept");
+  const Result r = run_small({"-overwrite", "-layers", "regions", "-l", "countries_110m", kCountries, dst});
+  EXPECT_EQ(r.status, 1) << r.err;
+  EXPECT_TRUE(contains(r.err, "cannot write '" + dst + "': renaming into '" + dst + "': Is a directory")) << r.err;
+  EXPECT_EQ(qtmv::test::read_file(dst + "/keep.txt"), "kept");
+  EXPECT_TRUE(hidden_entries(dir).empty());
+}
+
+TEST(CatalogueOutput, AttributeTypeTheFormatCannotHold) {
+  const std::string dir = test_dir();
+  // A list field: GeoJSON has them, shapefiles do not. The writer names the layer and field.
+  const std::string src = write_text(dir + "/lists.geojson", R"({"type":"FeatureCollection","features":[
+{"type":"Feature","properties":{"tags":["a","b"]},"geometry":{"type":"Point","coordinates":[3,4]}}]})");
+  expect_failure(run_small({"-layers", "regions", src, dir + "/out.shp"}), 1,
+                 {dir + "/out.shp, layer regions: cannot create the field tags", "StringList"}, dir + "/out.shp");
+  for (const char* ext : {".shx", ".dbf", ".prj"}) EXPECT_FALSE(fs::exists(dir + "/out" + ext)) << ext;
 }
 
 // A file system that fills up: the run's file size limit (ulimit -f). The write fails, the run

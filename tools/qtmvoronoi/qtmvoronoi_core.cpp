@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <sstream>
@@ -72,6 +73,12 @@ std::string name_value(const std::string& option, const std::string& text) {
 // -sql @file reads the statement from a file, as in ogr2ogr.
 std::string sql_text(const std::string& text) {
   if (text.empty() || text.front() != '@') return text;
+  // Not /dev/zero or a FIFO: read to its end, that would never end.
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(text.substr(1), ec)) {
+    throw UsageError("-sql: cannot read '" + text.substr(1) + "': " +
+                     (std::filesystem::exists(text.substr(1), ec) ? "not a regular file" : "no such file"));
+  }
   std::ifstream in(text.substr(1));
   if (!in) throw UsageError("-sql: cannot read '" + text.substr(1) + "'");
   std::ostringstream s;

@@ -98,12 +98,6 @@ ProcessResult interrupt_when(const std::vector<std::string>& args, Ready ready, 
   return r;
 }
 
-/// interrupt_when() the writer has created `name` in its temporary directory in `dir`.
-inline ProcessResult interrupt_while_writing(const std::vector<std::string>& args, const std::string& dir,
-                                             const std::string& name, int signal_number, double& seconds) {
-  return interrupt_when(args, [&](const std::string&) { return writing(dir, name); }, signal_number, seconds);
-}
-
 /// What an interrupted run must show: status 1, the signal and the destination named, an exit
 /// within `limit` seconds of the signal, neither the destination nor a temporary directory.
 inline void expect_interrupted(const ProcessResult& r, const std::string& signal_name, const std::string& dst,
@@ -115,6 +109,20 @@ inline void expect_interrupted(const ProcessResult& r, const std::string& signal
   EXPECT_LT(seconds, limit);
   EXPECT_FALSE(fs::exists(dst));
   EXPECT_TRUE(hidden_entries(fs::path(dst).parent_path().string()).empty());
+}
+
+/// Sends `signal_number` (named `signal_name`) to a run that writes every cell of level 9 of
+/// `source_args` as a polygon (seconds of writing) once its writer has started: it must stop
+/// within `limit` seconds and leave nothing.
+inline void expect_clean_stop_while_writing(const std::vector<std::string>& source_args, int signal_number,
+                                            const std::string& signal_name, double limit) {
+  const std::string dir = test_dir();
+  const std::string dst = dir + "/cells.gpkg";
+  double seconds = 0;
+  const ProcessResult r = interrupt_when(
+      concat(concat({"-level", "9", "-device", "cpu", "-layers", "cells"}, source_args), {dst}),
+      [&](const std::string&) { return writing(dir, "cells.gpkg"); }, signal_number, seconds);
+  expect_interrupted(r, signal_name, dst, seconds, limit);
 }
 
 }  // namespace qtmv::test

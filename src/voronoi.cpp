@@ -386,6 +386,18 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
                        " allowed (80% of this host's " + gib(double(ram)) + " of RAM): choose a lower -level");
   }
 
+  // A GPU asked for and missing fails now, not after the read.
+  if (starts_with(label_options.device, "cuda")) {
+    const int gpus = label::cuda_device_count();
+    const int index = label_options.device.size() > 5 ? std::atoi(label_options.device.c_str() + 5) : 0;
+    if (index >= gpus) {
+      throw VoronoiError("-device " + label_options.device + ": " +
+                         (gpus == 0 ? std::string("no usable CUDA GPU found")
+                                    : "this host has " + std::to_string(gpus) + " CUDA device(s)") +
+                         "; use -device cpu or auto");
+    }
+  }
+
   StagedOutput output(destination, options.overwrite);
   Progress progress(options.progress);
   const StageEnds ends = stage_ends(format.raster, wants_cells_layer, labels_on_cpu(label_options));

@@ -8,6 +8,7 @@
 #include <ogr_geometry.h>
 #include <ogr_spatialref.h>
 #include <ogrsf_frmts.h>
+#include <sys/stat.h>
 
 #include <chrono>
 #include <cmath>
@@ -155,6 +156,15 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   };
 
   // --- the dataset and the layer ----------------------------------------------------------------
+  // A FIFO, socket or device would block GDAL's open for ever (a FIFO without a writer) or be
+  // read past its end: only files and directories are opened by name.
+  struct stat local;
+  if (dataset_name.rfind("/vsi", 0) != 0 && stat(dataset_name.c_str(), &local) == 0 && !S_ISREG(local.st_mode) &&
+      !S_ISDIR(local.st_mode)) {
+    throw ReadError("cannot open '" + dataset_name + "': not a regular file or directory (" +
+                    (S_ISFIFO(local.st_mode) ? "a FIFO" : S_ISSOCK(local.st_mode) ? "a socket" : "a device") +
+                    "); for standard input use /vsistdin/");
+  }
   gdal::ErrorCapture errors;
   CPLStringList open_options;
   for (const std::string& option : options.open_options) open_options.AddString(option.c_str());
@@ -162,8 +172,18 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
                                                  open_options.List()));
   if (!dataset) {
     VSIStatBufL stat;
-    if (VSIStatL(dataset_name.c_str(), &stat) != 0) throw ReadError("cannot open '" + dataset_name + "': no such file");
+    if (VSIStatL(dataset_name.c_str(), &stat) != 0) {
+      // In /vsizip/ and the like, a file that is not an archive of that kind looks missing too.
+      const bool virtual_path = dataset_name.rfind("/vsi", 0) == 0;
+      throw ReadError(with_gdal_message(
+          "cannot open '" + dataset_name + "': no such file" + (virtual_path ? ", or not a readable archive" : ""),
+          errors.take()));
+    }
     throw ReadError(with_gdal_message("cannot open '" + dataset_name + "' as a vector dataset", errors.take()));
+  }
+  // The open's warnings (an -oo the driver does not know, say) would be dropped below: pass them on.
+  if (const std::string warnings = errors.take(); !warnings.empty()) {
+    say(Severity::warning, "'" + dataset_name + "': GDAL: " + warnings);
   }
   OGRLayer* layer = nullptr;
   std::string layer_name;
@@ -190,6 +210,14 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   }
   if (layer_name.empty()) layer_name = layer->GetName();
   const std::string where_from = "'" + dataset_name + "', layer '" + layer_name + "'";
+  // GDAL opens a shapefile without its .dbf silently, with no fields: say the attributes are gone.
+  if (EQUAL(dataset->GetDriverName(), "ESRI Shapefile") && EQUAL(CPLGetExtension(dataset_name.c_str()), "shp")) {
+    VSIStatBufL dbf;
+    if (VSIStatL(CPLResetExtension(dataset_name.c_str(), "dbf"), &dbf) != 0 &&
+        VSIStatL(CPLResetExtension(dataset_name.c_str(), "DBF"), &dbf) != 0) {
+      say(Severity::warning, where_from + ": no .dbf beside the .shp; the sites have no attributes");
+    }
+  }
   if (!options.where.empty()) {
     errors.take();
     if (layer->SetAttributeFilter(options.where.c_str()) != OGRERR_NONE) {
@@ -311,7 +339,8 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
       double lat = parts.y[k];
       if (std::fabs(lat) > 90.0) {
         if (std::fabs(lat) > 90.0 + 1e-9) {
-          skip(fid, "latitude beyond +-90 after transformation at " + format_coordinate(parts.x[k], lat),
+          skip(fid, std::string("latitude beyond +-90") + (transform ? " after transformation" : "") + " at " +
+                        format_coordinate(parts.x[k], lat),
                summary.skipped_coordinate);
           usable = false;
           break;

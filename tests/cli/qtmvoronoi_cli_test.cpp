@@ -15,7 +15,6 @@
 #include <random>
 #include <sstream>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include <gdal_priv.h>
@@ -23,7 +22,7 @@
 #include <gtest/gtest.h>
 
 #include "../test_temp_dir.hpp"
-#include "child_process.hpp"
+#include "qtmvoronoi_test_support.hpp"
 #include "grid/qtm.hpp"
 #include "label/labeller.hpp"
 #include "qtmv_version.hpp"
@@ -48,44 +47,13 @@ using Result = qtmv::test::ProcessResult;
 
 std::string read_all(const std::string& path) { return qtmv::test::read_file(path); }
 
-// A fresh directory for one test.
-std::string test_dir() {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::path(qtmv::test::process_temp_dir()) / info->name();
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir.string();
-}
+using qtmv::test::concat;
+using qtmv::test::hidden_entries;
+using qtmv::test::test_dir;
 
-// Entries of a directory whose names start with a dot: the pipeline's temporary directories.
-std::vector<std::string> hidden_entries(const std::string& dir) {
-  std::vector<std::string> names;
-  for (const auto& e : fs::directory_iterator(dir)) {
-    if (e.path().filename().string().front() == '.') names.push_back(e.path().filename().string());
-  }
-  return names;
-}
+Result run(const std::vector<std::string>& args) { return qtmv::test::run_qtmvoronoi(args); }
 
-pid_t spawn(const std::vector<std::string>& args, const std::string& out, const std::string& err) {
-  return qtmv::test::spawn_process(QTMVORONOI_PATH, args, "", out, err);
-}
-
-Result finish(pid_t pid, const std::string& out, const std::string& err) {
-  return qtmv::test::wait_process(pid, out, err);
-}
-
-// Runs qtmvoronoi; stdout and stderr go to files (outside the directories the tests inspect).
-Result run(const std::vector<std::string>& args) { return qtmv::test::run_process(QTMVORONOI_PATH, args); }
-
-std::vector<std::string> concat(std::vector<std::string> a, const std::vector<std::string>& b) {
-  a.insert(a.end(), b.begin(), b.end());
-  return a;
-}
-
-GDALDatasetUniquePtr open(const std::string& path, unsigned flags) {
-  GDALAllRegister();
-  return GDALDatasetUniquePtr(GDALDataset::Open(path.c_str(), flags | GDAL_OF_READONLY));
-}
+GDALDatasetUniquePtr open(const std::string& path, unsigned flags) { return qtmv::test::open_dataset(path, flags); }
 
 // The sites and labels the tool should have computed, from the library parts directly.
 struct Reference {
@@ -524,35 +492,7 @@ TEST(QtmvoronoiCli, ProgressOnStderr) {
 }
 
 TEST(QtmvoronoiCli, SigtermWhileWritingLeavesNothing) {
-  const std::string dir = test_dir();
-  const std::string dst = dir + "/cells.gpkg";
-  // Every cell of level 9 as a polygon: seconds of writing.
-  const std::string out = dir + "/../sigterm.out", err = dir + "/../sigterm.err";
-  const pid_t pid =
-      spawn(concat({"-level", "9", "-device", "cpu", "-layers", "cells", kCentres, dst}, kCsvOptions), out, err);
-  ASSERT_GT(pid, 0);
-  // Wait until the writer has created its file inside the temporary directory.
-  using clock = std::chrono::steady_clock;
-  const auto start = clock::now();
-  bool writing = false;
-  while (!writing && clock::now() - start < std::chrono::seconds(60)) {
-    for (const std::string& name : hidden_entries(dir)) {
-      std::error_code ec;
-      if (fs::exists(fs::path(dir) / name / "cells.gpkg", ec)) writing = true;
-    }
-    if (!writing) std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-  ASSERT_TRUE(writing) << "the writer never started";
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
-  const auto signalled = clock::now();
-  ASSERT_EQ(kill(pid, SIGTERM), 0);
-  const Result r = finish(pid, out, err);
-  const double seconds = std::chrono::duration<double>(clock::now() - signalled).count();
-  EXPECT_EQ(r.status, 1) << r.err;
-  EXPECT_NE(r.err.find("interrupted by SIGTERM"), std::string::npos) << r.err;
-  EXPECT_LT(seconds, 3.0);
-  EXPECT_FALSE(fs::exists(dst));
-  EXPECT_TRUE(hidden_entries(dir).empty());
+  qtmv::test::expect_clean_stop_while_writing(concat({kCentres}, kCsvOptions), SIGTERM, "SIGTERM", 3.0);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -18,6 +18,7 @@ namespace qtmv::sites {
 namespace {
 
 using test::any_contains;
+using test::corrupt_geometry;
 using test::make_dataset;
 using test::options_at;
 using test::temp_path;
@@ -300,7 +301,7 @@ TEST(OgrSiteReaderBadInput, BadFeaturesAreSkippedWithTheirFidAndCounted) {
   EXPECT_TRUE(any_contains(messages, at + "2: empty geometry; feature skipped"));
   EXPECT_TRUE(any_contains(messages, at + "3: empty geometry; feature skipped"));
   EXPECT_TRUE(any_contains(messages, at + "4: NaN or infinite coordinate (nan, 1); feature skipped"));
-  EXPECT_TRUE(any_contains(messages, at + "5: latitude beyond +-90 after transformation at (10, 95)"));
+  EXPECT_TRUE(any_contains(messages, at + "5: latitude beyond +-90 at (10, 95)"));
   EXPECT_TRUE(any_contains(messages, at + "6: unsupported geometry type 3D TIN"));
   EXPECT_TRUE(any_contains(messages, "7 features, 2 sites"));
   EXPECT_TRUE(any_contains(messages, "5 features skipped (2 empty, 1 unsupported type, 2 bad coordinate, 0 failed transformation, 0 unreadable)"));
@@ -345,20 +346,7 @@ TEST(OgrSiteReaderBadInput, FailedTransformationIsSkipped) {
 TEST(OgrSiteReaderBadInput, CorruptGeometryBlobSkipsOnlyThatFeature) {
   const std::string path = make_dataset(temp_path("corrupt.gpkg"), "GPKG", "corrupt", "EPSG:4326",
                                         {{"POINT (1 1)", "a"}, {"POINT (2 2)", "b"}, {"POINT (3 3)", "c"}});
-  {
-    GDALDatasetUniquePtr ds(GDALDataset::Open(path.c_str(), GDAL_OF_VECTOR | GDAL_OF_UPDATE));
-    ASSERT_TRUE(ds);
-    const std::string column = ds->GetLayer(0)->GetGeometryColumn();
-    // The R-tree triggers would reject the broken blob: drop them first.
-    std::vector<std::string> triggers;
-    OGRLayer* list = ds->ExecuteSQL("SELECT name FROM sqlite_master WHERE type = 'trigger'", nullptr, nullptr);
-    ASSERT_NE(list, nullptr);
-    for (auto& f : *list) triggers.push_back(f->GetFieldAsString(0));
-    ds->ReleaseResultSet(list);
-    for (const auto& t : triggers) ds->ExecuteSQL(("DROP TRIGGER \"" + t + "\"").c_str(), nullptr, nullptr);
-    ds->ExecuteSQL(("UPDATE corrupt SET \"" + column + "\" = X'47500001E6100000DEADBEEF' WHERE fid = 2").c_str(),
-                   nullptr, nullptr);
-  }
+  corrupt_geometry(path, 2);
   std::vector<std::string> messages;
   const SiteSet set = read_sites(path, options_at(4, &messages));
   EXPECT_EQ(set.geometry.site_count, 2);

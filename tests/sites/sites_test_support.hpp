@@ -78,6 +78,24 @@ inline std::string make_dataset(const std::string& path, const std::string& driv
   return path;
 }
 
+/// Overwrites the geometry blob of feature `fid` of a GeoPackage's first layer with one that
+/// has a valid header and broken WKB: GDAL fails on that feature only.
+inline void corrupt_geometry(const std::string& path, GIntBig fid) {
+  GDALDatasetUniquePtr ds(GDALDataset::Open(path.c_str(), GDAL_OF_VECTOR | GDAL_OF_UPDATE));
+  if (!ds) throw std::runtime_error("cannot update " + path);
+  const std::string table = ds->GetLayer(0)->GetName(), column = ds->GetLayer(0)->GetGeometryColumn();
+  // The R-tree triggers would reject the broken blob: drop them first.
+  std::vector<std::string> triggers;
+  OGRLayer* list = ds->ExecuteSQL("SELECT name FROM sqlite_master WHERE type = 'trigger'", nullptr, nullptr);
+  if (!list) throw std::runtime_error("cannot list the triggers of " + path);
+  for (auto& f : *list) triggers.push_back(f->GetFieldAsString(0));
+  ds->ReleaseResultSet(list);
+  for (const auto& t : triggers) ds->ExecuteSQL(("DROP TRIGGER \"" + t + "\"").c_str(), nullptr, nullptr);
+  ds->ExecuteSQL(("UPDATE \"" + table + "\" SET \"" + column + "\" = X'47500001E6100000DEADBEEF' WHERE fid = " +
+                  std::to_string(fid)).c_str(),
+                 nullptr, nullptr);
+}
+
 /// Options at a level whose messages are kept in `messages`.
 inline ReadOptions options_at(int level, std::vector<std::string>* messages) {
   ReadOptions o;

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <sstream>
@@ -72,6 +73,12 @@ std::string name_value(const std::string& option, const std::string& text) {
 // -sql @file reads the statement from a file, as in ogr2ogr.
 std::string sql_text(const std::string& text) {
   if (text.empty() || text.front() != '@') return text;
+  // Not /dev/zero or a FIFO: read to its end, that would never end.
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(text.substr(1), ec)) {
+    throw UsageError("-sql: cannot read '" + text.substr(1) + "': " +
+                     (std::filesystem::exists(text.substr(1), ec) ? "not a regular file" : "no such file"));
+  }
   std::ifstream in(text.substr(1));
   if (!in) throw UsageError("-sql: cannot read '" + text.substr(1) + "'");
   std::ostringstream s;
@@ -228,6 +235,13 @@ Options parse_command_line(const std::vector<std::string>& args) {
     }
   }
   if (tr && ts) throw UsageError("-tr and -ts exclude each other");
+  // Which of the two a batch job meant is a guess: refuse the pair.
+  if (!run.read.sql.empty() && !run.read.where.empty()) {
+    throw UsageError("-sql and -where exclude each other: put the condition in the -sql statement");
+  }
+  if (!run.read.sql.empty() && !run.read.layer.empty()) {
+    throw UsageError("-sql and -l exclude each other: the -sql statement names its tables");
+  }
   if (tr || ts) {
     // A pixel size only makes sense for the lon/lat grid, so it implies it.
     if (raster_named && run.raster.layout == write::RasterOptions::Layout::qtm) {
@@ -273,6 +287,9 @@ void install_signal_handlers() {
   action.sa_flags = SA_RESETHAND;  // a second signal kills at once, as users expect of Ctrl-C
   sigaction(SIGINT, &action, nullptr);
   sigaction(SIGTERM, &action, nullptr);
+  // Past a file size limit (ulimit -f) SIGXFSZ would kill us mid-write, leaving the temporary
+  // directory behind; ignored, the write fails with EFBIG and the run cleans up like any failure.
+  signal(SIGXFSZ, SIG_IGN);
 }
 
 int qtmvoronoi_main(int argc, char** argv) {

@@ -1,0 +1,745 @@
+// The catalogue of bad inputs (issue 6, docs/RELIABILITY.md): each case runs the built
+// qtmvoronoi on data made here, at run time, and checks the exit status, that the message names
+// the file, layer, FID or argument, and that a failure leaves neither the destination nor a
+// temporary file. A crash or a hang (the runner's time limit) fails the case. Inputs that are
+// odd but usable (a polygon round a pole, 10 000 identical points) must give the right output.
+#include <signal.h>
+#include <sys/stat.h>
+#include <sys/types.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <cpl_vsi.h>
+#include <gdal_priv.h>
+#include <ogrsf_frmts.h>
+#include <gtest/gtest.h>
+
+#include "../sites/sites_test_support.hpp"
+#include "label/labeller.hpp"
+#include "qtmvoronoi_test_support.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using qtmv::test::ChildSetup;
+using qtmv::test::concat;
+using qtmv::test::hidden_entries;
+using qtmv::test::test_dir;
+using Result = qtmv::test::ProcessResult;
+using qtmv::sites::test::make_dataset;
+using qtmv::sites::test::TestFeature;
+
+const std::string kTestdata = QTMV_TESTDATA_DIR;
+const std::string kCountries = kTestdata + "/world_atlas_countries_110m.gpkg";
+const std::string kCentres = kTestdata + "/country_centres.csv";
+const std::vector<std::string> kCsvOptions{"-oo", "X_POSSIBLE_NAMES=lon", "-oo", "Y_POSSIBLE_NAMES=lat"};
+constexpr double kEllipsoidArea = 5.10065621724088e14;  // WGS84, m^2
+
+Result run(const std::vector<std::string>& args, const ChildSetup& setup = {}, double timeout = 60) {
+  return qtmv::test::run_qtmvoronoi(args, setup, timeout);
+}
+
+// Always at a coarse level and on the CPU unless a case says otherwise: the cases are about
+// the input, not the work.
+Result run_small(const std::vector<std::string>& args, const ChildSetup& setup = {}, double timeout = 60) {
+  return run(concat({"-level", "4", "-device", "cpu"}, args), setup, timeout);
+}
+
+bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+
+std::string write_text(const std::string& path, const std::string& text) {
+  std::ofstream(path, std::ios::binary) << text;
+  return path;
+}
+
+// A GeoJSON FeatureCollection of the given geometry objects (FIDs 0, 1, 2, ...).
+std::string geojson(const std::string& path, const std::vector<std::string>& geometries) {
+  std::string text = "{\"type\":\"FeatureCollection\",\"features\":[\n";
+  for (std::size_t k = 0; k < geometries.size(); ++k) {
+    text += std::string(k ? ",\n" : "") + "{\"type\":\"Feature\",\"properties\":{\"n\":" + std::to_string(k) +
+            "},\"geometry\":" + geometries[k] + "}";
+  }
+  return write_text(path, text + "\n]}\n");
+}
+
+// A CSV of WKT geometries, without CRS (FIDs 1, 2, 3, ...: the CSV driver counts lines).
+std::string wkt_csv(const std::string& path, const std::vector<std::string>& wkts) {
+  std::string text = "WKT,n\n";
+  for (std::size_t k = 0; k < wkts.size(); ++k) text += "\"" + wkts[k] + "\"," + std::to_string(k) + "\n";
+  return write_text(path, text);
+}
+
+// A failed run: its status, no crash, no hang, a message naming each of `names` (and the usage
+// only for a usage error), and neither the destination nor a temporary directory beside it.
+void expect_failure(const Result& r, int status, const std::vector<std::string>& names, const std::string& dst) {
+  EXPECT_FALSE(r.timed_out) << "hung: " << r.err;
+  EXPECT_EQ(r.signal, 0) << "killed by signal " << r.signal << ": " << r.err;
+  EXPECT_EQ(r.status, status) << r.err;
+  EXPECT_TRUE(contains(r.err, "qtmvoronoi: ")) << r.err;
+  for (const std::string& name : names) EXPECT_TRUE(contains(r.err, name)) << "'" << name << "' not in: " << r.err;
+  EXPECT_EQ(contains(r.err, "Usage:"), status == 2) << r.err;
+  EXPECT_FALSE(fs::exists(dst)) << dst;
+  const std::string dir = fs::path(dst).parent_path().string();
+  if (fs::is_directory(dir)) EXPECT_TRUE(hidden_entries(dir).empty()) << dir;
+}
+
+// A successful run: status 0, the destination in place, no temporary directory, and no GDAL
+// error that escaped our messages.
+void expect_success(const Result& r, const std::string& dst) {
+  EXPECT_FALSE(r.timed_out) << "hung: " << r.err;
+  EXPECT_EQ(r.signal, 0) << "killed by signal " << r.signal << ": " << r.err;
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_TRUE(fs::exists(dst)) << dst;
+  EXPECT_TRUE(hidden_entries(fs::path(dst).parent_path().string()).empty());
+  EXPECT_FALSE(contains(r.err, "ERROR ")) << r.err;
+}
+
+struct Region {
+  GIntBig fid = 0;
+  GIntBig cells = 0;
+  double area_fraction = 0;  // of the ellipsoid
+};
+
+// The regions layer of a vector output, in site order.
+std::vector<Region> regions(const std::string& dst) {
+  std::vector<Region> out;
+  const auto ds = qtmv::test::open_dataset(dst, GDAL_OF_VECTOR);
+  if (!ds || !ds->GetLayerByName("regions")) return out;
+  for (auto& f : *ds->GetLayerByName("regions")) {
+    out.push_back({f->GetFieldAsInteger64("site_fid"), f->GetFieldAsInteger64("cells"),
+                   f->GetFieldAsDouble("area_m2") / kEllipsoidArea});
+  }
+  return out;
+}
+
+// Runs the regions of `src` and returns them (an empty list when the run failed).
+std::vector<Region> regions_of(const std::string& src, const std::string& dst, const std::vector<std::string>& extra = {}) {
+  const Result r = run_small(concat(concat({"-q", "-layers", "regions"}, extra), {src, dst}));
+  expect_success(r, dst);
+  return regions(dst);
+}
+
+std::vector<TestFeature> points(const std::vector<std::string>& wkts) {
+  std::vector<TestFeature> out;
+  for (std::size_t k = 0; k < wkts.size(); ++k) out.push_back({wkts[k], "f" + std::to_string(k)});
+  return out;
+}
+
+// A run that succeeds with `message` among its warnings and `kept` regions.
+void expect_kept(const std::string& src, const std::string& dst, const std::string& message, std::size_t kept,
+                 const std::vector<std::string>& options = {}) {
+  const Result r = run_small(concat(concat({"-layers", "regions"}, options), {src, dst}));
+  expect_success(r, dst);
+  EXPECT_TRUE(contains(r.err, message)) << r.err;
+  EXPECT_EQ(regions(dst).size(), kept);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Files
+
+TEST(CatalogueFiles, MissingFile) {
+  const std::string dir = test_dir();
+  const Result r = run_small({dir + "/missing.gpkg", dir + "/out.gpkg"});
+  expect_failure(r, 1, {"cannot open '" + dir + "/missing.gpkg': no such file"}, dir + "/out.gpkg");
+}
+
+TEST(CatalogueFiles, EmptyFile) {
+  const std::string dir = test_dir();
+  const std::string src = write_text(dir + "/empty.gpkg", "");
+  expect_failure(run_small({src, dir + "/out.gpkg"}), 1, {"cannot open '" + src + "' as a vector dataset"},
+                 dir + "/out.gpkg");
+}
+
+TEST(CatalogueFiles, TruncatedGeoPackage) {
+  const std::string dir = test_dir();
+  const std::string whole = qtmv::test::read_file(kCountries);
+  const std::string src = write_text(dir + "/truncated.gpkg", whole.substr(0, 8192));
+  expect_failure(run_small({src, dir + "/out.gpkg"}), 1, {"'" + src + "'", "malformed"}, dir + "/out.gpkg");
+}
+
+// A shapefile of three points, its sidecars as `remove` leaves them.
+std::string shapefile(const std::string& dir, const std::string& remove) {
+  const std::string shp = make_dataset(dir + "/pts.shp", "ESRI Shapefile", "pts", "EPSG:4326",
+                                       points({"POINT (10 10)", "POINT (-100 40)", "POINT (120 -30)"}));
+  if (!remove.empty()) fs::remove(dir + "/pts." + remove);
+  return shp;
+}
+
+TEST(CatalogueFiles, ShapefileWithoutShx) {
+  const std::string dir = test_dir();
+  const std::string src = shapefile(dir, "shx");
+  expect_failure(run_small({src, dir + "/out.gpkg"}), 1, {"cannot open '" + src + "'", ".shx"}, dir + "/out.gpkg");
+}
+
+TEST(CatalogueFiles, ShapefileWithoutDbfKeepsItsSitesAndSaysTheAttributesAreGone) {
+  const std::string dir = test_dir();
+  const std::string src = shapefile(dir, "dbf");
+  expect_kept(src, dir + "/out.gpkg", "warning: '" + src + "', layer 'pts': no .dbf beside the .shp", 3);
+}
+
+TEST(CatalogueFiles, ShapefileWithoutPrjIsTakenAsWgs84WithAWarning) {
+  const std::string dir = test_dir();
+  const std::string src = shapefile(dir, "prj");
+  expect_kept(src, dir + "/out.gpkg", "warning: '" + src + "', layer 'pts': the layer has no CRS", 3);
+}
+
+TEST(CatalogueFiles, DirectoryWithoutData) {
+  const std::string dir = test_dir();
+  fs::create_directory(dir + "/nothing");
+  expect_failure(run_small({dir + "/nothing", dir + "/out.gpkg"}), 1, {"cannot open '" + dir + "/nothing'"},
+                 dir + "/out.gpkg");
+}
+
+TEST(CatalogueFiles, SpacesAndNonAsciiInBothPaths) {
+  const std::string dir = test_dir() + "/dossier d'été ñ";
+  fs::create_directory(dir);
+  const std::string src = make_dataset(dir + "/villes été.gpkg", "GPKG", "villes", "EPSG:4326",
+                                       points({"POINT (2.35 48.85)", "POINT (-3.7 40.4)"}));
+  const std::string dst = dir + "/régions 2.gpkg";
+  EXPECT_EQ(regions_of(src, dst).size(), 2u);
+}
+
+TEST(CatalogueFiles, ZipArchiveThroughVsizip) {
+  const std::string dir = test_dir();
+  const std::string inside = "/vsizip/" + dir + "/sites.zip/sites.geojson";
+  VSILFILE* f = VSIFOpenL(inside.c_str(), "wb");
+  ASSERT_TRUE(f);
+  const std::string text = qtmv::test::read_file(
+      geojson(dir + "/plain.geojson", {R"({"type":"Point","coordinates":[1,2]})", R"({"type":"Point","coordinates":[50,-20]})"}));
+  VSIFWriteL(text.data(), 1, text.size(), f);
+  VSIFCloseL(f);
+  fs::remove(dir + "/plain.geojson");
+  EXPECT_EQ(regions_of(inside, dir + "/out.gpkg").size(), 2u);
+}
+
+TEST(CatalogueFiles, FileThatIsNotAZipArchive) {
+  const std::string dir = test_dir();
+  write_text(dir + "/fake.zip", "not a zip archive\n");
+  const std::string src = "/vsizip/" + dir + "/fake.zip";
+  expect_failure(run_small({src, dir + "/out.gpkg"}), 1, {"cannot open '" + src + "'", "not a readable archive"},
+                 dir + "/out.gpkg");
+}
+
+TEST(CatalogueFiles, UnreadablePermissions) {
+  const std::string dir = test_dir();
+  const std::string src = geojson(dir + "/secret.geojson", {R"({"type":"Point","coordinates":[1,2]})"});
+  chmod(src.c_str(), 0);
+  chmod(dir.c_str(), 0777);  // as root the run drops to nobody, who must still make the temporary directory
+  const Result r = run_small({src, dir + "/out.gpkg"}, ChildSetup{-1, true});
+  expect_failure(r, 1, {"cannot open '" + src + "'", "Permission denied"}, dir + "/out.gpkg");
+}
+
+TEST(CatalogueFiles, FifoFailsInsteadOfWaitingForAWriter) {
+  const std::string dir = test_dir();
+  const std::string src = dir + "/pipe.geojson";
+  ASSERT_EQ(mkfifo(src.c_str(), 0644), 0);
+  const Result r = run_small({src, dir + "/out.gpkg"}, {}, 20);
+  expect_failure(r, 1, {"cannot open '" + src + "': not a regular file or directory (a FIFO)"}, dir + "/out.gpkg");
+}
+
+TEST(CatalogueFiles, TruncatedGeoJson) {
+  const std::string dir = test_dir();
+  const std::string whole = qtmv::test::read_file(geojson(dir + "/whole.geojson",
+                                                          {R"({"type":"Point","coordinates":[1,2]})"}));
+  const std::string src = write_text(dir + "/cut.geojson", whole.substr(0, whole.size() / 2));
+  expect_failure(run_small({src, dir + "/out.gpkg"}), 1, {"cannot open '" + src + "'", "GDAL:"}, dir + "/out.gpkg");
+}
+
+TEST(CatalogueFiles, LayerWithoutFeatures) {
+  const std::string dir = test_dir();
+  const std::string src = make_dataset(dir + "/none.gpkg", "GPKG", "nothing", "EPSG:4326", {});
+  expect_failure(run_small({src, dir + "/out.gpkg"}), 1,
+                 {"'" + src + "', layer 'nothing': no usable site (0 features read"}, dir + "/out.gpkg");
+}
+
+TEST(CatalogueFiles, MissingLayerListsTheLayers) {
+  const std::string dir = test_dir();
+  const std::string src = make_dataset(dir + "/one.gpkg", "GPKG", "cities", "EPSG:4326", points({"POINT (1 2)"}));
+  expect_failure(run_small({"-l", "towns", src, dir + "/out.gpkg"}), 1,
+                 {"'" + src + "' has no layer 'towns'; its layers: cities"}, dir + "/out.gpkg");
+}
+
+TEST(CatalogueFiles, CorruptGeometryBlobSkipsThatFeatureByFid) {
+  const std::string dir = test_dir();
+  const std::string src = make_dataset(dir + "/blob.gpkg", "GPKG", "pts", "EPSG:4326",
+                                       points({"POINT (1 2)", "POINT (3 4)", "POINT (60 -5)"}));
+  qtmv::sites::test::corrupt_geometry(src, 2);
+  const Result r = run_small({"-layers", "regions", src, dir + "/out.gpkg"});
+  expect_success(r, dir + "/out.gpkg");
+  EXPECT_TRUE(contains(r.err, "'" + src + "', layer 'pts', FID 2: unreadable feature (GDAL: ")) << r.err;
+  const auto kept = regions(dir + "/out.gpkg");
+  ASSERT_EQ(kept.size(), 2u);
+  EXPECT_EQ(kept[0].fid, 1);
+  EXPECT_EQ(kept[1].fid, 3);
+}
+
+TEST(CatalogueFiles, SourceReplacedByItsOwnRegionsWithOverwrite) {
+  const std::string dir = test_dir();
+  const std::string src = make_dataset(dir + "/self.gpkg", "GPKG", "pts", "EPSG:4326",
+                                       points({"POINT (1 2)", "POINT (100 -40)"}));
+  const Result r = run_small({"-q", "-overwrite", "-layers", "regions", src, src});
+  expect_success(r, src);
+  EXPECT_EQ(regions(src).size(), 2u);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Geometries
+
+TEST(CatalogueGeometry, NullAndEmptyGeometriesAreSkippedByFid) {
+  const std::string dir = test_dir();
+  const std::string src = geojson(dir + "/empty.geojson", {"null", R"({"type":"Point","coordinates":[]})",
+                                                             R"({"type":"GeometryCollection","geometries":[]})",
+                                                             R"({"type":"Point","coordinates":[3,4]})"});
+  const Result r = run_small({"-layers", "regions", src, dir + "/out.gpkg"});
+  expect_success(r, dir + "/out.gpkg");
+  for (int fid : {0, 1, 2}) {
+    EXPECT_TRUE(contains(r.err, "layer 'empty', FID " + std::to_string(fid) + ": empty geometry; feature skipped"))
+        << r.err;
+  }
+  EXPECT_TRUE(contains(r.err, "1 site read, 3 skipped")) << r.err;
+  ASSERT_EQ(regions(dir + "/out.gpkg").size(), 1u);
+  EXPECT_EQ(regions(dir + "/out.gpkg")[0].fid, 3);
+}
+
+TEST(CatalogueGeometry, NullGeometryUnderStrictFailsNamingTheFid) {
+  const std::string dir = test_dir();
+  const std::string src = geojson(dir + "/strict.geojson", {R"({"type":"Point","coordinates":[3,4]})", "null"});
+  expect_failure(run_small({"-strict", src, dir + "/out.gpkg"}), 1,
+                 {"'" + src + "', layer 'strict', FID 1: empty geometry (-strict)"}, dir + "/out.gpkg");
+}
+
+// One bad feature among good ones: skipped with its FID and reason, the others kept.
+void expect_skipped(const std::string& src, const std::string& dst, const std::string& fid_and_reason,
+                    std::size_t kept) {
+  expect_kept(src, dst, fid_and_reason + "; feature skipped", kept);
+}
+
+TEST(CatalogueGeometry, InfiniteCoordinateFromGeoJson1e400) {
+  const std::string dir = test_dir();
+  const std::string src = geojson(dir + "/inf.geojson", {R"({"type":"Point","coordinates":[1e400,2]})",
+                                                         R"({"type":"Point","coordinates":[3,4]})"});
+  expect_skipped(src, dir + "/out.gpkg", "FID 0: NaN or infinite coordinate (inf, 2)", 1);
+}
+
+TEST(CatalogueGeometry, NaNCoordinate) {
+  const std::string dir = test_dir();
+  auto line = std::make_shared<OGRLineString>();
+  line->addPoint(0, 0);
+  line->addPoint(std::nan(""), 1);
+  const std::string src = make_dataset(dir + "/nan.gpkg", "GPKG", "nan", "EPSG:4326",
+                                       {{"POINT (5 5)", "good"}, {"", "nan", line}});
+  expect_skipped(src, dir + "/out.gpkg", "layer 'nan', FID 2: NaN or infinite coordinate (nan, 1)", 1);
+}
+
+TEST(CatalogueGeometry, Latitude95) {
+  const std::string dir = test_dir();
+  const std::string src = geojson(dir + "/lat.geojson", {R"({"type":"Point","coordinates":[10,95]})",
+                                                         R"({"type":"Point","coordinates":[3,4]})"});
+  expect_skipped(src, dir + "/out.gpkg", "FID 0: latitude beyond +-90 at (10, 95)", 1);
+}
+
+TEST(CatalogueGeometry, Longitude720) {
+  const std::string dir = test_dir();
+  const std::string src = geojson(dir + "/lon.geojson", {R"({"type":"Point","coordinates":[720,5]})",
+                                                         R"({"type":"Point","coordinates":[3,4]})"});
+  expect_skipped(src, dir + "/out.gpkg", "FID 0: coordinate (720, 5) beyond +-540 degrees of its CRS", 1);
+}
+
+TEST(CatalogueGeometry, UnsupportedTypesAreSkippedByFid) {
+  const std::string dir = test_dir();
+  const std::string src = wkt_csv(dir + "/types.csv", {"POINT (3 4)", "TIN (((0 0 0,0 1 0,1 0 0,0 0 0)))",
+                                                       "POLYHEDRALSURFACE Z (((0 0 0,0 1 0,1 1 0,0 0 0)))"});
+  const Result r = run_small({"-layers", "regions", src, dir + "/out.gpkg"});
+  expect_success(r, dir + "/out.gpkg");
+  EXPECT_TRUE(contains(r.err, "FID 2: unsupported geometry type 3D TIN; feature skipped")) << r.err;
+  EXPECT_TRUE(contains(r.err, "FID 3: unsupported geometry type 3D PolyhedralSurface; feature skipped")) << r.err;
+  EXPECT_EQ(regions(dir + "/out.gpkg").size(), 1u);
+}
+
+// The cells of a polygon site alone with a far point (its region: the polygon and what is nearer
+// to it than to the point).
+GIntBig polygon_cells(const std::string& dir, const std::string& name, const std::string& wkt) {
+  const std::string src = wkt_csv(dir + "/" + name + ".csv", {wkt, "POINT (-150 -60)"});
+  const auto r = regions_of(src, dir + "/" + name + ".gpkg");
+  return r.size() == 2 ? r[0].cells : -1;
+}
+
+TEST(CatalogueGeometry, UnclosedRingIsClosed) {
+  const std::string dir = test_dir();
+  const GIntBig closed = polygon_cells(dir, "closed", "POLYGON ((0 0,10 0,10 10,0 10,0 0))");
+  EXPECT_GT(closed, 0);
+  EXPECT_EQ(polygon_cells(dir, "unclosed", "POLYGON ((0 0,10 0,10 10,0 10))"), closed);
+}
+
+TEST(CatalogueGeometry, DuplicateVerticesChangeNothing) {
+  const std::string dir = test_dir();
+  const GIntBig plain = polygon_cells(dir, "plain", "POLYGON ((0 0,10 0,10 10,0 10,0 0))");
+  EXPECT_GT(plain, 0);
+  EXPECT_EQ(polygon_cells(dir, "repeated", "POLYGON ((0 0,0 0,10 0,10 0,10 0,10 10,0 10,0 10,0 0,0 0))"), plain);
+}
+
+TEST(CatalogueGeometry, BowTieZeroAreaAndTwoPointRingsAreKept) {
+  const std::string dir = test_dir();
+  const std::string src = wkt_csv(dir + "/odd.csv", {"POLYGON ((20 0,30 10,30 0,20 10,20 0))",
+                                                     "POLYGON ((60 0,70 0,65 0,60 0))", "POLYGON ((100 0,110 0))",
+                                                     "POINT (-150 -60)"});
+  const Result r = run_small({"-layers", "regions", src, dir + "/out.gpkg"});
+  expect_success(r, dir + "/out.gpkg");
+  EXPECT_FALSE(contains(r.err, "feature skipped")) << r.err;
+  const auto kept = regions(dir + "/out.gpkg");
+  ASSERT_EQ(kept.size(), 4u);
+  for (const Region& region : kept) EXPECT_GT(region.cells, 0) << "FID " << region.fid;
+}
+
+TEST(CatalogueGeometry, PolygonLargerThanAHemisphere) {
+  const std::string dir = test_dir();
+  // 340 by 160 degrees: 93% of the sphere, the point outside it. Its edges are all shorter than
+  // 180 degrees of longitude: one from -170 to 170 would be read the short way, across +-180
+  // (-wrap auto), and the polygon would be the 20 degree band there.
+  const std::string big = "POLYGON ((-170 -80,-85 -80,0 -80,85 -80,170 -80,170 80,85 80,0 80,-85 80,-170 80,-170 -80))";
+  const auto kept = regions_of(wkt_csv(dir + "/big.csv", {big, "POINT (175 0)"}), dir + "/out.gpkg");
+  ASSERT_EQ(kept.size(), 2u);
+  EXPECT_GT(kept[0].area_fraction, 0.92);
+  EXPECT_GT(kept[1].cells, 0);
+  // The same polygon in four vertices, read as flat lon/lat.
+  const auto flat = regions_of(wkt_csv(dir + "/flat.csv", {"POLYGON ((-170 -80,170 -80,170 80,-170 80,-170 -80))",
+                                                           "POINT (175 0)"}),
+                               dir + "/flat.gpkg", {"-wrap", "none"});
+  ASSERT_EQ(flat.size(), 2u);
+  EXPECT_EQ(flat[0].cells, kept[0].cells);
+}
+
+TEST(CatalogueGeometry, PolygonAroundAPoleHoldsThePole) {
+  const std::string dir = test_dir();
+  // A ring along latitude 80 that winds round the north pole, and a point on the pole: the
+  // polygon's interior holds the pole, so the point gets no cell and says so.
+  const std::string src = wkt_csv(dir + "/cap.csv", {"POLYGON ((0 80,90 80,180 80,-90 80,0 80))", "POINT (0 90)",
+                                                     "POINT (0 -30)"});
+  const Result r = run_small({"-layers", "regions", src, dir + "/out.gpkg"});
+  expect_success(r, dir + "/out.gpkg");
+  EXPECT_TRUE(contains(r.err, "1 site(s) got no cell of their own at level 4 (FIDs 2)")) << r.err;
+  const auto kept = regions(dir + "/out.gpkg");
+  ASSERT_EQ(kept.size(), 3u);
+  EXPECT_GT(kept[0].area_fraction, (1 - std::sin(80 * M_PI / 180)) / 2);  // at least the cap
+  EXPECT_EQ(kept[1].cells, 0);
+}
+
+TEST(CatalogueGeometry, ZAndMCoordinatesAreDropped) {
+  const std::string dir = test_dir();
+  const std::string src = wkt_csv(dir + "/zm.csv", {"POINT ZM (1 2 3 4)", "LINESTRING Z (60 5 1,70 6 2)",
+                                                    "POLYGON M ((-60 -10 1,-50 -10 2,-50 0 3,-60 -10 1))"});
+  const auto kept = regions_of(src, dir + "/out.gpkg");
+  ASSERT_EQ(kept.size(), 3u);
+  for (const Region& region : kept) EXPECT_GT(region.cells, 0) << "FID " << region.fid;
+}
+
+TEST(CatalogueGeometry, CurvedGeometriesAreLinearised) {
+  const std::string dir = test_dir();
+  const std::string src =
+      wkt_csv(dir + "/curves.csv", {"CIRCULARSTRING (0 -20,5 -15,10 -20)",
+                                    "CURVEPOLYGON (CIRCULARSTRING (60 -40,70 -40,70 -30,60 -30,60 -40))",
+                                    "COMPOUNDCURVE ((100 10,110 10),CIRCULARSTRING (110 10,115 15,120 10))",
+                                    "MULTISURFACE (CURVEPOLYGON (CIRCULARSTRING (-90 30,-85 35,-80 30,-85 25,-90 30)))"});
+  const auto kept = regions_of(src, dir + "/out.gpkg");
+  ASSERT_EQ(kept.size(), 4u);
+  for (const Region& region : kept) EXPECT_GT(region.cells, 0) << "FID " << region.fid;
+}
+
+TEST(CatalogueGeometry, GeometryCollectionNestingAllTypesIsOneSite) {
+  const std::string dir = test_dir();
+  const std::string src = wkt_csv(
+      dir + "/gc.csv",
+      {"GEOMETRYCOLLECTION (POINT (1 -50),LINESTRING (2 -50,3 -51),POLYGON ((5 -50,6 -50,6 -49,5 -50)),"
+       "MULTIPOINT ((7 -50)),MULTILINESTRING ((8 -50,9 -50)),MULTIPOLYGON (((10 -50,11 -50,11 -49,10 -50))),"
+       "GEOMETRYCOLLECTION (POINT (12 -50),CIRCULARSTRING (13 -50,14 -49,15 -50),POINT EMPTY))",
+       "POINT (100 40)"});
+  const Result r = run_small({"-layers", "regions", src, dir + "/out.gpkg"});
+  expect_success(r, dir + "/out.gpkg");
+  EXPECT_TRUE(contains(r.err, "2 sites read, 0 skipped")) << r.err;
+  const auto kept = regions(dir + "/out.gpkg");
+  ASSERT_EQ(kept.size(), 2u);
+  EXPECT_GT(kept[0].cells, 0);
+}
+
+TEST(CatalogueGeometry, TenThousandIdenticalPoints) {
+  const std::string dir = test_dir();
+  std::string text = "lon,lat\n";
+  for (int k = 0; k < 10000; ++k) text += "5,5\n";
+  text += "-120,-30\n";
+  const std::string src = write_text(dir + "/same.csv", text);
+  const auto start = std::chrono::steady_clock::now();
+  const Result r = run_small({"-layers", "regions", "-oo", "X_POSSIBLE_NAMES=lon", "-oo", "Y_POSSIBLE_NAMES=lat",
+                              src, dir + "/out.gpkg"});
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(30));
+  expect_success(r, dir + "/out.gpkg");
+  // Ties go to the site read first; the others are named (the first ten) and keep their rows.
+  EXPECT_TRUE(contains(r.err, "9999 site(s) got no cell of their own at level 4 (FIDs 2, 3, 4")) << r.err;
+  const auto kept = regions(dir + "/out.gpkg");
+  ASSERT_EQ(kept.size(), 10001u);
+  EXPECT_GT(kept[0].cells, 0);
+  EXPECT_EQ(kept[1].cells, 0);
+  EXPECT_GT(kept[10000].cells, 0);
+}
+
+// ---------------------------------------------------------------------------------------------
+// CRS
+
+TEST(CatalogueCrs, NoCrsIsTakenAsWgs84WithAWarning) {
+  const std::string dir = test_dir();
+  const std::string src = wkt_csv(dir + "/nocrs.csv", {"POINT (3 4)"});
+  const Result r = run_small({"-layers", "regions", src, dir + "/out.gpkg"});
+  expect_success(r, dir + "/out.gpkg");
+  EXPECT_TRUE(contains(r.err, "warning: '" + src + "', layer 'nocrs': the layer has no CRS; its coordinates are "
+                              "taken as EPSG:4326"))
+      << r.err;
+}
+
+TEST(CatalogueCrs, WebMercatorNear1e20NeitherHangsNorStops) {
+  const std::string dir = test_dir();
+  const std::string src = make_dataset(dir + "/huge.gpkg", "GPKG", "huge", "EPSG:3857", points({
+      "POINT (1e20 -1e20)", "POINT (1000000 2000000)", "POINT (-1e20 1e20)"}));
+  const Result r = run_small({"-layers", "regions", src, dir + "/out.gpkg"}, {}, 30);
+  expect_success(r, dir + "/out.gpkg");
+  EXPECT_TRUE(contains(r.err, "FID 1: coordinate (1e+20, -1e+20) beyond +-1e8 metres of its CRS; feature skipped"))
+      << r.err;
+  EXPECT_TRUE(contains(r.err, "FID 3: coordinate (-1e+20, 1e+20) beyond +-1e8 metres")) << r.err;
+  ASSERT_EQ(regions(dir + "/out.gpkg").size(), 1u);
+}
+
+TEST(CatalogueCrs, OnlyHugeCoordinatesIsNoUsableSite) {
+  const std::string dir = test_dir();
+  const std::string src = make_dataset(dir + "/huge.gpkg", "GPKG", "huge", "EPSG:3857", points({"POINT (1e20 0)"}));
+  expect_failure(run_small({src, dir + "/out.gpkg"}, {}, 30), 1,
+                 {"'" + src + "', layer 'huge': no usable site (1 features read, 1 skipped)"}, dir + "/out.gpkg");
+}
+
+TEST(CatalogueCrs, BadSourceSrs) {
+  const std::string dir = test_dir();
+  const std::string src = wkt_csv(dir + "/a.csv", {"POINT (3 4)"});
+  expect_failure(run_small({"-s_srs", "EPSG:999999", src, dir + "/out.gpkg"}), 1,
+                 {"-s_srs: cannot read 'EPSG:999999'"}, dir + "/out.gpkg");
+}
+
+TEST(CatalogueCrs, CrsWithoutATransformationToWgs84) {
+  const std::string dir = test_dir();
+  const std::string src = wkt_csv(dir + "/local.csv", {"POINT (3 4)"});
+  expect_failure(run_small({"-s_srs", R"(LOCAL_CS["site grid",UNIT["metre",1]])", src, dir + "/out.gpkg"}), 1,
+                 {"'" + src + "', layer 'local': no transformation from its CRS (site grid) to WGS84"},
+                 dir + "/out.gpkg");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Options (usage errors exit 2 with the usage; nothing is read or written)
+
+TEST(CatalogueOptions, BadLevels) {
+  const std::string dir = test_dir();
+  for (const char* level : {"-1", "25", "nine", "9.5", ""}) {
+    expect_failure(run({"-level", level, "in.csv", dir + "/out.gpkg"}), 2,
+                   {std::string("-level: '") + level + "' is not a level from 0 to 24"}, dir + "/out.gpkg");
+  }
+}
+
+TEST(CatalogueOptions, UnknownOption) {
+  const std::string dir = test_dir();
+  expect_failure(run({"-levle", "5", "in.csv", dir + "/out.gpkg"}), 2, {"unknown option '-levle'"},
+                 dir + "/out.gpkg");
+}
+
+TEST(CatalogueOptions, OptionWithoutItsValue) {
+  const std::string dir = test_dir();
+  expect_failure(run({"in.csv", dir + "/out.gpkg", "-l"}), 2, {"option '-l' needs a value"}, dir + "/out.gpkg");
+}
+
+TEST(CatalogueOptions, MissingDestination) {
+  const std::string dir = test_dir();
+  expect_failure(run({"-level", "3", kCountries}), 2, {"DST_DATASOURCE is missing"}, dir + "/out.gpkg");
+}
+
+TEST(CatalogueOptions, UnknownFormat) {
+  const std::string dir = test_dir();
+  expect_failure(run_small({"-of", "NoSuchDriver", kCountries, dir + "/out.gpkg"}), 1,
+                 {"-of NoSuchDriver: no such GDAL driver"}, dir + "/out.gpkg");
+}
+
+TEST(CatalogueOptions, UnguessableFormat) {
+  const std::string dir = test_dir();
+  expect_failure(run_small({kCountries, dir + "/out.xyz123"}), 1,
+                 {"cannot tell the output format from '" + dir + "/out.xyz123'", "-of FORMAT"}, dir + "/out.xyz123");
+}
+
+TEST(CatalogueOptions, DriverThatCannotWriteOurData) {
+  const std::string dir = test_dir();
+  // WMS lists CreateCopy, but copies only WMS datasets: refused when the copy is made.
+  expect_failure(run_small({"-of", "WMS", "-l", "countries_110m", kCountries, dir + "/out.xml"}), 1,
+                 {dir + "/out.xml", "WMS"}, dir + "/out.xml");
+}
+
+TEST(CatalogueOptions, SqlWithWhereOrLayerConflict) {
+  const std::string dir = test_dir();
+  expect_failure(run({"-sql", "SELECT * FROM countries_110m", "-where", "pop_est > 1", kCountries, dir + "/out.gpkg"}),
+                 2, {"-sql and -where exclude each other"}, dir + "/out.gpkg");
+  expect_failure(run({"-sql", "SELECT * FROM countries_110m", "-l", "countries_110m", kCountries, dir + "/out.gpkg"}),
+                 2, {"-sql and -l exclude each other"}, dir + "/out.gpkg");
+}
+
+TEST(CatalogueOptions, BadSqlAndBadWhere) {
+  const std::string dir = test_dir();
+  expect_failure(run_small({"-sql", "SELEC nonsense", kCountries, dir + "/out.gpkg"}), 1,
+                 {"'" + kCountries + "': -sql failed: SELEC nonsense (GDAL: "}, dir + "/out.gpkg");
+  expect_failure(run_small({"-where", "no_such_field = 1", "-l", "countries_110m", kCountries, dir + "/out.gpkg"}), 1,
+                 {"layer 'countries_110m': bad -where: no_such_field = 1"}, dir + "/out.gpkg");
+}
+
+TEST(CatalogueOptions, SqlFileMissing) {
+  const std::string dir = test_dir();
+  expect_failure(run({"-sql", "@" + dir + "/none.sql", kCountries, dir + "/out.gpkg"}), 2,
+                 {"-sql: cannot read '" + dir + "/none.sql'"}, dir + "/out.gpkg");
+}
+
+TEST(CatalogueOptions, SqlFromADeviceIsRefused) {
+  const std::string dir = test_dir();
+  // Read to its end, /dev/zero would fill the memory.
+  expect_failure(run({"-sql", "@/dev/zero", kCountries, dir + "/out.gpkg"}, {}, 20), 2,
+                 {"-sql: cannot read '/dev/zero': not a regular file"}, dir + "/out.gpkg");
+}
+
+TEST(CatalogueOptions, UnknownOpenOptionIsReported) {
+  const std::string dir = test_dir();
+  const std::string src = wkt_csv(dir + "/a.csv", {"POINT (3 4)"});
+  // Was silent: GDAL's warning was dropped with the open's other messages.
+  expect_kept(src, dir + "/out.gpkg", "'" + src + "': GDAL: driver CSV does not support open option NO_SUCH_OPTION", 1,
+              {"-oo", "NO_SUCH_OPTION=1"});
+}
+
+TEST(CatalogueOptions, CudaWithoutAGpuFailsBeforeReading) {
+  if (qtmv::label::cuda_device_count() > 0) GTEST_SKIP() << "this host has a CUDA GPU";
+  const std::string dir = test_dir();
+  // The source does not exist: the device is checked first.
+  expect_failure(run({"-device", "cuda", dir + "/missing.gpkg", dir + "/out.gpkg"}), 1,
+                 {"-device cuda: no usable CUDA GPU found; use -device cpu or auto"}, dir + "/out.gpkg");
+}
+
+TEST(CatalogueOptions, BadThreadsAndDevice) {
+  const std::string dir = test_dir();
+  expect_failure(run({"-threads", "0", "in.csv", dir + "/out.gpkg"}), 2, {"-threads: '0' is not a number of threads"},
+                 dir + "/out.gpkg");
+  expect_failure(run({"-device", "gpu", "in.csv", dir + "/out.gpkg"}), 2, {"-device: 'gpu' is not one of"},
+                 dir + "/out.gpkg");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Output
+
+TEST(CatalogueOutput, ExistingDestinationWithoutOverwriteIsUntouched) {
+  const std::string dir = test_dir();
+  const std::string dst = write_text(dir + "/out.gpkg", "precious");
+  const Result r = run_small({kCountries, dst});
+  EXPECT_EQ(r.status, 1) << r.err;
+  EXPECT_TRUE(contains(r.err, "'" + dst + "' exists: use -overwrite to replace it")) << r.err;
+  EXPECT_EQ(qtmv::test::read_file(dst), "precious");
+  EXPECT_TRUE(hidden_entries(dir).empty());
+}
+
+TEST(CatalogueOutput, UnwritableDirectory) {
+  const std::string dir = test_dir();
+  const std::string locked = dir + "/locked";
+  fs::create_directory(locked);
+  chmod(locked.c_str(), 0555);
+  expect_failure(run_small({"-l", "countries_110m", kCountries, locked + "/out.gpkg"}, ChildSetup{-1, true}), 1,
+                 {"cannot write '" + locked + "/out.gpkg': cannot create a file in '" + locked + "'"},
+                 locked + "/out.gpkg");
+}
+
+TEST(CatalogueOutput, MissingDirectory) {
+  const std::string dir = test_dir();
+  expect_failure(run_small({kCountries, dir + "/no/such/out.gpkg"}), 1,
+                 {"cannot write '" + dir + "/no/such/out.gpkg': no directory '" + dir + "/no/such'"},
+                 dir + "/no/such/out.gpkg");
+}
+
+TEST(CatalogueOutput, OverwriteOntoADirectoryLeavesIt) {
+  const std::string dir = test_dir();
+  const std::string dst = dir + "/out.gpkg";
+  fs::create_directory(dst);
+  write_text(dst + "/keep.txt", "kept");
+  const Result r = run_small({"-overwrite", "-layers", "regions", "-l", "countries_110m", kCountries, dst});
+  EXPECT_EQ(r.status, 1) << r.err;
+  EXPECT_TRUE(contains(r.err, "cannot write '" + dst + "': renaming into '" + dst + "': Is a directory")) << r.err;
+  EXPECT_EQ(qtmv::test::read_file(dst + "/keep.txt"), "kept");
+  EXPECT_TRUE(hidden_entries(dir).empty());
+}
+
+TEST(CatalogueOutput, AttributeTypeTheFormatCannotHold) {
+  const std::string dir = test_dir();
+  // A list field: GeoJSON has them, shapefiles do not. The writer names the layer and field.
+  const std::string src = write_text(dir + "/lists.geojson", R"({"type":"FeatureCollection","features":[
+{"type":"Feature","properties":{"tags":["a","b"]},"geometry":{"type":"Point","coordinates":[3,4]}}]})");
+  expect_failure(run_small({"-layers", "regions", src, dir + "/out.shp"}), 1,
+                 {dir + "/out.shp, layer regions: cannot create the field tags", "StringList"}, dir + "/out.shp");
+  for (const char* ext : {".shx", ".dbf", ".prj"}) EXPECT_FALSE(fs::exists(dir + "/out" + ext)) << ext;
+}
+
+// A file system that fills up: the run's file size limit (ulimit -f). The write fails, the run
+// says where, and nothing is left: neither the destination nor the temporary directory.
+void expect_disk_full(const std::vector<std::string>& args, const std::string& dst, long bytes,
+                      const std::vector<std::string>& names) {
+  const Result r = run_small(concat(args, {"-l", "countries_110m", kCountries, dst}), ChildSetup{bytes, false});
+  expect_failure(r, 1, names, dst);
+}
+
+TEST(CatalogueOutput, DiskFullWritingGeoPackage) {
+  const std::string dir = test_dir();
+  expect_disk_full({"-layers", "cells"}, dir + "/out.gpkg", 64 << 10, {dir + "/out.gpkg, layer cells", "I/O error"});
+}
+
+TEST(CatalogueOutput, DiskFullWritingGeoTiff) {
+  const std::string dir = test_dir();
+  expect_disk_full({"-level", "7"}, dir + "/out.tif", 16 << 10, {dir + "/out.tif", "File too large"});
+}
+
+TEST(CatalogueOutput, DiskFullWritingShapefile) {
+  const std::string dir = test_dir();
+  expect_disk_full({"-layers", "boundary_cells"}, dir + "/out.shp", 8 << 10, {dir + "/out.shp", "File too large"});
+}
+
+TEST(CatalogueOutput, SigintWhileWritingLeavesNothing) {
+  qtmv::test::expect_clean_stop_while_writing(concat({kCentres}, kCsvOptions), SIGINT, "SIGINT", 1.5);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Limits announced before the work
+
+TEST(CatalogueLimits, LevelTooLargeForMemoryFailsBeforeReading) {
+  const std::string dir = test_dir();
+  const auto start = std::chrono::steady_clock::now();
+  // The source does not exist: the estimate comes first.
+  const Result r = run({"-level", "24", "-device", "cpu", dir + "/missing.gpkg", dir + "/out.gpkg"});
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(10));
+  expect_failure(r, 1, {"level 24 needs about ", " GiB for its 2251799813685248 cells", "choose a lower -level"},
+                 dir + "/out.gpkg");
+  EXPECT_FALSE(contains(r.err, "missing.gpkg")) << r.err;
+}
+
+TEST(CatalogueLimits, SigintWhileLabellingStopsWithinASecond) {
+  const std::string dir = test_dir();
+  const std::string dst = dir + "/out.gpkg";
+  // Level 12 on the CPU: 134 million cells, seconds of labelling in tiles of 64 MiB. The
+  // labeller says where it runs once the read is done and the labels are allocated.
+  double seconds = 0;
+  const Result r = qtmv::test::interrupt_when(
+      concat({"-level", "12", "-device", "cpu", "-layers", "regions", kCentres, dst}, kCsvOptions),
+      [](const std::string& err) { return contains(qtmv::test::read_file(err), "labelling on cpu"); }, SIGINT,
+      seconds);
+  qtmv::test::expect_interrupted(r, "SIGINT", dst, seconds, 1.5);
+  EXPECT_FALSE(contains(r.err, "sites read,")) << "the run finished before the signal: " << r.err;
+}
+
+}  // namespace

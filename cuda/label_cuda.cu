@@ -7,6 +7,7 @@
 
 #include <climits>
 #include <cmath>
+#include <cstdlib>
 #include <stdexcept>
 #include <string>
 
@@ -18,12 +19,25 @@ namespace qtmv::label::cuda {
 
 namespace {
 
-/// Throws std::runtime_error naming the failed call and its place in the source.
+/// Throws std::runtime_error naming the failed call and its place in the source; OutOfMemory
+/// for a failed allocation (not sticky: the context stays usable).
 void check(cudaError_t status, const char* call, const char* file, int line) {
-  if (status != cudaSuccess) {
-    throw std::runtime_error(std::string("CUDA error ") + cudaGetErrorName(status) + " (" +
-                             cudaGetErrorString(status) + ") in " + call + " at " + file + ":" +
-                             std::to_string(line));
+  if (status == cudaSuccess) return;
+  const std::string what = std::string("CUDA error ") + cudaGetErrorName(status) + " (" +
+                           cudaGetErrorString(status) + ") in " + call + " at " + file + ":" + std::to_string(line);
+  if (status == cudaErrorMemoryAllocation) {
+    (void)cudaGetLastError();  // or the next launch check would report it again
+    throw OutOfMemory(what);
+  }
+  throw std::runtime_error(what);
+}
+
+/// Fault injection (OutOfMemory's comment): throws when QTMV_FAULT_CUDA_OOM names `step`.
+void injected_fault(const char* step) {
+  const char* fault = std::getenv("QTMV_FAULT_CUDA_OOM");
+  if (fault && std::string(fault) == step) {
+    throw OutOfMemory(std::string("CUDA error cudaErrorMemoryAllocation (injected by QTMV_FAULT_CUDA_OOM=") + step +
+                      ")");
   }
 }
 #define QTMV_CUDA_CHECK(call) check((call), #call, __FILE__, __LINE__)
@@ -686,6 +700,7 @@ struct DeviceTree {
 /// The tree of build_tree (labeller.cpp), built on the current device.
 DeviceTree build_on_device(int device, const Piece* pieces, std::int32_t piece_count, int level,
                            bool with_distance) {
+  injected_fault("build");
   const int list_level = tree_list_level(level);
   // The scratch comes from the device's default pool, kept between builds (trimmed at the end).
   cudaMemPool_t pool;
@@ -1011,6 +1026,7 @@ void Labeller::reserve(std::uint64_t max_cells, bool want_distance, bool want_bo
   Impl& m = *impl_;
   QTMV_CUDA_CHECK(cudaSetDevice(m.device));
   m.free_outputs();
+  if (max_cells > 65536) injected_fault("reserve");  // only large tiles fail: the caller tiles
   const std::size_t before = m.bytes;
   m.site = device_alloc<std::int32_t>(max_cells, &m.bytes);
   // brute needs the labels of a whole tile for its boundary pass; distances on request.
@@ -1030,6 +1046,7 @@ float Labeller::run(grid::Code first, std::uint64_t count, bool want_distance, b
     throw std::invalid_argument("Labeller::run: outputs asked for that reserve() did not make room for");
   }
   QTMV_CUDA_CHECK(cudaSetDevice(m.device));
+  if (first > 0) injected_fault("run");  // after the first tile: a failure mid-run
   float* metres = want_distance ? m.metres : nullptr;
   std::uint8_t* boundary = want_boundary ? m.boundary : nullptr;
   QTMV_CUDA_CHECK(cudaEventRecord(m.start));

@@ -448,7 +448,15 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   label_options.progress = [&](double f, const char* stage) {
     if (!progress.report(ends.read, ends.label, f, stage)) throw Interrupted("interrupted");
   };
-  label_options.log = [&](const std::string& message) { say(Severity::info, message); };
+  // The labeller's lines are informative, except its warnings (a GPU out of memory).
+  label_options.log = [&](const std::string& message) {
+    const std::string prefix = "warning: ";
+    if (message.compare(0, prefix.size(), prefix) == 0) {
+      say(Severity::warning, message.substr(prefix.size()));
+    } else {
+      say(Severity::info, message);
+    }
+  };
   label::LabelStats stats;
   try {
     stats = label::label_cells(sites.geometry.input(), label_options, [&](const label::LabelTile& tile) {

@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -18,6 +19,15 @@ struct Tree;
 }
 
 namespace qtmv::label::cuda {
+
+/// A device allocation failed (cudaErrorMemoryAllocation): the caller may retry with smaller
+/// tiles or go on on the CPU. Fault injection for the tests: the environment variable
+/// QTMV_FAULT_CUDA_OOM set to `build` (the device tree), `reserve` (outputs of more than 65536
+/// cells) or `run` (any tile but the first) makes that step fail this way.
+class OutOfMemory : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
 
 /// Number of CUDA devices the runtime can use (0 when there is no driver or no device).
 int device_count();

@@ -494,6 +494,66 @@ MemoryEstimate estimate_output_memory(int level, const LabelOptions& options) {
   return e;
 }
 
+namespace {
+
+/// The host's buffers for one tile of outputs.
+struct HostTile {
+  std::uint64_t cells;
+  std::int32_t* site;
+  float* metres;           // null: no distances
+  std::uint8_t* boundary;  // null: no flags
+};
+
+/// label_cells on a GPU: device tiles as large as its memory allows (smaller ones when an
+/// allocation fails), each copied to the host tile by tile and handed to the sink. `done` counts
+/// the cells handed over, for the CPU to go on from when the GPU runs out of memory mid-run.
+void label_on_gpu(cuda::Labeller& gpu, int device, int level, const LabelOptions& options, const MemoryEstimate& need,
+                  const HostTile& host, const std::function<void(const LabelTile&)>& sink, LabelStats& stats,
+                  std::uint64_t& done) {
+  const std::uint64_t total = need.cells;
+  const cuda::DeviceInfo info = cuda::device_info(device);
+  const std::uint64_t device_limit =
+      options.memory_limit_bytes ? options.memory_limit_bytes : static_cast<std::uint64_t>(info.free_bytes * 0.8);
+  std::uint64_t device_tile = std::min<std::uint64_t>(total, device_limit / need.bytes_per_cell);
+  if (device_tile < std::min<std::uint64_t>(total, kMinTileCells)) {
+    throw std::runtime_error("level " + std::to_string(level) + " needs " + gib(double(need.output_bytes)) +
+                             " of outputs on the GPU; not even a tile of 4096 cells fits in the " +
+                             gib(double(device_limit)) + " available");
+  }
+  for (;;) {
+    try {
+      gpu.reserve(device_tile, options.want_distance, options.want_boundary);
+      break;
+    } catch (const cuda::OutOfMemory&) {
+      if (device_tile <= kMinTileCells) throw;
+      device_tile = std::max<std::uint64_t>(kMinTileCells, device_tile / 4);
+      if (options.log) {
+        options.log("warning: the GPU could not hold the outputs' tile; trying tiles of " +
+                    std::to_string(device_tile) + " cells");
+      }
+    }
+  }
+  if (device_tile < total && options.log) {
+    options.log("level " + std::to_string(level) + " outputs take " + gib(double(need.output_bytes)) +
+                "; labelling in tiles of " + std::to_string(device_tile) + " cells");
+  }
+  stats.device_bytes = gpu.device_bytes();
+  for (std::uint64_t first = done; first < total; first += device_tile) {
+    const std::uint64_t count = std::min(device_tile, total - first);
+    stats.label_seconds += gpu.run(first, count, options.want_distance, options.want_boundary) / 1e3;
+    ++stats.tiles;
+    for (std::uint64_t offset = 0; offset < count; offset += host.cells) {
+      const std::uint64_t part = std::min(host.cells, count - offset);
+      stats.copy_seconds += gpu.download(offset, part, host.site, host.metres, host.boundary) / 1e3;
+      sink({first + offset, part, host.site, host.metres, host.boundary});
+      done = first + offset + part;
+    }
+    if (options.progress) options.progress(double(first + count) / double(total), "label");
+  }
+}
+
+}  // namespace
+
 LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
                        const std::function<void(const LabelTile&)>& sink) {
   validate(input, options.rule);
@@ -527,12 +587,24 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
   const bool device_tree = hier && device.cuda && options.tree_on_device;
   std::unique_ptr<cuda::Labeller> gpu_built;
   Tree tree;
+  // A GPU that runs out of memory hands the rest of the work to the CPU, with a warning.
+  bool on_gpu = device.cuda;
+  auto leave_gpu = [&](const cuda::OutOfMemory& e, std::uint64_t from) {
+    say("warning: the GPU ran out of memory (" + std::string(e.what()) + "); labelling " +
+        (from == 0 ? std::string("on the CPU") : "cells " + std::to_string(from) + " onwards on the CPU") +
+        " instead");
+    on_gpu = false;
+    gpu_built.reset();
+    stats.device += ", then cpu (" + std::to_string(threads) + " threads)";
+  };
   if (device_tree) {
     try {
       gpu_built = std::make_unique<cuda::Labeller>(device.index, candidates, input.level, options.want_distance);
     } catch (const std::length_error&) {
       // Too large for the device build's 32-bit work counts: the host builds it (below).
       gpu_built.reset();
+    } catch (const cuda::OutOfMemory& e) {
+      leave_gpu(e, 0);
     }
   }
   if (gpu_built) {
@@ -569,50 +641,32 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
   float* metres_ptr = options.want_distance ? metres.data() : nullptr;
   std::uint8_t* boundary_ptr = options.want_boundary ? boundary.data() : nullptr;
 
-  if (!device.cuda) {
-    const TreeView tv = tree.view(candidates.data());
-    for (std::uint64_t first = 0; first < total; first += host_tile) {
-      const std::uint64_t count = std::min(host_tile, total - first);
-      const double start = now_seconds();
-      if (hier) {
-        cpu_tree_range(tree, tv, first, count, site.data(), metres_ptr, boundary_ptr, threads);
-      } else {
-        cpu_brute_range(candidates, input.level, first, count, site.data(), metres_ptr, boundary_ptr, threads);
+  std::uint64_t done = 0;  // cells handed to the sink
+  if (on_gpu) {
+    try {
+      if (!gpu_built) {
+        gpu_built = std::make_unique<cuda::Labeller>(device.index, candidates, hier ? &tree : nullptr, input.level);
       }
-      stats.label_seconds += now_seconds() - start;
-      ++stats.tiles;
-      sink({first, count, site.data(), metres_ptr, boundary_ptr});
-      progress(double(first + count) / double(total), "label");
+      const HostTile host{host_tile, site.data(), metres_ptr, boundary_ptr};
+      label_on_gpu(*gpu_built, device.index, input.level, options, need, host, sink, stats, done);
+      return stats;
+    } catch (const cuda::OutOfMemory& e) {
+      leave_gpu(e, done);
     }
-    return stats;
+    if (hier && tree.nodes.empty()) tree = build_tree(candidates, input.level, options.want_distance, threads);
   }
-
-  if (!gpu_built) gpu_built = std::make_unique<cuda::Labeller>(device.index, candidates, hier ? &tree : nullptr, input.level);
-  cuda::Labeller& gpu = *gpu_built;
-  const cuda::DeviceInfo info = cuda::device_info(device.index);
-  const std::uint64_t device_limit =
-      options.memory_limit_bytes ? options.memory_limit_bytes : static_cast<std::uint64_t>(info.free_bytes * 0.8);
-  const std::uint64_t device_tile = std::min<std::uint64_t>(total, device_limit / need.bytes_per_cell);
-  if (device_tile < std::min<std::uint64_t>(total, kMinTileCells)) {
-    throw std::runtime_error("level " + std::to_string(input.level) + " needs " + gib(double(need.output_bytes)) +
-                             " of outputs on the GPU; not even a tile of 4096 cells fits in the " +
-                             gib(double(device_limit)) + " available");
-  }
-  if (device_tile < total) {
-    say("level " + std::to_string(input.level) + " outputs take " + gib(double(need.output_bytes)) +
-        "; labelling in tiles of " + std::to_string(device_tile) + " cells");
-  }
-  gpu.reserve(device_tile, options.want_distance, options.want_boundary);
-  stats.device_bytes = gpu.device_bytes();
-  for (std::uint64_t first = 0; first < total; first += device_tile) {
-    const std::uint64_t count = std::min(device_tile, total - first);
-    stats.label_seconds += gpu.run(first, count, options.want_distance, options.want_boundary) / 1e3;
+  const TreeView tv = tree.view(candidates.data());
+  for (std::uint64_t first = done; first < total; first += host_tile) {
+    const std::uint64_t count = std::min(host_tile, total - first);
+    const double start = now_seconds();
+    if (hier) {
+      cpu_tree_range(tree, tv, first, count, site.data(), metres_ptr, boundary_ptr, threads);
+    } else {
+      cpu_brute_range(candidates, input.level, first, count, site.data(), metres_ptr, boundary_ptr, threads);
+    }
+    stats.label_seconds += now_seconds() - start;
     ++stats.tiles;
-    for (std::uint64_t offset = 0; offset < count; offset += host_tile) {
-      const std::uint64_t part = std::min(host_tile, count - offset);
-      stats.copy_seconds += gpu.download(offset, part, site.data(), metres_ptr, boundary_ptr) / 1e3;
-      sink({first + offset, part, site.data(), metres_ptr, boundary_ptr});
-    }
+    sink({first, count, site.data(), metres_ptr, boundary_ptr});
     progress(double(first + count) / double(total), "label");
   }
   return stats;

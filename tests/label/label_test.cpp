@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <random>
 #include <string>
 #include <vector>
@@ -721,6 +722,43 @@ TEST(LabelDeviceTree, OddRangesMatchTheCpu) {
       bad = 0;
       for (std::uint64_t k = 0; k < count; ++k) bad += site[k] != cpu.site[first + k];
       EXPECT_EQ(bad, 0u) << "level " << level << ", labels only, codes " << first << " + " << count;
+    }
+  }
+}
+
+// A GPU that runs out of memory (fault injection: QTMV_FAULT_CUDA_OOM) never yields other labels:
+// a failed tree build or a failure mid-run hands the rest to the CPU, a tile too large for the
+// device gives way to smaller tiles; each says so.
+TEST(LabelDeviceFaults, OutOfMemoryFallsBackWithTheSameResults) {
+  if (cuda_device_count() == 0) GTEST_SKIP() << "no CUDA GPU";
+  const SiteGeometry g = arcs(8, 5, 20, 808);
+  LabelOptions cpu_options;
+  cpu_options.device = "cpu";
+  const LabelResult want = label_all(g.input(), cpu_options);
+  for (const std::string step : {"build", "reserve", "run"}) {
+    LabelOptions options;
+    options.device = "cuda";
+    if (step == "run") options.memory_limit_bytes = 9 * 50000;  // tiles of 50000 cells: a run after the first fails
+    std::string log;
+    options.log = [&](const std::string& message) { log += message + "\n"; };
+    ::setenv("QTMV_FAULT_CUDA_OOM", step.c_str(), 1);
+    const LabelResult got = label_all(g.input(), options);
+    ::unsetenv("QTMV_FAULT_CUDA_OOM");
+    EXPECT_EQ(got.site, want.site) << step;
+    EXPECT_EQ(got.boundary, want.boundary) << step;
+    std::uint64_t far = 0;
+    for (std::size_t k = 0; k < want.distance_m.size(); ++k) far += std::fabs(got.distance_m[k] - want.distance_m[k]) > 1e-3f;
+    EXPECT_EQ(far, 0u) << step;
+    if (step == "reserve") {
+      EXPECT_NE(log.find("warning: the GPU could not hold"), std::string::npos) << log;
+      EXPECT_GT(got.stats.tiles, 1u);
+      EXPECT_EQ(got.stats.device.find("then cpu"), std::string::npos) << got.stats.device;
+    } else {
+      EXPECT_NE(log.find("warning: the GPU ran out of memory"), std::string::npos) << log;
+      EXPECT_NE(log.find(step == "run" ? "cells 50000 onwards on the CPU" : "labelling on the CPU instead"),
+                std::string::npos)
+          << log;
+      EXPECT_NE(got.stats.device.find("then cpu"), std::string::npos) << got.stats.device;
     }
   }
 }

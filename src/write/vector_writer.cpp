@@ -361,6 +361,8 @@ class Writer {
     check("creating the dataset");
     transactions_ = dataset_->TestCapability(ODsCTransactions) != 0;
     driver_name_ = driver->GetDescription();
+    const char* types = driver->GetMetadataItem(GDAL_DMD_CREATIONFIELDDATATYPES);
+    if (types) field_types_ = CPLStringList(CSLTokenizeString(types));
   }
 
   Writer(const Writer&) = delete;
@@ -405,8 +407,20 @@ class Writer {
     return layer_;
   }
 
-  /// Adds a field; returns its index in the layer (drivers may launder its name).
+  /// Adds a field; returns its index in the layer (drivers may launder its name). A type the
+  /// driver does not list (a list in a shapefile) becomes String with a warning, as ogr2ogr does:
+  /// OGRFeature::SetFieldsFrom then writes the values as text.
   int add_field(OGRFieldDefn& field) {
+    const char* type = OGRFieldDefn::GetFieldTypeName(field.GetType());
+    if (!field_types_.empty() && field_types_.FindString(type) < 0 && field.GetType() != OFTString) {
+      // No path: this one is the temporary file's, which the user never sees.
+      CPLError(CE_Warning, CPLE_AppDefined, "layer %s: the %s driver has no %s fields: field %s written as String",
+               layer_name_.c_str(), driver_name_.c_str(), type, field.GetNameRef());
+      field.SetType(OFTString);
+      field.SetSubType(OFSTNone);
+      field.SetWidth(0);
+      field.SetPrecision(0);
+    }
     const int before = layer_->GetLayerDefn()->GetFieldCount();
     if (layer_->CreateField(&field, TRUE) != OGRERR_NONE || layer_->GetLayerDefn()->GetFieldCount() != before + 1) {
       fail(std::string("cannot create the field ") + field.GetNameRef());
@@ -513,6 +527,7 @@ class Writer {
   DatasetPtr dataset_;
   OGRLayer* layer_ = nullptr;
   std::string layer_name_, driver_name_;
+  CPLStringList field_types_;  ///< the driver's GDAL_DMD_CREATIONFIELDDATATYPES (empty: not stated)
   bool transactions_ = false, transaction_open_ = false, no_spatial_index_ = false;
   std::uint64_t in_transaction_ = 0, since_progress_ = 0;
   double total_work_, work_done_ = 0, layer_work_ = 0, layer_done_ = 0;

@@ -677,14 +677,27 @@ TEST(CatalogueOutput, OverwriteOntoADirectoryLeavesIt) {
   EXPECT_TRUE(hidden_entries(dir).empty());
 }
 
-TEST(CatalogueOutput, AttributeTypeTheFormatCannotHold) {
+TEST(CatalogueOutput, AttributeTypeTheFormatCannotHoldBecomesText) {
   const std::string dir = test_dir();
-  // A list field: GeoJSON has them, shapefiles do not. The writer names the layer and field.
+  // List fields: GeoJSON has them, shapefiles do not. As ogr2ogr does, they are written as
+  // String, with a warning naming the layer and the field, and nothing is lost.
   const std::string src = write_text(dir + "/lists.geojson", R"({"type":"FeatureCollection","features":[
-{"type":"Feature","properties":{"tags":["a","b"]},"geometry":{"type":"Point","coordinates":[3,4]}}]})");
-  expect_failure(run_small({"-layers", "regions", src, dir + "/out.shp"}), 1,
-                 {dir + "/out.shp, layer regions: cannot create the field tags", "StringList"}, dir + "/out.shp");
-  for (const char* ext : {".shx", ".dbf", ".prj"}) EXPECT_FALSE(fs::exists(dir + "/out" + ext)) << ext;
+{"type":"Feature","properties":{"tags":["a","b"],"ids":[7,8,9]},"geometry":{"type":"Point","coordinates":[3,4]}}]})");
+  const std::string dst = dir + "/out.shp";
+  const Result r = run_small({"-layers", "regions", src, dst});
+  expect_success(r, dst);
+  EXPECT_TRUE(contains(r.err, "layer regions: the ESRI Shapefile driver has no StringList fields: field tags "
+                              "written as String"))
+      << r.err;
+  EXPECT_TRUE(contains(r.err, "no IntegerList fields: field ids written as String")) << r.err;
+  const auto ds = qtmv::test::open_dataset(dst, GDAL_OF_VECTOR);
+  ASSERT_TRUE(ds);
+  OGRLayer* layer = ds->GetLayer(0);
+  ASSERT_EQ(layer->GetFeatureCount(), 1);
+  const auto f = std::unique_ptr<OGRFeature>(layer->GetNextFeature());
+  EXPECT_EQ(f->GetFieldDefnRef(f->GetFieldIndex("tags"))->GetType(), OFTString);
+  EXPECT_STREQ(f->GetFieldAsString("tags"), "(2:a,b)");
+  EXPECT_STREQ(f->GetFieldAsString("ids"), "(3:7,8,9)");
 }
 
 // A file system that fills up: the run's file size limit (ulimit -f). The write fails, the run

@@ -1,6 +1,7 @@
 #include "voronoi.hpp"
 
 #include <cpl_conv.h>
+#include <cpl_error.h>
 #include <cpl_vsi.h>
 #include <gdal_priv.h>
 #include <unistd.h>
@@ -84,6 +85,33 @@ void replace_all(std::string& text, const std::string& from, const std::string& 
     text.replace(at, from.size(), to);
   }
 }
+
+/// While it lives, GDAL's messages that name `from` (the temporary file) name `to` (the
+/// destination) instead; they then go on to the handler below. The writers keep their failures
+/// themselves (gdal::ErrorCapture), so this sees their warnings.
+class RenameInMessages {
+ public:
+  RenameInMessages(std::string from, std::string to) : from_(std::move(from)), to_(std::move(to)) { push(); }
+  ~RenameInMessages() { CPLPopErrorHandler(); }
+  RenameInMessages(const RenameInMessages&) = delete;
+  RenameInMessages& operator=(const RenameInMessages&) = delete;
+
+ private:
+  void push() {
+    CPLPushErrorHandlerEx(&RenameInMessages::handle, this);
+    CPLSetCurrentErrorHandlerCatchDebug(FALSE);
+  }
+  static void CPL_STDCALL handle(CPLErr type, CPLErrorNum number, const char* message) {
+    auto* self = static_cast<RenameInMessages*>(CPLGetErrorHandlerUserData());
+    std::string text = message ? message : "";
+    replace_all(text, self->from_, self->to_);
+    // GDAL 3.6 has no CPLCallPreviousHandler: step aside and raise it again.
+    CPLPopErrorHandler();
+    CPLError(type, number, "%s", text.c_str());
+    self->push();
+  }
+  std::string from_, to_;
+};
 
 // --- the destination, written all or nothing ---------------------------------------------------
 
@@ -498,6 +526,7 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
     return progress.report(ends.label, 1.0, f, stage);
   };
   try {
+    const RenameInMessages name_the_destination(path, destination);
     if (!progress.report(ends.label, 1.0, 0.0, "write")) throw Interrupted("interrupted");
     if (format.raster) {
       raster_options.progress = write_progress;

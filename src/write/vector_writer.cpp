@@ -413,9 +413,8 @@ class Writer {
   int add_field(OGRFieldDefn& field) {
     const char* type = OGRFieldDefn::GetFieldTypeName(field.GetType());
     if (!field_types_.empty() && field_types_.FindString(type) < 0 && field.GetType() != OFTString) {
-      // No path: this one is the temporary file's, which the user never sees.
-      CPLError(CE_Warning, CPLE_AppDefined, "layer %s: the %s driver has no %s fields: field %s written as String",
-               layer_name_.c_str(), driver_name_.c_str(), type, field.GetNameRef());
+      CPLError(CE_Warning, CPLE_AppDefined, "%s, layer %s: the %s driver has no %s fields: field %s written as String",
+               path_.c_str(), layer_name_.c_str(), driver_name_.c_str(), type, field.GetNameRef());
       field.SetType(OFTString);
       field.SetSubType(OFSTNone);
       field.SetWidth(0);

@@ -21,6 +21,7 @@
 #include <utility>
 #include <vector>
 
+#include "gdal/error_capture.hpp"
 #include "grid/qtm_checks.hpp"
 #include "sites/ogr_site_reader.hpp"
 #include "write/raster_writer.hpp"
@@ -91,24 +92,19 @@ void replace_all(std::string& text, const std::string& from, const std::string& 
 /// themselves (gdal::ErrorCapture), so this sees their warnings.
 class RenameInMessages {
  public:
-  RenameInMessages(std::string from, std::string to) : from_(std::move(from)), to_(std::move(to)) { push(); }
+  RenameInMessages(std::string from, std::string to) : from_(std::move(from)), to_(std::move(to)) {
+    gdal::push_handler(&RenameInMessages::handle, this);
+  }
   ~RenameInMessages() { CPLPopErrorHandler(); }
   RenameInMessages(const RenameInMessages&) = delete;
   RenameInMessages& operator=(const RenameInMessages&) = delete;
 
  private:
-  void push() {
-    CPLPushErrorHandlerEx(&RenameInMessages::handle, this);
-    CPLSetCurrentErrorHandlerCatchDebug(FALSE);
-  }
   static void CPL_STDCALL handle(CPLErr type, CPLErrorNum number, const char* message) {
     auto* self = static_cast<RenameInMessages*>(CPLGetErrorHandlerUserData());
     std::string text = message ? message : "";
     replace_all(text, self->from_, self->to_);
-    // GDAL 3.6 has no CPLCallPreviousHandler: step aside and raise it again.
-    CPLPopErrorHandler();
-    CPLError(type, number, "%s", text.c_str());
-    self->push();
+    gdal::raise_below(&RenameInMessages::handle, self, type, number, text);
   }
   std::string from_, to_;
 };

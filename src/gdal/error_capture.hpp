@@ -13,6 +13,21 @@
 
 namespace qtmv::gdal {
 
+/// Installs `handler` with `user_data` on top of GDAL's error handlers (debug output passes by).
+inline void push_handler(CPLErrorHandler handler, void* user_data) {
+  CPLPushErrorHandlerEx(handler, user_data);
+  CPLSetCurrentErrorHandlerCatchDebug(FALSE);
+}
+
+/// From inside `handler` (the top one): raises a message again for the handler below it. GDAL
+/// 3.6 has no CPLCallPreviousHandler: step aside, raise, and come back.
+inline void raise_below(CPLErrorHandler handler, void* user_data, CPLErr type, CPLErrorNum number,
+                        const std::string& text) {
+  CPLPopErrorHandler();
+  CPLError(type, number, "%s", text.c_str());
+  push_handler(handler, user_data);
+}
+
 class ErrorCapture {
  public:
   enum class Warnings {
@@ -22,7 +37,7 @@ class ErrorCapture {
 
   explicit ErrorCapture(Warnings warnings = Warnings::keep) : warnings_(warnings) {
     CPLErrorReset();
-    push();
+    push_handler(&ErrorCapture::handle, this);
   }
   ~ErrorCapture() { CPLPopErrorHandler(); }
   ErrorCapture(const ErrorCapture&) = delete;
@@ -49,10 +64,6 @@ class ErrorCapture {
  private:
   static constexpr std::size_t kMostShown = 3;
 
-  void push() {
-    CPLPushErrorHandlerEx(&ErrorCapture::handle, this);
-    CPLSetCurrentErrorHandlerCatchDebug(FALSE);  // debug output (CPL_DEBUG) goes on as usual
-  }
 
   static void CPL_STDCALL handle(CPLErr type, CPLErrorNum number, const char* message) {
     auto* self = static_cast<ErrorCapture*>(CPLGetErrorHandlerUserData());
@@ -63,10 +74,7 @@ class ErrorCapture {
     } else if (self->warnings_ == Warnings::keep) {
       self->messages_.push_back(text);
     } else {
-      // GDAL 3.6 has no CPLCallPreviousHandler: step aside and raise it again.
-      CPLPopErrorHandler();
-      CPLError(type, number, "%s", text.c_str());
-      self->push();
+      raise_below(&ErrorCapture::handle, self, type, number, text);
     }
   }
 

@@ -91,12 +91,6 @@ __device__ inline void advance_cell(grid::Cell& c, std::uint32_t step, std::uint
   }
 }
 
-/// Column of the ancestor k levels up of the cell in column `col` of a row whose local row (in
-/// its ancestor) is `local_row`: ancestor()'s rule.
-__device__ inline std::uint32_t ancestor_col(std::uint32_t col, std::uint32_t local_row, int k) {
-  return ((col >> (k + 1)) << 1) | ((col & ((2u << k) - 1u)) > 2 * local_row ? 1u : 0u);
-}
-
 __global__ void __launch_bounds__(kBlock, 4) tree_paint_kernel(TreeView tree, const std::uint8_t* jump_clean,
                                                                grid::Code first, std::uint64_t count,
                                                                std::int32_t* site, std::uint8_t* boundary,

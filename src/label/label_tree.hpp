@@ -65,11 +65,15 @@ struct TreeView {
 /// ancestor (column 2a) holds columns a 2^(k+1) .. a 2^(k+1) + 2 lr and the down ancestor (column
 /// 2a + 1) the rest of the block of 2^(k+1) columns. Shifts and masks only (the tests compare it
 /// with grid::parent applied k times).
+/// ancestor()'s column, k levels up, of the cell in column `col` of local row `local_row`: the
+/// paint kernel uses it alone for the cells of one row.
+QTMV_HD inline std::uint32_t ancestor_col(std::uint32_t col, std::uint32_t local_row, int k) {
+  return ((col >> (k + 1)) << 1) | ((col & ((2u << k) - 1u)) > 2 * local_row ? 1u : 0u);
+}
+
 QTMV_HD inline grid::Cell ancestor(const grid::Cell& c, int from, int to) {
   const int k = from - to;
-  const std::uint32_t local_row = c.row & ((1u << k) - 1u);
-  const std::uint32_t offset = c.col & ((2u << k) - 1u);
-  return {c.octant, c.row >> k, ((c.col >> (k + 1)) << 1) | (offset > 2 * local_row ? 1u : 0u)};
+  return {c.octant, c.row >> k, ancestor_col(c.col, c.row & ((1u << k) - 1u), k)};
 }
 
 /// Position (0..3) of cell c among its parent's children, in grid::children() order.
@@ -140,10 +144,10 @@ QTMV_HD inline JumpEntry walk_to_jump_level(const TreeNode* nodes, const grid::C
 QTMV_HD inline bool jump_cell_clean(const TreeView& t, grid::Code jump_code) {
   const TreeNode own = t.nodes[t.jump[jump_code].node];
   if (own.count != kUniform) return false;
-  grid::Cell nb[3];
-  grid::neighbours(grid::cell_of(jump_code, t.jump_level), t.jump_level, nb);
-  for (const grid::Cell& n : nb) {
-    const TreeNode other = t.nodes[t.jump[grid::code_of(n, t.jump_level)].node];
+  grid::Code nb[3];
+  grid::neighbours(grid::cell_of(jump_code, t.jump_level), jump_code, t.jump_level, nb);
+  for (const grid::Code n : nb) {
+    const TreeNode other = t.nodes[t.jump[n].node];
     if (other.count != kUniform || other.value != own.value) return false;
   }
   return true;

@@ -5,7 +5,9 @@
 
 #include <cub/device/device_scan.cuh>
 
+#include <chrono>
 #include <climits>
+#include <cstdio>
 #include <cmath>
 #include <cstdlib>
 #include <stdexcept>
@@ -45,6 +47,21 @@ void injected_fault(const char* step) {
 #define QTMV_CUDA_CHECK_LAUNCH(name) check(cudaGetLastError(), "launch of " name, __FILE__, __LINE__)
 
 constexpr int kBlock = 256;
+
+/// QTMV_LABEL_TRACE set: the device build reports each step's time and size on stderr (for
+/// tuning; the device is synchronised at each report).
+struct Trace {
+  bool on = std::getenv("QTMV_LABEL_TRACE") != nullptr;
+  std::chrono::steady_clock::time_point last = std::chrono::steady_clock::now();
+  void operator()(const char* step, unsigned long long a = 0, unsigned long long b = 0) {
+    if (!on) return;
+    QTMV_CUDA_CHECK(cudaDeviceSynchronize());
+    const auto now = std::chrono::steady_clock::now();
+    std::fprintf(stderr, "trace: %-24s %9.3f ms  %llu %llu\n", step,
+                 std::chrono::duration<double, std::milli>(now - last).count(), a, b);
+    last = now;
+  }
+};
 
 unsigned int blocks_for(std::uint64_t count) {
   const std::uint64_t blocks = (count + kBlock - 1) / kBlock;
@@ -437,28 +454,31 @@ __device__ inline std::int32_t group_of_item(const unsigned long long* start, st
 }
 
 /// Work item t of a level: the group of four sibling nodes it serves (*group), the position in
-/// their shared parent list (*position) and the piece found there.
-__device__ inline Piece item_piece(const DevPending* pending, std::int32_t groups, const unsigned long long* start,
-                                   unsigned long long t, const std::int32_t* parent_lists, const Piece* pieces,
-                                   std::int32_t* group, unsigned long long* position) {
+/// their shared parent list (*position) and the item found there.
+__device__ inline std::int32_t list_item(const DevPending* pending, std::int32_t groups, const unsigned long long* start,
+                                         unsigned long long t, const std::int32_t* parent_lists, std::int32_t* group,
+                                         unsigned long long* position) {
   const std::int32_t g = group_of_item(start, groups, t);
   *group = g;
   *position = t - start[4 * g] / 4;
-  return pieces[parent_lists[pending[4 * g].parent_offset + *position]];
+  return parent_lists[pending[4 * g].parent_offset + *position];
 }
 
-/// Pass 1: the nearest candidate's squared chord per node.
+/// Pass 1: per node the least upper bound of the items' distances (squared chords).
 __global__ void level_min_kernel(const DevPending* pending, std::int32_t groups, const unsigned long long* start,
                                  unsigned long long items, const std::int32_t* parent_lists, const Piece* pieces,
-                                 const Vec3* centre, unsigned long long* min_bits) {
+                                 const PieceGroup* runs, const Vec3* centre, unsigned long long* min_bits) {
   const unsigned long long t = static_cast<unsigned long long>(blockIdx.x) * blockDim.x + threadIdx.x;
   std::int32_t g = -1;
   unsigned long long bits[4] = {~0ull, ~0ull, ~0ull, ~0ull};
   if (t < items) {
     unsigned long long pos;
-    const Piece piece = item_piece(pending, groups, start, t, parent_lists, pieces, &g, &pos);
+    const std::int32_t item = list_item(pending, groups, start, t, parent_lists, &g, &pos);
     for (int c = 0; c < 4; ++c) {
-      bits[c] = static_cast<unsigned long long>(__double_as_longlong(piece_chord2(centre[4 * g + c], piece)));
+      double lb2, ub2;
+      std::int32_t site;
+      item_bounds(centre[4 * g + c], item, pieces, runs, &lb2, &ub2, &site);
+      bits[c] = static_cast<unsigned long long>(__double_as_longlong(ub2));
     }
   }
   for (int c = 0; c < 4; ++c) {
@@ -466,22 +486,26 @@ __global__ void level_min_kernel(const DevPending* pending, std::int32_t groups,
   }
 }
 
-/// Pass 2 (levels above the labelling level): keep flags, and the kept sites' range per node.
+/// Pass 2 (levels above the labelling level): per entry the items it leaves to the node (0, 1,
+/// or a split group's children: kept_items), and the kept sites' range per node.
 __global__ void level_keep_kernel(const DevPending* pending, std::int32_t groups, const unsigned long long* start,
                                   unsigned long long items, const std::int32_t* parent_lists, const Piece* pieces,
-                                  const Vec3* centre, const double* threshold, unsigned int* keep,
-                                  std::int32_t* site_min, std::int32_t* site_max) {
+                                  const PieceGroup* runs, const Vec3* centre, const double* radius,
+                                  const double* threshold, unsigned int* keep, std::int32_t* site_min,
+                                  std::int32_t* site_max) {
   const unsigned long long t = static_cast<unsigned long long>(blockIdx.x) * blockDim.x + threadIdx.x;
   std::int32_t g = -1;
   std::int32_t lo[4] = {INT_MAX, INT_MAX, INT_MAX, INT_MAX}, hi[4] = {INT_MIN, INT_MIN, INT_MIN, INT_MIN};
   if (t < items) {
     unsigned long long pos;
-    const Piece piece = item_piece(pending, groups, start, t, parent_lists, pieces, &g, &pos);
+    const std::int32_t item = list_item(pending, groups, start, t, parent_lists, &g, &pos);
     for (int c = 0; c < 4; ++c) {
-      const double d2 = piece_chord2(centre[4 * g + c], piece);
-      const bool kept = d2 <= threshold[4 * g + c];
-      keep[start[4 * g + c] + pos] = kept ? 1u : 0u;
-      if (kept) lo[c] = hi[c] = piece.site;
+      double lb2, ub2;
+      std::int32_t site;
+      item_bounds(centre[4 * g + c], item, pieces, runs, &lb2, &ub2, &site);
+      const bool kept = lb2 <= threshold[4 * g + c];
+      keep[start[4 * g + c] + pos] = kept ? static_cast<unsigned int>(kept_items(runs, item, radius[4 * g + c])) : 0u;
+      if (kept) lo[c] = hi[c] = site;
     }
   }
   for (int c = 0; c < 4; ++c) {
@@ -494,35 +518,26 @@ __global__ void level_keep_kernel(const DevPending* pending, std::int32_t groups
   }
 }
 
-/// Per node: the pruning threshold (in place of its radius).
-__global__ void level_threshold_kernel(std::int32_t n, const unsigned long long* min_bits, double* radius) {
+/// Per node: the pruning threshold.
+__global__ void level_threshold_kernel(std::int32_t n, const unsigned long long* min_bits, const double* radius,
+                                       double* threshold) {
   const std::int32_t q = blockIdx.x * blockDim.x + threadIdx.x;
   if (q >= n) return;
-  radius[q] = prune_threshold(__longlong_as_double(static_cast<long long>(min_bits[q])), radius[q]);
+  threshold[q] = prune_threshold(__longlong_as_double(static_cast<long long>(min_bits[q])), radius[q]);
 }
 
-/// Pass 2 at the labelling level: per node the best candidate in consider()'s order, ties to
-/// the first in list order, as (rank, site, position) among the entries at the nearest chord.
-__global__ void level_best_kernel(const DevPending* pending, std::int32_t groups, const unsigned long long* start,
-                                  unsigned long long items, const std::int32_t* parent_lists, const Piece* pieces,
-                                  const Vec3* centre, const unsigned long long* min_bits, unsigned long long* key) {
-  const unsigned long long t = static_cast<unsigned long long>(blockIdx.x) * blockDim.x + threadIdx.x;
-  std::int32_t g = -1;
-  unsigned long long k[4] = {~0ull, ~0ull, ~0ull, ~0ull};
-  if (t < items) {
-    unsigned long long pos;
-    const Piece piece = item_piece(pending, groups, start, t, parent_lists, pieces, &g, &pos);
-    for (int c = 0; c < 4; ++c) {
-      const double d2 = piece_chord2(centre[4 * g + c], piece);
-      if (static_cast<unsigned long long>(__double_as_longlong(d2)) == min_bits[4 * g + c]) {
-        const unsigned long long rank = (d2 == 0.0 && (piece.flags & kPieceFixed)) ? 0 : 1;
-        k[c] = (rank << 63) | (static_cast<unsigned long long>(piece.site) << 32) | pos;
-      }
-    }
-  }
-  for (int c = 0; c < 4; ++c) {
-    if (warp_segment_reduce(g, k[c], MinU64{})) atomicMin(&key[4 * g + c], k[c]);
-  }
+/// At the labelling level, per node (one cell): best_of_items over its parent's list, as the host
+/// does; key = site << 32 | winning piece.
+__global__ void level_settle_kernel(const DevPending* pending, std::int32_t n, const std::int32_t* parent_lists,
+                                    const Piece* pieces, const PieceGroup* runs, const Vec3* centre,
+                                    unsigned long long* key) {
+  const std::int32_t q = blockIdx.x * blockDim.x + threadIdx.x;
+  if (q >= n) return;
+  const DevPending p = pending[q];
+  std::int32_t winner = -1;
+  const Best best = best_of_items(centre[q], parent_lists + p.parent_offset, static_cast<std::int32_t>(p.parent_count),
+                                  pieces, runs, &winner);
+  key[q] = (static_cast<unsigned long long>(best.site) << 32) | static_cast<std::uint32_t>(winner);
 }
 
 /// Per node: its kind and counts (kind: kUniform, kInternal or kNodeKindList; value: the site).
@@ -535,7 +550,7 @@ __global__ void level_decide_kernel(std::int32_t n, bool last, bool with_distanc
   if (q >= n) return;
   std::int32_t k, c, v;
   if (last) {
-    v = static_cast<std::int32_t>((key[q] >> 32) & 0x7fffffffu);
+    v = static_cast<std::int32_t>(key[q] >> 32);
     k = with_distance ? kNodeKindList : kUniform;
     c = with_distance ? 1 : 0;
   } else {
@@ -574,7 +589,7 @@ __global__ void level_write_nodes_kernel(const DevPending* pending, std::int32_t
     nodes[p.node] = {kUniform, value[q]};
   } else if (kind[q] == kNodeKindList) {
     nodes[p.node] = {count[q], static_cast<std::int32_t>(lists_base + at.leaf_entries)};
-    if (last) lists[lists_base + at.leaf_entries] = parent_lists[p.parent_offset + (key[q] & 0xffffffffu)];
+    if (last) lists[lists_base + at.leaf_entries] = static_cast<std::int32_t>(key[q] & 0xffffffffu);
   } else {
     const std::int32_t first_child = static_cast<std::int32_t>(nodes_base + 4 * at.internals);
     nodes[p.node] = {kInternal, first_child};
@@ -587,24 +602,37 @@ __global__ void level_write_nodes_kernel(const DevPending* pending, std::int32_t
   }
 }
 
-/// Per work item: kept entries to the list leaves' lists or to the next level's parent lists.
+/// Per work item: its kept items (the item, or a split group's children) to the list leaves'
+/// lists or to the next level's parent lists.
 __global__ void level_write_lists_kernel(const DevPending* pending, std::int32_t n, const unsigned long long* start,
                                          unsigned long long entries, const std::int32_t* parent_lists,
-                                         const unsigned int* keep_pos, const std::int32_t* kind,
-                                         const LevelSums* offsets, unsigned long long lists_base,
-                                         std::int32_t* lists, std::int32_t* next_lists) {
+                                         const PieceGroup* runs, const unsigned int* keep_pos,
+                                         const std::int32_t* kind, const LevelSums* offsets,
+                                         unsigned long long lists_base, std::int32_t* lists,
+                                         std::int32_t* next_lists) {
   const unsigned long long e = static_cast<unsigned long long>(blockIdx.x) * blockDim.x + threadIdx.x;
-  if (e >= entries || keep_pos[e + 1] == keep_pos[e]) return;
+  if (e >= entries) return;
+  const unsigned int items = keep_pos[e + 1] - keep_pos[e];
+  if (items == 0) return;
   const std::int32_t node = node_of_entry(start, n, e);
   const std::int32_t k = kind[node];
   if (k == kUniform) return;
   const unsigned long long local = keep_pos[e] - keep_pos[start[node]];
   const std::int32_t id = parent_lists[pending[node].parent_offset + (e - start[node])];
-  if (k == kNodeKindList) {
-    lists[lists_base + offsets[node].leaf_entries + local] = id;
+  std::int32_t* out = k == kNodeKindList ? lists + lists_base + offsets[node].leaf_entries + local
+                                         : next_lists + offsets[node].internal_entries + local;
+  if (items == 1) {
+    *out = id;
   } else {
-    next_lists[offsets[node].internal_entries + local] = id;
+    for (unsigned int i = 0; i < items; ++i) out[i] = split_item(runs, item_group(id), static_cast<std::int32_t>(i));
   }
+}
+
+/// make_group per span: the same groups as the host's make_groups.
+__global__ void make_groups_kernel(const Piece* pieces, const GroupSpan* spans, std::int32_t count,
+                                   PieceGroup* groups) {
+  const std::int32_t g = blockIdx.x * blockDim.x + threadIdx.x;
+  if (g < count) groups[g] = make_group(pieces, spans[g]);
 }
 
 __global__ void jump_kernel(const TreeNode* nodes, int jump_level, std::uint64_t count, JumpEntry* jump) {
@@ -674,11 +702,6 @@ struct Buffer {
   }
 };
 
-__global__ void iota_kernel(std::int32_t* out, std::int32_t count) {
-  const std::int32_t k = blockIdx.x * blockDim.x + threadIdx.x;
-  if (k < count) out[k] = k;
-}
-
 unsigned int blocks_of(std::uint64_t count) { return static_cast<unsigned int>((count + kBlock - 1) / kBlock); }
 
 /// What build_on_device made: the tree's arrays (device pointers, owned by the caller).
@@ -692,8 +715,8 @@ struct DeviceTree {
 };
 
 /// The tree of build_tree (labeller.cpp), built on the current device.
-DeviceTree build_on_device(int device, const Piece* pieces, std::int32_t piece_count, int level,
-                           bool with_distance) {
+DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* runs,
+                           const std::vector<std::int32_t>& top_items, int level, bool with_distance) {
   injected_fault("build");
   const int list_level = tree_list_level(level);
   // The scratch comes from the device's default pool, kept between builds (trimmed at the end).
@@ -732,7 +755,7 @@ DeviceTree build_on_device(int device, const Piece* pieces, std::int32_t piece_c
   Buffer<TreeNode> nodes;
   Buffer<std::int32_t> lists;
   Buffer<Vec3> centre;
-  Buffer<double> radius;
+  Buffer<double> radius, threshold;
   Buffer<unsigned long long> start_in, start, min_bits, key;
   Buffer<std::int32_t> site_min, site_max, kind, count, value;
   Buffer<unsigned int> keep, keep_pos;
@@ -740,23 +763,23 @@ DeviceTree build_on_device(int device, const Piece* pieces, std::int32_t piece_c
   Buffer<unsigned char> temp;
   auto scan_temp = [&](std::size_t bytes) { temp.need(bytes ? bytes : 1); };
 
-  // Level 0: the eight octants, each with every candidate.
+  // Level 0: the eight octants, each with the runs' top items.
   std::uint64_t n = grid::kOctants;
-  std::uint64_t entries = n * static_cast<std::uint64_t>(piece_count);
+  const auto top_count = static_cast<std::uint32_t>(top_items.size());
+  std::uint64_t entries = n * top_count;
   {
     DevPending roots[grid::kOctants];
-    for (int o = 0; o < grid::kOctants; ++o) {
-      roots[o] = {grid::Cell{o, 0, 0}, o, static_cast<std::uint32_t>(piece_count), 0};
-    }
+    for (int o = 0; o < grid::kOctants; ++o) roots[o] = {grid::Cell{o, 0, 0}, o, top_count, 0};
     pending.need(n);
     QTMV_CUDA_CHECK(cudaMemcpy(pending.p, roots, sizeof roots, cudaMemcpyHostToDevice));
-    parent_lists.need(static_cast<std::size_t>(piece_count));
-    iota_kernel<<<blocks_of(piece_count), kBlock>>>(parent_lists.p, piece_count);
-    QTMV_CUDA_CHECK_LAUNCH("iota_kernel");
+    parent_lists.need(top_count);
+    QTMV_CUDA_CHECK(cudaMemcpy(parent_lists.p, top_items.data(), top_count * sizeof(std::int32_t),
+                               cudaMemcpyHostToDevice));
   }
   std::uint64_t node_count = grid::kOctants, list_count = 0;
   nodes.grow_keep(node_count, 0);
   double weighted = 0;
+  Trace trace;
   for (int l = 0; l <= level && n > 0; ++l) {
     const bool last = l == level;
     if (n > 0x7ffffffful || entries + 1 > 0xfffffffful) {
@@ -768,6 +791,7 @@ DeviceTree build_on_device(int device, const Piece* pieces, std::int32_t piece_c
     if (n % 4 != 0 || entries % 4 != 0) throw std::logic_error("build_on_device: nodes not in groups of four");
     centre.need(n);
     radius.need(n);
+    threshold.need(n);
     start_in.need(n + 1);
     start.need(n + 1);
     min_bits.need(n);
@@ -792,18 +816,18 @@ DeviceTree build_on_device(int device, const Piece* pieces, std::int32_t piece_c
       // Groups of four nodes share a list (n and entries are multiples of 4).
       const std::int32_t groups = nn / 4;
       const std::uint64_t items = entries / 4;
-      level_min_kernel<<<blocks_of(items), kBlock>>>(pending.p, groups, start.p, items, parent_lists.p, pieces,
-                                                     centre.p, min_bits.p);
-      QTMV_CUDA_CHECK_LAUNCH("level_min_kernel");
       if (last) {
-        level_best_kernel<<<blocks_of(items), kBlock>>>(pending.p, groups, start.p, items, parent_lists.p, pieces,
-                                                        centre.p, min_bits.p, key.p);
-        QTMV_CUDA_CHECK_LAUNCH("level_best_kernel");
+        level_settle_kernel<<<blocks_of(n), kBlock>>>(pending.p, nn, parent_lists.p, pieces, runs, centre.p, key.p);
+        QTMV_CUDA_CHECK_LAUNCH("level_settle_kernel");
       } else {
-        level_threshold_kernel<<<blocks_of(n), kBlock>>>(nn, min_bits.p, radius.p);
+        level_min_kernel<<<blocks_of(items), kBlock>>>(pending.p, groups, start.p, items, parent_lists.p, pieces,
+                                                       runs, centre.p, min_bits.p);
+        QTMV_CUDA_CHECK_LAUNCH("level_min_kernel");
+        level_threshold_kernel<<<blocks_of(n), kBlock>>>(nn, min_bits.p, radius.p, threshold.p);
         QTMV_CUDA_CHECK_LAUNCH("level_threshold_kernel");
         level_keep_kernel<<<blocks_of(items), kBlock>>>(pending.p, groups, start.p, items, parent_lists.p, pieces,
-                                                        centre.p, radius.p, keep.p, site_min.p, site_max.p);
+                                                        runs, centre.p, radius.p, threshold.p, keep.p, site_min.p,
+                                                        site_max.p);
         QTMV_CUDA_CHECK_LAUNCH("level_keep_kernel");
       }
     }
@@ -838,12 +862,13 @@ DeviceTree build_on_device(int device, const Piece* pieces, std::int32_t piece_c
     QTMV_CUDA_CHECK_LAUNCH("level_write_nodes_kernel");
     if (!last && entries > 0) {
       level_write_lists_kernel<<<blocks_of(entries), kBlock>>>(pending.p, nn, start.p, entries, parent_lists.p,
-                                                               keep_pos.p, kind.p, offsets.p, list_count, lists.p,
-                                                               next_lists.p);
+                                                               runs, keep_pos.p, kind.p, offsets.p, list_count,
+                                                               lists.p, next_lists.p);
       QTMV_CUDA_CHECK_LAUNCH("level_write_lists_kernel");
     }
     weighted += static_cast<double>(entries) +
                 static_cast<double>(total.leaf_entries) * std::ldexp(1.0, 2 * (level - l));
+    trace(last ? "level (last)" : "level", n, entries);
     node_count += 4 * total.internals;
     list_count += total.leaf_entries;
     n = 4 * total.internals;
@@ -863,6 +888,7 @@ DeviceTree build_on_device(int device, const Piece* pieces, std::int32_t piece_c
   t.mean_candidates = weighted / static_cast<double>(grid::cell_count(level));
   t.nodes = nodes.copy_out(node_count);
   t.lists = lists.copy_out(list_count);
+  trace("jump table, copies", t.jump_count, list_count);
   }  // the scratch goes back to the pool here
   QTMV_CUDA_CHECK(cudaDeviceSynchronize());
   QTMV_CUDA_CHECK(cudaMemPoolTrimTo(pool, std::size_t{256} << 20));
@@ -898,6 +924,7 @@ struct Labeller::Impl {
   bool hier = false;
   int piece_count = 0;
   Piece* pieces = nullptr;
+  PieceGroup* groups = nullptr;  ///< the line runs' groups (null: none)
   TreeNode* nodes = nullptr;
   std::int32_t* lists = nullptr;
   JumpEntry* jump = nullptr;
@@ -913,7 +940,7 @@ struct Labeller::Impl {
   std::size_t output_bytes = 0;
   cudaEvent_t start = nullptr, stop = nullptr;
 
-  TreeView view() const { return {nodes, lists, pieces, jump, jump_level, level}; }
+  TreeView view() const { return {nodes, lists, pieces, groups, jump, jump_level, level}; }
   /// jump_clean for the tree now on the device.
   void mark_clean_jump_cells() {
     const std::uint64_t count = grid::cell_count(jump_level);
@@ -940,6 +967,7 @@ struct Labeller::Impl {
     // Destructors must not throw; errors here are left to the next call's check.
     free_outputs();
     cudaFree(pieces);
+    cudaFree(groups);
     cudaFree(nodes);
     cudaFree(lists);
     cudaFree(jump);
@@ -962,6 +990,7 @@ Labeller::Labeller(int device, const std::vector<Piece>& candidates, const Tree*
   m.piece_count = static_cast<int>(candidates.size());
   m.pieces = device_copy(candidates, &m.bytes);
   if (tree) {
+    m.groups = device_copy(tree->groups, &m.bytes);
     m.nodes = device_copy(tree->nodes, &m.bytes);
     m.lists = device_copy(tree->lists, &m.bytes);
     m.jump = device_copy(tree->jump, &m.bytes);
@@ -982,13 +1011,30 @@ Labeller::Labeller(int device, const std::vector<Piece>& candidates, int level, 
   if (candidates.empty()) throw std::invalid_argument("build_tree: no candidates");
   if (candidates.size() > 0x7fffffffu) throw std::invalid_argument("more than 2^31 candidates");
   m.piece_count = static_cast<int>(candidates.size());
+  Trace trace;
   m.pieces = device_copy(candidates, &m.bytes);
-  const DeviceTree t = build_on_device(device, m.pieces, m.piece_count, level, with_distance);
+  trace("pieces to the device", candidates.size());
+  // The groups' plan is cheap integer work on the host; their bounds are computed here.
+  const GroupPlan plan = plan_groups(candidates);
+  trace("groups planned", plan.spans.size(), plan.top_items.size());
+  if (!plan.spans.empty()) {
+    GroupSpan* spans = device_copy(plan.spans, &m.bytes);
+    trace("spans to the device");
+    const auto count = static_cast<std::int32_t>(plan.spans.size());
+    m.groups = device_alloc<PieceGroup>(plan.spans.size(), &m.bytes);
+    make_groups_kernel<<<blocks_for(plan.spans.size()), kBlock>>>(m.pieces, spans, count, m.groups);
+    QTMV_CUDA_CHECK_LAUNCH("make_groups_kernel");
+    QTMV_CUDA_CHECK(cudaFree(spans));
+    m.bytes -= plan.spans.size() * sizeof(GroupSpan);
+  }
+  trace("groups made");
+  const DeviceTree t = build_on_device(device, m.pieces, m.groups, plan.top_items, level, with_distance);
   m.nodes = t.nodes;
   m.lists = t.lists;
   m.jump = t.jump;
   m.jump_level = t.jump_level;
   m.mark_clean_jump_cells();
+  trace("jump cells marked");
   m.bytes += t.node_count * sizeof(TreeNode) + t.list_count * sizeof(std::int32_t) + t.jump_count * sizeof(JumpEntry);
   m.tree_info = {t.node_count, t.list_count, t.jump_count, t.jump_level, t.mean_candidates};
 }

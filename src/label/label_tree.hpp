@@ -3,8 +3,9 @@
 //
 // The tree follows the QTM quadtrees: node indices 0..7 are the octants (level 0), and an
 // internal node's four children are stored at consecutive indices in the order of
-// grid::children(). Each node kept the candidates (piece indices) that can be nearest to
-// some point of it (label_math.hpp, prune_threshold); a node stops being split when
+// grid::children(). Each node kept the candidates (items: pieces, or groups of a line run,
+// piece_groups.hpp) that can be nearest to some point of it (label_math.hpp, prune_threshold);
+// a node stops being split when
 //   - all its candidates belong to one site and no distances are asked for (kUniform), or
 //   - it is at the labelling level, or its candidate list is short enough that the cells
 //     below it may as well test it directly (a "list leaf").
@@ -15,6 +16,7 @@
 #include <cstdint>
 
 #include "label/label_math.hpp"
+#include "label/piece_groups.hpp"
 
 namespace qtmv::label {
 
@@ -53,8 +55,9 @@ struct JumpEntry {
 /// The tree as plain pointers, valid on the side (host or device) that owns them.
 struct TreeView {
   const TreeNode* nodes;
-  const std::int32_t* lists;   ///< candidate lists of the list leaves (piece indices)
+  const std::int32_t* lists;   ///< candidate lists of the list leaves (items: piece_groups.hpp)
   const Piece* pieces;
+  const PieceGroup* groups;    ///< the line runs' groups (null when there are none)
   const JumpEntry* jump;        ///< per cell of jump_level: the node to start the walk from
   int jump_level;
   int level;                   ///< the labelling level L
@@ -158,12 +161,7 @@ constexpr std::uint8_t kBoundaryPending = 2;
 
 /// The best candidate of a list leaf for the point x (unit vector).
 QTMV_HD inline Best best_of_list(const TreeView& t, const TreeNode& leaf, const Vec3& x) {
-  Best best = no_best();
-  for (std::int32_t k = 0; k < leaf.count; ++k) {
-    const Piece& p = t.pieces[t.lists[leaf.value + k]];
-    consider(best, piece_chord2(x, p), p);
-  }
-  return best;
+  return best_of_items(x, t.lists + leaf.value, leaf.count, t.pieces, t.groups, nullptr);
 }
 
 /// The site of cell c (of the labelling level).

@@ -14,6 +14,7 @@
 
 #include "grid/qtm_checks.hpp"
 #include "label/label_cuda.hpp"
+#include "label/piece_groups.hpp"
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -238,14 +239,17 @@ void cpu_brute_range(const std::vector<Piece>& candidates, int level, grid::Code
 
 // --- candidates -----------------------------------------------------------------------------
 
-std::vector<Piece> make_candidates(const LabelInput& in, Rule rule) {
+std::vector<Piece> make_candidates(const LabelInput& in, Rule rule, int threads_requested) {
+  const int threads = thread_count(threads_requested);
   std::vector<Piece> out;
   if (rule == Rule::exact) {
     out.reserve(in.piece_count + in.fixed_cell_count);
-    for (std::size_t k = 0; k < in.piece_count; ++k) {
+    out.resize(in.piece_count);
+    const auto n = static_cast<std::int64_t>(in.piece_count);
+#pragma omp parallel for schedule(static) num_threads(threads)
+    for (std::int64_t k = 0; k < n; ++k) {
       const SitePiece& p = in.pieces[k];
-      const bool point = p.a.x == p.b.x && p.a.y == p.b.y && p.a.z == p.b.z;
-      out.push_back(point ? make_point_piece(p.a, p.site) : make_arc_piece(p.a, p.b, p.site));
+      out[k] = same_point(p.a, p.b) ? make_point_piece(p.a, p.site) : make_arc_piece(p.a, p.b, p.site);
     }
   } else {
     // One point per distinct (cell, site): duplicates change nothing but the work.
@@ -311,11 +315,14 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
   tree.jump_level = tree_jump_level(level);
   tree.nodes.resize(grid::kOctants);
 
-  std::vector<std::int32_t> parent_lists(candidates.size());
-  for (std::size_t k = 0; k < candidates.size(); ++k) parent_lists[k] = static_cast<std::int32_t>(k);
+  // Line runs become groups; the octants start with the runs' top items.
+  GroupPlan plan = plan_groups(candidates);
+  tree.groups = make_groups(candidates, plan.spans, threads);
+  const PieceGroup* groups = tree.groups.empty() ? nullptr : tree.groups.data();
+  std::vector<std::int32_t> parent_lists = std::move(plan.top_items);
   std::vector<Pending> pending;
   for (int o = 0; o < grid::kOctants; ++o) {
-    pending.push_back({grid::Cell{o, 0, 0}, o, 0, static_cast<std::uint32_t>(candidates.size())});
+    pending.push_back({grid::Cell{o, 0, 0}, o, 0, static_cast<std::uint32_t>(parent_lists.size())});
   }
   // Candidate evaluations: in the build, and by the cells of list leaves afterwards.
   double weighted_candidates = 0;
@@ -323,7 +330,11 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
   // Each level's nodes are cut into parts, several per thread for balance; a part's kept lists
   // go to its own buffer and are concatenated in order afterwards.
   std::vector<std::vector<std::int32_t>> kept;
-  std::vector<std::vector<double>> scratch(threads);
+  struct Bounds {
+    double lb2;
+    std::int32_t site;
+  };
+  std::vector<std::vector<Bounds>> scratch(threads);
   for (int l = 0; l <= level && !pending.empty(); ++l) {
     const std::int64_t n = static_cast<std::int64_t>(pending.size());
     std::vector<Decision> decisions(pending.size());
@@ -340,9 +351,9 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
       chunk[t] = {begin, end};
       std::vector<std::int32_t>& out = kept[t];
 #ifdef _OPENMP
-      std::vector<double>& d2 = scratch[omp_get_thread_num()];
+      std::vector<Bounds>& bounds = scratch[omp_get_thread_num()];
 #else
-      std::vector<double>& d2 = scratch[0];
+      std::vector<Bounds>& bounds = scratch[0];
 #endif
       out.clear();
       std::uint64_t leaf_entries = 0, internal_entries = 0, internals = 0, leaves = 0;
@@ -351,24 +362,13 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
         evaluations += p.parent_count;
         const Vec3 c = grid::cell_centre_vector(grid::code_of(p.cell, l), l);
         const std::int32_t* list = parent_lists.data() + p.parent_offset;
-        d2.resize(p.parent_count);
-        double min_d2 = 1e300;
-        for (std::uint32_t k = 0; k < p.parent_count; ++k) {
-          d2[k] = piece_chord2(c, candidates[list[k]]);
-          min_d2 = std::min(min_d2, d2[k]);
-        }
         Decision dec{0, -1, out.size(), 0};
         if (l == level) {
           // The node is one cell of the level: its label is the best candidate at its centre,
           // settled here once rather than by every look-up.
-          Best best = no_best();
           std::int32_t winner = -1;
-          for (std::uint32_t k = 0; k < p.parent_count; ++k) {
-            const Best before = best;
-            consider(best, d2[k], candidates[list[k]]);
-            if (best.site != before.site || best.chord2 != before.chord2 || best.rank != before.rank) winner = list[k];
-          }
-          dec.site = best.site;
+          dec.site = best_of_items(c, list, static_cast<std::int32_t>(p.parent_count), candidates.data(), groups,
+                                   &winner).site;
           if (with_distance) {
             out.push_back(winner);
             dec.count = 1;
@@ -381,14 +381,27 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
           decisions[q] = dec;
           continue;
         }
-        const double threshold = prune_threshold(min_d2, node_radius(l, p.cell));
+        bounds.resize(p.parent_count);
+        double min_ub2 = 1e300;
+        for (std::uint32_t k = 0; k < p.parent_count; ++k) {
+          double ub2;
+          item_bounds(c, list[k], candidates.data(), groups, &bounds[k].lb2, &ub2, &bounds[k].site);
+          min_ub2 = std::min(min_ub2, ub2);
+        }
+        const double radius = node_radius(l, p.cell);
+        const double threshold = prune_threshold(min_ub2, radius);
         bool uniform = true;
         for (std::uint32_t k = 0; k < p.parent_count; ++k) {
-          if (d2[k] <= threshold) {
-            const std::int32_t site = candidates[list[k]].site;
+          if (bounds[k].lb2 <= threshold) {
+            const std::int32_t site = bounds[k].site;
             if (dec.site < 0) dec.site = site;
             uniform = uniform && site == dec.site;
-            out.push_back(list[k]);
+            const std::int32_t items = kept_items(groups, list[k], radius);
+            if (items == 1) {
+              out.push_back(list[k]);
+            } else {
+              for (std::int32_t i = 0; i < items; ++i) out.push_back(split_item(groups, item_group(list[k]), i));
+            }
           }
         }
         dec.count = static_cast<std::uint32_t>(out.size() - dec.offset);
@@ -575,7 +588,7 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
 
   const double t0 = now_seconds();
   progress(0.0, "prepare");
-  const std::vector<Piece> candidates = make_candidates(input, options.rule);
+  const std::vector<Piece> candidates = make_candidates(input, options.rule, threads);
   stats.algorithm = options.algorithm;
   if (stats.algorithm == Algorithm::automatic) {
     const double work = static_cast<double>(grid::cell_count(input.level)) * static_cast<double>(candidates.size());

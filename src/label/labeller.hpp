@@ -154,8 +154,8 @@ void add_fixed_cell(SiteGeometry& g, grid::Code code, std::int32_t site);
 // --- lower-level entry points, for the tests and the benchmark ----------------------------------
 
 /// The candidates of a rule as kernel pieces (fixed cells become fixed point pieces at their
-/// centres in both rules).
-std::vector<Piece> make_candidates(const LabelInput& input, Rule rule);
+/// centres in both rules). `threads`: as LabelOptions::threads.
+std::vector<Piece> make_candidates(const LabelInput& input, Rule rule, int threads = 0);
 
 /// The float64 brute-force label of one cell (the reference): best over all candidates.
 Best reference_best(const std::vector<Piece>& candidates, grid::Code code, int level);
@@ -176,9 +176,11 @@ struct Tree {
   std::vector<std::int32_t> lists;
   std::vector<JumpEntry> jump;
   std::vector<TreeLeaf> leaves;
+  std::vector<PieceGroup> groups;  ///< the line runs' groups that the lists' items refer to
   double mean_candidates = 0;  ///< candidates a cell of the level tests, on average
   TreeView view(const Piece* pieces) const {
-    return {nodes.data(), lists.data(), pieces, jump.data(), jump_level, level};
+    return {nodes.data(), lists.data(), pieces, groups.empty() ? nullptr : groups.data(), jump.data(), jump_level,
+            level};
   }
 };
 /// Builds the pruned tree over `candidates` for `level`; with_distance keeps candidate lists

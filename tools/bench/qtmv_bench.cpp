@@ -318,6 +318,9 @@ Row run_one(const Args& a, const std::string& spec, int level) {
       built.reset();
       const double t0 = now_seconds();
       candidates = label::make_candidates(input, a.rule);
+      if (std::getenv("QTMV_LABEL_TRACE")) {
+        std::fprintf(stderr, "trace: %-24s %9.3f ms  %zu\n", "candidates", (now_seconds() - t0) * 1e3, candidates.size());
+      }
       if (device_tree) {
         // Candidates to the GPU and the tree built there (the constructor synchronises).
         built = std::make_unique<label::cuda::Labeller>(device, candidates, level, a.distance);

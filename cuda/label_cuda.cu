@@ -5,6 +5,7 @@
 
 #include <cub/device/device_scan.cuh>
 
+#include <algorithm>
 #include <chrono>
 #include <climits>
 #include <cstdio>
@@ -12,6 +13,7 @@
 #include <cstdlib>
 #include <stdexcept>
 #include <string>
+#include <thread>
 
 #include "label/label_cuda.hpp"
 #include "label/label_tree.hpp"
@@ -62,6 +64,9 @@ struct Trace {
     last = now;
   }
 };
+
+/// Threads for the host's share of the build (the groups' plan).
+int host_threads() { return std::max(1u, std::thread::hardware_concurrency()); }
 
 unsigned int blocks_for(std::uint64_t count) {
   const std::uint64_t blocks = (count + kBlock - 1) / kBlock;
@@ -628,11 +633,37 @@ __global__ void level_write_lists_kernel(const DevPending* pending, std::int32_t
   }
 }
 
-/// make_group per span: the same groups as the host's make_groups.
+/// make_group per span, one warp per group (the lanes share its pieces): the same groups as the
+/// host's make_groups, since the terms are maxima and an AND.
 __global__ void make_groups_kernel(const Piece* pieces, const GroupSpan* spans, std::int32_t count,
                                    PieceGroup* groups) {
-  const std::int32_t g = blockIdx.x * blockDim.x + threadIdx.x;
-  if (g < count) groups[g] = make_group(pieces, spans[g]);
+  const std::uint64_t g = (static_cast<std::uint64_t>(blockIdx.x) * blockDim.x + threadIdx.x) >> 5;
+  const unsigned lane = threadIdx.x & 31u;
+  if (g >= static_cast<std::uint64_t>(count)) return;  // whole warps: count * 32 threads
+  const GroupSpan s = spans[g];
+  const Piece arc = group_arc(pieces, s);
+  GroupTerms t;
+  for (std::int32_t k = s.first + static_cast<std::int32_t>(lane); k < s.first + s.count; k += 32) {
+    add_group_piece(t, arc, pieces, s, k);
+  }
+  for (int off = 16; off > 0; off >>= 1) {
+    const double reach = __shfl_xor_sync(0xffffffffu, t.reach, off), cap = __shfl_xor_sync(0xffffffffu, t.cap, off);
+    t.reach = reach > t.reach ? reach : t.reach;
+    t.cap = cap > t.cap ? cap : t.cap;
+  }
+  t.connected = __all_sync(0xffffffffu, t.connected);
+  if (lane == 0) groups[g] = finish_group(arc, s, t);
+}
+
+/// The exact rule's candidates from the labeller's input, as make_candidates makes them.
+__global__ void make_pieces_kernel(const SitePiece* site_pieces, std::uint64_t piece_count, const FixedCell* fixed,
+                                   std::uint64_t fixed_count, int level, Piece* out) {
+  const std::uint64_t k = static_cast<std::uint64_t>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (k < piece_count) {
+    out[k] = candidate_of(site_pieces[k]);
+  } else if (k < piece_count + fixed_count) {
+    out[k] = candidate_of(fixed[k - piece_count], level);
+  }
 }
 
 __global__ void jump_kernel(const TreeNode* nodes, int jump_level, std::uint64_t count, JumpEntry* jump) {
@@ -941,6 +972,40 @@ struct Labeller::Impl {
   cudaEvent_t start = nullptr, stop = nullptr;
 
   TreeView view() const { return {nodes, lists, pieces, groups, jump, jump_level, level}; }
+
+  /// The constructors' common start: the device, its events, the level.
+  void open(int device_index, int level_index, bool with_tree) {
+    device = device_index;
+    level = level_index;
+    hier = with_tree;
+    QTMV_CUDA_CHECK(cudaSetDevice(device));
+    QTMV_CUDA_CHECK(cudaEventCreate(&start));
+    QTMV_CUDA_CHECK(cudaEventCreate(&stop));
+  }
+
+  /// The groups of `plan` over the pieces already here, then the tree built here.
+  void build_tree(const GroupPlan& plan, bool with_distance, Trace& trace) {
+    trace("groups planned", plan.spans.size(), plan.top_items.size());
+    if (!plan.spans.empty()) {
+      GroupSpan* spans = device_copy(plan.spans, &bytes);
+      const auto count = static_cast<std::int32_t>(plan.spans.size());
+      groups = device_alloc<PieceGroup>(plan.spans.size(), &bytes);
+      make_groups_kernel<<<blocks_for(std::uint64_t{32} * plan.spans.size()), kBlock>>>(pieces, spans, count, groups);
+      QTMV_CUDA_CHECK_LAUNCH("make_groups_kernel");
+      QTMV_CUDA_CHECK(cudaFree(spans));
+      bytes -= plan.spans.size() * sizeof(GroupSpan);
+    }
+    trace("groups made");
+    const DeviceTree t = build_on_device(device, pieces, groups, plan.top_items, level, with_distance);
+    nodes = t.nodes;
+    lists = t.lists;
+    jump = t.jump;
+    jump_level = t.jump_level;
+    mark_clean_jump_cells();
+    trace("jump cells marked");
+    bytes += t.node_count * sizeof(TreeNode) + t.list_count * sizeof(std::int32_t) + t.jump_count * sizeof(JumpEntry);
+    tree_info = {t.node_count, t.list_count, t.jump_count, t.jump_level, t.mean_candidates};
+  }
   /// jump_clean for the tree now on the device.
   void mark_clean_jump_cells() {
     const std::uint64_t count = grid::cell_count(jump_level);
@@ -980,12 +1045,7 @@ struct Labeller::Impl {
 Labeller::Labeller(int device, const std::vector<Piece>& candidates, const Tree* tree, int level)
     : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
-  m.device = device;
-  m.level = level;
-  m.hier = tree != nullptr;
-  QTMV_CUDA_CHECK(cudaSetDevice(device));
-  QTMV_CUDA_CHECK(cudaEventCreate(&m.start));
-  QTMV_CUDA_CHECK(cudaEventCreate(&m.stop));
+  m.open(device, level, tree != nullptr);
   if (candidates.size() > 0x7fffffffu) throw std::invalid_argument("more than 2^31 candidates");
   m.piece_count = static_cast<int>(candidates.size());
   m.pieces = device_copy(candidates, &m.bytes);
@@ -1002,41 +1062,58 @@ Labeller::Labeller(int device, const std::vector<Piece>& candidates, const Tree*
 Labeller::Labeller(int device, const std::vector<Piece>& candidates, int level, bool with_distance)
     : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
-  m.device = device;
-  m.level = level;
-  m.hier = true;
-  QTMV_CUDA_CHECK(cudaSetDevice(device));
-  QTMV_CUDA_CHECK(cudaEventCreate(&m.start));
-  QTMV_CUDA_CHECK(cudaEventCreate(&m.stop));
+  m.open(device, level, true);
   if (candidates.empty()) throw std::invalid_argument("build_tree: no candidates");
   if (candidates.size() > 0x7fffffffu) throw std::invalid_argument("more than 2^31 candidates");
   m.piece_count = static_cast<int>(candidates.size());
   Trace trace;
   m.pieces = device_copy(candidates, &m.bytes);
   trace("pieces to the device", candidates.size());
-  // The groups' plan is cheap integer work on the host; their bounds are computed here.
-  const GroupPlan plan = plan_groups(candidates);
-  trace("groups planned", plan.spans.size(), plan.top_items.size());
-  if (!plan.spans.empty()) {
-    GroupSpan* spans = device_copy(plan.spans, &m.bytes);
-    trace("spans to the device");
-    const auto count = static_cast<std::int32_t>(plan.spans.size());
-    m.groups = device_alloc<PieceGroup>(plan.spans.size(), &m.bytes);
-    make_groups_kernel<<<blocks_for(plan.spans.size()), kBlock>>>(m.pieces, spans, count, m.groups);
-    QTMV_CUDA_CHECK_LAUNCH("make_groups_kernel");
-    QTMV_CUDA_CHECK(cudaFree(spans));
-    m.bytes -= plan.spans.size() * sizeof(GroupSpan);
+  m.build_tree(plan_groups(candidates, host_threads()), with_distance, trace);
+}
+
+Labeller::Labeller(int device, const LabelInput& input, bool with_distance) : impl_(std::make_unique<Impl>()) {
+  Impl& m = *impl_;
+  m.open(device, input.level, true);
+  const std::size_t count = input.piece_count + input.fixed_cell_count;
+  if (count == 0) throw std::invalid_argument("build_tree: no candidates");
+  if (count > 0x7fffffffu) throw std::invalid_argument("more than 2^31 candidates");
+  m.piece_count = static_cast<int>(count);
+  // The input goes over as it is (less to copy than the pieces) and becomes the pieces here.
+  Trace trace;
+  SitePiece* site_pieces = nullptr;
+  FixedCell* fixed = nullptr;
+  QTMV_CUDA_CHECK(cudaMalloc(&site_pieces, (input.piece_count ? input.piece_count : 1) * sizeof(SitePiece)));
+  struct Free {
+    void* a;
+    void* b;
+    ~Free() {
+      cudaFree(a);
+      cudaFree(b);
+    }
+  } free_scratch{site_pieces, nullptr};
+  QTMV_CUDA_CHECK(cudaMalloc(&fixed, (input.fixed_cell_count ? input.fixed_cell_count : 1) * sizeof(FixedCell)));
+  free_scratch.b = fixed;
+  if (input.piece_count) {
+    QTMV_CUDA_CHECK(cudaMemcpy(site_pieces, input.pieces, input.piece_count * sizeof(SitePiece), cudaMemcpyHostToDevice));
   }
-  trace("groups made");
-  const DeviceTree t = build_on_device(device, m.pieces, m.groups, plan.top_items, level, with_distance);
-  m.nodes = t.nodes;
-  m.lists = t.lists;
-  m.jump = t.jump;
-  m.jump_level = t.jump_level;
-  m.mark_clean_jump_cells();
-  trace("jump cells marked");
-  m.bytes += t.node_count * sizeof(TreeNode) + t.list_count * sizeof(std::int32_t) + t.jump_count * sizeof(JumpEntry);
-  m.tree_info = {t.node_count, t.list_count, t.jump_count, t.jump_level, t.mean_candidates};
+  if (input.fixed_cell_count) {
+    QTMV_CUDA_CHECK(
+        cudaMemcpy(fixed, input.fixed_cells, input.fixed_cell_count * sizeof(FixedCell), cudaMemcpyHostToDevice));
+  }
+  m.pieces = device_alloc<Piece>(count, &m.bytes);
+  make_pieces_kernel<<<blocks_for(count), kBlock>>>(site_pieces, input.piece_count, fixed, input.fixed_cell_count,
+                                                   input.level, m.pieces);
+  QTMV_CUDA_CHECK_LAUNCH("make_pieces_kernel");
+  trace("input to pieces", count);
+  const GroupPlan plan = plan_groups(
+      static_cast<std::int64_t>(count),
+      [&](std::int64_t k) {
+        return k < static_cast<std::int64_t>(input.piece_count) ? input.pieces[k].site
+                                                                : input.fixed_cells[k - input.piece_count].site;
+      },
+      host_threads());
+  m.build_tree(plan, with_distance, trace);
 }
 
 Labeller::~Labeller() = default;

@@ -16,6 +16,7 @@
 
 namespace qtmv::label {
 struct Tree;
+struct LabelInput;
 }
 
 namespace qtmv::label::cuda {
@@ -57,6 +58,9 @@ class Labeller {
   /// `hier` with the tree built on the device, level by level: the tree of build_tree
   /// (labeller.cpp), node for node and entry for entry.
   Labeller(int device, const std::vector<Piece>& candidates, int level, bool with_distance);
+  /// The same for the exact rule, with the candidates made on the device from the input (the
+  /// pieces of make_candidates(input, Rule::exact), which the host then need not make).
+  Labeller(int device, const LabelInput& input, bool with_distance);
   ~Labeller();
   /// Size of the device-built tree (zeros for the other constructor).
   TreeInfo tree_info() const;

@@ -17,6 +17,7 @@ Labeller::Labeller(int, const std::vector<Piece>&, const Tree*, int) {
 Labeller::Labeller(int, const std::vector<Piece>&, int, bool) {
   throw std::runtime_error("qtmvoronoi was built without CUDA");
 }
+Labeller::Labeller(int, const LabelInput&, bool) { throw std::runtime_error("qtmvoronoi was built without CUDA"); }
 Labeller::~Labeller() = default;
 TreeInfo Labeller::tree_info() const { return {}; }
 void Labeller::download_tree(std::vector<TreeNode>*, std::vector<std::int32_t>*, std::vector<JumpEntry>*) const {}

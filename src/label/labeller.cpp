@@ -248,8 +248,7 @@ std::vector<Piece> make_candidates(const LabelInput& in, Rule rule, int threads_
     const auto n = static_cast<std::int64_t>(in.piece_count);
 #pragma omp parallel for schedule(static) num_threads(threads)
     for (std::int64_t k = 0; k < n; ++k) {
-      const SitePiece& p = in.pieces[k];
-      out[k] = same_point(p.a, p.b) ? make_point_piece(p.a, p.site) : make_arc_piece(p.a, p.b, p.site);
+      out[k] = candidate_of(in.pieces[k]);
     }
   } else {
     // One point per distinct (cell, site): duplicates change nothing but the work.
@@ -264,10 +263,7 @@ std::vector<Piece> make_candidates(const LabelInput& in, Rule rule, int threads_
   // Fixed cells in both rules: a point at the cell's centre that wins that cell at distance 0.
   // Under the exact rule it is a point of the polygon site, so it never brings the site nearer
   // than its own geometry would.
-  for (std::size_t k = 0; k < in.fixed_cell_count; ++k) {
-    const FixedCell& f = in.fixed_cells[k];
-    out.push_back(make_point_piece(grid::cell_centre_vector(f.code, in.level), f.site, kPieceFixed));
-  }
+  for (std::size_t k = 0; k < in.fixed_cell_count; ++k) out.push_back(candidate_of(in.fixed_cells[k], in.level));
   return out;
 }
 
@@ -316,7 +312,7 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
   tree.nodes.resize(grid::kOctants);
 
   // Line runs become groups; the octants start with the runs' top items.
-  GroupPlan plan = plan_groups(candidates);
+  GroupPlan plan = plan_groups(candidates, threads);
   tree.groups = make_groups(candidates, plan.spans, threads);
   const PieceGroup* groups = tree.groups.empty() ? nullptr : tree.groups.data();
   std::vector<std::int32_t> parent_lists = std::move(plan.top_items);
@@ -588,10 +584,21 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
 
   const double t0 = now_seconds();
   progress(0.0, "prepare");
-  const std::vector<Piece> candidates = make_candidates(input, options.rule, threads);
+  // The host's candidates, made when the host needs them: the exact rule's device build makes
+  // its own from the input.
+  std::vector<Piece> candidates;
+  bool candidates_made = false;
+  auto host_candidates = [&]() -> const std::vector<Piece>& {
+    if (!candidates_made) candidates = make_candidates(input, options.rule, threads);
+    candidates_made = true;
+    return candidates;
+  };
+  const double candidate_count = options.rule == Rule::exact
+                                     ? static_cast<double>(input.piece_count + input.fixed_cell_count)
+                                     : static_cast<double>(host_candidates().size());
   stats.algorithm = options.algorithm;
   if (stats.algorithm == Algorithm::automatic) {
-    const double work = static_cast<double>(grid::cell_count(input.level)) * static_cast<double>(candidates.size());
+    const double work = static_cast<double>(grid::cell_count(input.level)) * candidate_count;
     stats.algorithm = device.cuda && work <= kBruteWorkLimit ? Algorithm::brute : Algorithm::hier;
   }
   const bool hier = stats.algorithm == Algorithm::hier;
@@ -612,7 +619,10 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
   };
   if (device_tree) {
     try {
-      gpu_built = std::make_unique<cuda::Labeller>(device.index, candidates, input.level, options.want_distance);
+      gpu_built = options.rule == Rule::exact
+                      ? std::make_unique<cuda::Labeller>(device.index, input, options.want_distance)
+                      : std::make_unique<cuda::Labeller>(device.index, host_candidates(), input.level,
+                                                         options.want_distance);
     } catch (const std::length_error&) {
       // Too large for the device build's 32-bit work counts: the host builds it (below).
       gpu_built.reset();
@@ -627,13 +637,13 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
     stats.mean_candidates = info.mean_candidates;
   } else if (hier) {
     // Progress after each level of the build, so that a caller can stop a long build.
-    tree = build_tree(candidates, input.level, options.want_distance, threads,
+    tree = build_tree(host_candidates(), input.level, options.want_distance, threads,
                       [&](double fraction) { progress(fraction, "prepare"); });
     stats.tree_nodes = tree.nodes.size();
     stats.tree_list_entries = tree.lists.size();
     stats.mean_candidates = tree.mean_candidates;
   } else {
-    stats.mean_candidates = static_cast<double>(candidates.size());
+    stats.mean_candidates = candidate_count;
   }
   stats.prepare_seconds = now_seconds() - t0;
 
@@ -658,7 +668,8 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
   if (on_gpu) {
     try {
       if (!gpu_built) {
-        gpu_built = std::make_unique<cuda::Labeller>(device.index, candidates, hier ? &tree : nullptr, input.level);
+        gpu_built =
+            std::make_unique<cuda::Labeller>(device.index, host_candidates(), hier ? &tree : nullptr, input.level);
       }
       const HostTile host{host_tile, site.data(), metres_ptr, boundary_ptr};
       label_on_gpu(*gpu_built, device.index, input.level, options, need, host, sink, stats, done);
@@ -666,9 +677,9 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
     } catch (const cuda::OutOfMemory& e) {
       leave_gpu(e, done);
     }
-    if (hier && tree.nodes.empty()) tree = build_tree(candidates, input.level, options.want_distance, threads);
+    if (hier && tree.nodes.empty()) tree = build_tree(host_candidates(), input.level, options.want_distance, threads);
   }
-  const TreeView tv = tree.view(candidates.data());
+  const TreeView tv = tree.view(host_candidates().data());
   for (std::uint64_t first = done; first < total; first += host_tile) {
     const std::uint64_t count = std::min(host_tile, total - first);
     const double start = now_seconds();

@@ -153,6 +153,16 @@ void add_fixed_cell(SiteGeometry& g, grid::Code code, std::int32_t site);
 
 // --- lower-level entry points, for the tests and the benchmark ----------------------------------
 
+/// The exact rule's candidate of a site piece, and of a fixed cell (a fixed point piece at its
+/// centre), on the host and on the device alike.
+QTMV_HD inline Piece candidate_of(const SitePiece& p) {
+  return p.a.x == p.b.x && p.a.y == p.b.y && p.a.z == p.b.z ? make_point_piece(p.a, p.site)
+                                                             : make_arc_piece(p.a, p.b, p.site);
+}
+QTMV_HD inline Piece candidate_of(const FixedCell& f, int level) {
+  return make_point_piece(grid::cell_centre_vector(f.code, level), f.site, kPieceFixed);
+}
+
 /// The candidates of a rule as kernel pieces (fixed cells become fixed point pieces at their
 /// centres in both rules). `threads`: as LabelOptions::threads.
 std::vector<Piece> make_candidates(const LabelInput& input, Rule rule, int threads = 0);

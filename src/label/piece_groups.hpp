@@ -3,7 +3,8 @@
 // (issue 4: "candidates grouped per line run"). One body for the CPU and the CUDA kernels (QTMV_HD).
 //
 // Layout. A run is a maximal range of consecutive candidates (in make_candidates' order) with one
-// site; a run of one piece stays a piece. A longer run is cut in halves recursively until at most
+// site (the lines of a site, then its fixed cells: a group across a seam is simply not tight); a
+// run of one piece stays a piece. A longer run is cut in halves recursively until at most
 // kGroupLeafPieces pieces remain: each cut is a group. The groups of a run are stored in preorder,
 // so group g's subtree is [g, g + size) and its first child (if any) is g + 1, its second
 // g + 1 + groups[g + 1].size; a group of size 1 (a "bottom" group) holds pieces
@@ -25,6 +26,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "label/label_math.hpp"
@@ -100,31 +102,53 @@ QTMV_HD inline double piece_reach(const Piece& arc, const Piece& p) {
 
 QTMV_HD inline bool same_point(const Vec3& a, const Vec3& b) { return a.x == b.x && a.y == b.y && a.z == b.z; }
 
-/// The group of span s over `pieces` (all of one site): its arc, bounds and tightness.
-QTMV_HD inline PieceGroup make_group(const Piece* pieces, const GroupSpan& s) {
+/// A group's bounds are maxima over its pieces (and an AND for connectivity): order-free, so the
+/// host's loop (make_group) and the device's warps give the same bits.
+struct GroupTerms {
+  double reach = 0.0;  ///< max piece_reach to the arc
+  double cap = 0.0;    ///< max piece_reach_point to A
+  bool connected = true;
+};
+
+/// The arc of span s: A -> B, or a point at A when B is more than 60 degrees away.
+QTMV_HD inline Piece group_arc(const Piece* pieces, const GroupSpan& s) {
   const Piece& head = pieces[s.first];
   const Piece& tail = pieces[s.first + s.count - 1];
+  return grid::dot(head.a, tail.b) >= 0.5 ? make_arc_piece(head.a, tail.b, head.site)
+                                           : make_point_piece(head.a, head.site);
+}
+
+/// Adds piece k of span s to the terms.
+QTMV_HD inline void add_group_piece(GroupTerms& t, const Piece& arc, const Piece* pieces, const GroupSpan& s,
+                                    std::int32_t k) {
+  const Piece& p = pieces[k];
+  const double r = piece_reach(arc, p), c = piece_reach_point(pieces[s.first].a, p);
+  t.reach = r > t.reach ? r : t.reach;
+  t.cap = c > t.cap ? c : t.cap;
+  if (k > s.first && !same_point(pieces[k - 1].b, p.a)) t.connected = false;
+}
+
+/// The group of span s from its arc and terms.
+QTMV_HD inline PieceGroup finish_group(const Piece& arc, const GroupSpan& s, const GroupTerms& t) {
   PieceGroup g;
-  g.arc = grid::dot(head.a, tail.b) >= 0.5 ? make_arc_piece(head.a, tail.b, head.site)
-                                            : make_point_piece(head.a, head.site);
-  double reach = 0.0, cap = 0.0;
-  bool connected = true;
-  for (std::int32_t k = s.first; k < s.first + s.count; ++k) {
-    const Piece& p = pieces[k];
-    const double r = piece_reach(g.arc, p), c = piece_reach_point(head.a, p);
-    reach = r > reach ? r : reach;
-    cap = c > cap ? c : cap;
-    if (k > s.first && !same_point(pieces[k - 1].b, p.a)) connected = false;
-  }
+  g.arc = arc;
   // Margins for the float64 rounding of the bounds (a few 1e-16) and of the pieces' own chords.
-  g.reach = reach * (1.0 + 1e-9) + 1e-12;
-  cap = cap * (1.0 + 1e-9) + 1e-12;
-  g.tight = connected && !(g.arc.flags & kPiecePoint) && g.reach < kTightReach ? 1 : 0;
+  g.reach = t.reach * (1.0 + 1e-9) + 1e-12;
+  const double cap = t.cap * (1.0 + 1e-9) + 1e-12;
+  g.tight = t.connected && !(arc.flags & kPiecePoint) && g.reach < kTightReach ? 1 : 0;
   g.spread = g.tight ? g.reach : (cap > g.reach ? cap : g.reach);
   g.first = s.first;
   g.count = s.count;
   g.size = s.size;
   return g;
+}
+
+/// The group of span s over `pieces` (all of one site): its arc, bounds and tightness.
+QTMV_HD inline PieceGroup make_group(const Piece* pieces, const GroupSpan& s) {
+  const Piece arc = group_arc(pieces, s);
+  GroupTerms t;
+  for (std::int32_t k = s.first; k < s.first + s.count; ++k) add_group_piece(t, arc, pieces, s, k);
+  return finish_group(arc, s, t);
 }
 
 /// Bounds (squared chords) on the distance from x to the nearest point of an item, and its site.
@@ -228,7 +252,11 @@ struct GroupPlan {
   std::vector<GroupSpan> spans;
   std::vector<std::int32_t> top_items;  ///< one per run, in candidate order
 };
-GroupPlan plan_groups(const std::vector<Piece>& pieces);
+/// The plan of `count` candidates whose site ids are site_of(0), site_of(1), ... (OpenMP,
+/// `threads` > 0 threads); only the sites matter, so the host and the device plan alike from
+/// the pieces or from the labeller's input.
+GroupPlan plan_groups(std::int64_t count, const std::function<std::int32_t(std::int64_t)>& site_of, int threads);
+GroupPlan plan_groups(const std::vector<Piece>& pieces, int threads);
 
 /// make_group for every span (OpenMP, `threads` > 0 threads).
 std::vector<PieceGroup> make_groups(const std::vector<Piece>& pieces, const std::vector<GroupSpan>& spans,

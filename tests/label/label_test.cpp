@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
+#include <memory>
 #include <random>
 #include <string>
 #include <vector>
@@ -625,27 +626,35 @@ TEST(LabelDeviceTree, MatchesTheHostTree) {
         SCOPED_TRACE(c.name + " level " + std::to_string(c.g.level) + (rule == Rule::exact ? " exact" : " cell") +
                      (with_distance ? " with distances" : ""));
         const Tree host = build_tree(candidates, c.g.level, with_distance, 2);
-        cuda::Labeller gpu(0, candidates, c.g.level, with_distance);
-        std::vector<TreeNode> nodes;
-        std::vector<std::int32_t> lists;
-        std::vector<JumpEntry> jump;
-        gpu.download_tree(&nodes, &lists, &jump);
-        ASSERT_EQ(nodes.size(), host.nodes.size());
-        ASSERT_EQ(lists.size(), host.lists.size());
-        ASSERT_EQ(jump.size(), host.jump.size());
-        EXPECT_EQ(gpu.tree_info().jump_level, host.jump_level);
-        std::uint64_t bad = 0;
-        for (std::size_t k = 0; k < nodes.size(); ++k) {
-          bad += nodes[k].count != host.nodes[k].count || nodes[k].value != host.nodes[k].value;
+        // From the host's candidates, and (exact rule) from the input, the pieces made there.
+        for (const bool from_input : {false, true}) {
+          if (from_input && rule != Rule::exact) continue;
+          SCOPED_TRACE(from_input ? "device candidates" : "host candidates");
+          std::unique_ptr<cuda::Labeller> built =
+              from_input ? std::make_unique<cuda::Labeller>(0, in, with_distance)
+                         : std::make_unique<cuda::Labeller>(0, candidates, c.g.level, with_distance);
+          const cuda::Labeller& gpu = *built;
+          std::vector<TreeNode> nodes;
+          std::vector<std::int32_t> lists;
+          std::vector<JumpEntry> jump;
+          gpu.download_tree(&nodes, &lists, &jump);
+          ASSERT_EQ(nodes.size(), host.nodes.size());
+          ASSERT_EQ(lists.size(), host.lists.size());
+          ASSERT_EQ(jump.size(), host.jump.size());
+          EXPECT_EQ(gpu.tree_info().jump_level, host.jump_level);
+          std::uint64_t bad = 0;
+          for (std::size_t k = 0; k < nodes.size(); ++k) {
+            bad += nodes[k].count != host.nodes[k].count || nodes[k].value != host.nodes[k].value;
+          }
+          EXPECT_EQ(bad, 0u) << "nodes differ";
+          EXPECT_TRUE(lists == host.lists) << "lists differ";
+          bad = 0;
+          for (std::size_t k = 0; k < jump.size(); ++k) {
+            bad += jump[k].node != host.jump[k].node || jump[k].level != host.jump[k].level;
+          }
+          EXPECT_EQ(bad, 0u) << "jump tables differ";
+          EXPECT_NEAR(gpu.tree_info().mean_candidates, host.mean_candidates, 1e-9 * host.mean_candidates);
         }
-        EXPECT_EQ(bad, 0u) << "nodes differ";
-        EXPECT_TRUE(lists == host.lists) << "lists differ";
-        bad = 0;
-        for (std::size_t k = 0; k < jump.size(); ++k) {
-          bad += jump[k].node != host.jump[k].node || jump[k].level != host.jump[k].level;
-        }
-        EXPECT_EQ(bad, 0u) << "jump tables differ";
-        EXPECT_NEAR(gpu.tree_info().mean_candidates, host.mean_candidates, 1e-9 * host.mean_candidates);
       }
       // Whole runs: CPU (host tree) and CUDA (device tree) give the same labels and flags.
       LabelOptions options;

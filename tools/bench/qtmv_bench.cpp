@@ -317,12 +317,15 @@ Row run_one(const Args& a, const std::string& spec, int level) {
     for (int r = 0; r < a.repeat; ++r) {
       built.reset();
       const double t0 = now_seconds();
-      candidates = label::make_candidates(input, a.rule);
-      if (std::getenv("QTMV_LABEL_TRACE")) {
-        std::fprintf(stderr, "trace: %-24s %9.3f ms  %zu\n", "candidates", (now_seconds() - t0) * 1e3, candidates.size());
+      if (device_tree && a.rule == Rule::exact) {
+        // As label_cells does: the input to the GPU, the candidates and the tree made there (the
+        // constructor synchronises).
+        built = std::make_unique<label::cuda::Labeller>(device, input, a.distance);
+        prepare.push_back((now_seconds() - t0) * 1e3);
+        continue;
       }
+      candidates = label::make_candidates(input, a.rule);
       if (device_tree) {
-        // Candidates to the GPU and the tree built there (the constructor synchronises).
         built = std::make_unique<label::cuda::Labeller>(device, candidates, level, a.distance);
       } else if (hier) {
         tree = label::build_tree(candidates, level, a.distance, a.threads);

@@ -1,0 +1,198 @@
+// The line runs' groups (src/label/piece_groups.hpp): the plan's layout, the bounds against the
+// pieces they stand for, and the branch-and-bound search against brute force.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <random>
+#include <vector>
+
+#include "grid/qtm.hpp"
+#include "label/labeller.hpp"
+#include "label/piece_groups.hpp"
+
+namespace qtmv::label {
+namespace {
+
+Vec3 unit(double x, double y, double z) {
+  const double n = std::sqrt(x * x + y * y + z * z);
+  return {x / n, y / n, z / n};
+}
+
+/// The point a fraction t of the way along the minor arc a-b.
+Vec3 along(const Vec3& a, const Vec3& b, double t) {
+  return unit(a.x + t * (b.x - a.x), a.y + t * (b.y - a.y), a.z + t * (b.z - a.z));
+}
+
+/// Sites as the readers make them: wiggly polylines (a random walk of arcs, each cut into
+/// quarter-edge pieces), a site of two separate lines, a straight arc, a line duplicated under a
+/// lower site id (exact ties), fixed cells, and points.
+SiteGeometry wiggly_sites(int level, std::uint64_t seed) {
+  SiteGeometry g;
+  g.level = level;
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> lon(-180, 180), lat(-70, 70), turn(-40, 40), step(0.2, 3.0);
+  auto polyline = [&](std::int32_t site, int vertices) {
+    double lo = lon(rng), la = lat(rng), heading = turn(rng) * 4;
+    for (int v = 0; v < vertices; ++v) {
+      heading += turn(rng);
+      const double d = step(rng);
+      const double la2 = std::max(-85.0, std::min(85.0, la + d * std::cos(heading * grid::kDegree)));
+      const double lo2 = grid::normalise_lon(lo + d * std::sin(heading * grid::kDegree) / std::cos(la * grid::kDegree));
+      add_arc(g, lo, la, lo2, la2, site);
+      lo = lo2;
+      la = la2;
+    }
+  };
+  for (std::int32_t s = 0; s < 6; ++s) polyline(s, 12);
+  polyline(6, 5);
+  polyline(6, 5);  // a second line of site 6: one run, not tight across the seam
+  add_arc(g, 20, -10, 31, 2, 7);
+  add_arc(g, -60, 40, -52, 33, 9);
+  add_arc(g, -60, 40, -52, 33, 8);  // the same line as site 9: every distance ties
+  for (grid::Code c = 100; c < 160; ++c) add_fixed_cell(g, c, 10);
+  add_point(g, 100, 10, 11);
+  add_point(g, 101, 10, 11);
+  return g;
+}
+
+std::vector<Piece> candidates_of(const SiteGeometry& g) { return make_candidates(g.input(), Rule::exact, 1); }
+
+TEST(PieceGroups, PlanIsThePreorderOfHalvedRuns) {
+  const SiteGeometry g = wiggly_sites(9, 1);
+  const std::vector<Piece> pieces = candidates_of(g);
+  const GroupPlan plan = plan_groups(pieces, 2);
+  // The plan from the sites alone (the device build's way) is the same.
+  const GroupPlan by_site = plan_groups(
+      static_cast<std::int64_t>(pieces.size()), [&](std::int64_t k) { return pieces[k].site; }, 3);
+  ASSERT_EQ(plan.top_items, by_site.top_items);
+  ASSERT_EQ(plan.spans.size(), by_site.spans.size());
+  for (std::size_t k = 0; k < plan.spans.size(); ++k) {
+    EXPECT_EQ(plan.spans[k].first, by_site.spans[k].first);
+    EXPECT_EQ(plan.spans[k].count, by_site.spans[k].count);
+    EXPECT_EQ(plan.spans[k].size, by_site.spans[k].size);
+  }
+  // Every piece is in exactly one top item; a group holds one site's consecutive pieces.
+  std::int32_t next = 0;
+  for (const std::int32_t item : plan.top_items) {
+    if (!is_group_item(item)) {
+      EXPECT_EQ(item, next);
+      ++next;
+      continue;
+    }
+    const GroupSpan& top = plan.spans[item_group(item)];
+    EXPECT_EQ(top.first, next);
+    next += top.count;
+  }
+  EXPECT_EQ(next, static_cast<std::int32_t>(pieces.size()));
+  EXPECT_EQ(plan.top_items.size(), 12u);  // one run per site: each of sites 0..11 is consecutive
+  for (std::size_t k = 0; k < plan.spans.size(); ++k) {
+    const GroupSpan& s = plan.spans[k];
+    for (std::int32_t p = s.first; p < s.first + s.count; ++p) EXPECT_EQ(pieces[p].site, pieces[s.first].site);
+    if (s.size == 1) {
+      EXPECT_GE(s.count, 2);
+      EXPECT_LE(s.count, kGroupLeafPieces);
+      continue;
+    }
+    ASSERT_GT(s.count, kGroupLeafPieces);
+    const GroupSpan& left = plan.spans[k + 1];
+    const GroupSpan& right = plan.spans[k + 1 + left.size];
+    EXPECT_EQ(left.first, s.first);
+    EXPECT_EQ(left.count, s.count / 2);
+    EXPECT_EQ(right.first, s.first + s.count / 2);
+    EXPECT_EQ(right.count, s.count - s.count / 2);
+    EXPECT_EQ(s.size, 1 + left.size + right.size);
+  }
+}
+
+TEST(PieceGroups, ReachBoundsEveryPointOfEveryPiece) {
+  for (const int level : {6, 10}) {
+    const SiteGeometry g = wiggly_sites(level, 2 + level);
+    const std::vector<Piece> pieces = candidates_of(g);
+    const GroupPlan plan = plan_groups(pieces, 2);
+    const std::vector<PieceGroup> groups = make_groups(pieces, plan.spans, 2);
+    std::size_t tight = 0;
+    for (const PieceGroup& grp : groups) {
+      tight += grp.tight;
+      double worst = 0;
+      for (std::int32_t p = grp.first; p < grp.first + grp.count; ++p) {
+        for (const double t : {0.0, 0.13, 0.5, 0.77, 1.0}) {
+          const Vec3 y = along(pieces[p].a, pieces[p].b, t);
+          worst = std::max(worst, std::sqrt(piece_chord2(y, grp.arc)));
+        }
+      }
+      EXPECT_LE(worst, grp.reach) << "group of " << grp.count << " pieces at " << grp.first;
+      EXPECT_GE(grp.spread, grp.reach);
+    }
+    // The lines' groups are mostly tight (the bounds are useful, not just valid).
+    EXPECT_GT(tight, groups.size() / 2) << "level " << level;
+  }
+}
+
+TEST(PieceGroups, AStraightRunIsTightAndThin) {
+  SiteGeometry g;
+  g.level = 12;
+  add_arc(g, 10, 10, 20, 15, 0);
+  const std::vector<Piece> pieces = candidates_of(g);
+  ASSERT_GT(pieces.size(), 1000u);
+  const GroupPlan plan = plan_groups(pieces, 1);
+  const std::vector<PieceGroup> groups = make_groups(pieces, plan.spans, 1);
+  ASSERT_EQ(plan.top_items.size(), 1u);
+  const PieceGroup& top = groups[item_group(plan.top_items[0])];
+  EXPECT_EQ(top.tight, 1);
+  EXPECT_LT(top.reach, 1e-9);  // the pieces lie on the arc's great circle
+  EXPECT_EQ(top.count, static_cast<std::int32_t>(pieces.size()));
+}
+
+TEST(PieceGroups, BoundsHoldAndBranchAndBoundIsBruteForce) {
+  for (const int level : {7, 11}) {
+    const SiteGeometry g = wiggly_sites(level, 30 + level);
+    const std::vector<Piece> pieces = candidates_of(g);
+    const GroupPlan plan = plan_groups(pieces, 2);
+    const std::vector<PieceGroup> groups = make_groups(pieces, plan.spans, 2);
+    std::mt19937_64 rng(level);
+    std::normal_distribution<double> jitter(0.0, 0.01);
+    std::uniform_int_distribution<std::size_t> pick(0, pieces.size() - 1);
+    std::normal_distribution<double> n01;
+    for (int trial = 0; trial < 4000; ++trial) {
+      // Half the points anywhere, half near a piece (where bounds and ties are tight).
+      Vec3 x;
+      if (trial % 2) {
+        x = unit(n01(rng), n01(rng), n01(rng));
+      } else {
+        const Vec3 p = pieces[pick(rng)].a;
+        x = unit(p.x + jitter(rng), p.y + jitter(rng), p.z + jitter(rng));
+      }
+      // Each group's bounds against its pieces.
+      for (std::size_t k = 0; k < groups.size(); ++k) {
+        const PieceGroup& grp = groups[k];
+        double nearest = 1e300;
+        for (std::int32_t p = grp.first; p < grp.first + grp.count; ++p) {
+          nearest = std::min(nearest, piece_chord2(x, pieces[p]));
+        }
+        double lb2, ub2;
+        std::int32_t site;
+        item_bounds(x, group_item(static_cast<std::int32_t>(k)), pieces.data(), groups.data(), &lb2, &ub2, &site);
+        ASSERT_LE(lb2, nearest * (1 + 1e-12) + 1e-15) << "trial " << trial << " group " << k;
+        ASSERT_GE(ub2, nearest * (1 - 1e-12) - 1e-15) << "trial " << trial << " group " << k;
+        ASSERT_EQ(site, pieces[grp.first].site);
+      }
+      // The search over the top items picks what consider() over every piece picks.
+      Best brute = no_best();
+      consider_all(brute, x, pieces.data(), static_cast<std::int64_t>(pieces.size()));
+      std::int32_t winner = -1;
+      const Best best = best_of_items(x, plan.top_items.data(), static_cast<std::int32_t>(plan.top_items.size()),
+                                      pieces.data(), groups.data(), &winner);
+      ASSERT_EQ(best.site, brute.site) << "trial " << trial;
+      ASSERT_EQ(best.chord2, brute.chord2) << "trial " << trial;
+      ASSERT_EQ(best.rank, brute.rank) << "trial " << trial;
+      ASSERT_GE(winner, 0);
+      EXPECT_EQ(piece_chord2(x, pieces[winner]), best.chord2);
+      EXPECT_EQ(pieces[winner].site, best.site);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace qtmv::label

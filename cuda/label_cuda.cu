@@ -48,6 +48,39 @@ void injected_fault(const char* step) {
 /// After a kernel launch: launch errors now, execution errors at the next synchronisation.
 #define QTMV_CUDA_CHECK_LAUNCH(name) check(cudaGetLastError(), "launch of " name, __FILE__, __LINE__)
 
+// The tree build's scratch comes from the device's default memory pool, which keeps it mapped
+// after the build (mapping GBs anew costs tens of milliseconds per build at level 15). That
+// memory counts as free (pool_idle_bytes), and an allocation that fails gives it back to the
+// system and tries once more (allocate).
+
+/// Bytes the current device's default pool holds but does not use.
+std::size_t pool_idle_bytes(int device) {
+  cudaMemPool_t pool;
+  if (cudaDeviceGetDefaultMemPool(&pool, device) != cudaSuccess) return 0;
+  std::uint64_t reserved = 0, used = 0;
+  if (cudaMemPoolGetAttribute(pool, cudaMemPoolAttrReservedMemCurrent, &reserved) != cudaSuccess ||
+      cudaMemPoolGetAttribute(pool, cudaMemPoolAttrUsedMemCurrent, &used) != cudaSuccess) {
+    return 0;
+  }
+  return reserved > used ? static_cast<std::size_t>(reserved - used) : 0;
+}
+
+/// cudaMalloc, once more after the pool's idle memory went back to the system.
+#define QTMV_CUDA_ALLOCATE(pointer, bytes) check(allocate(reinterpret_cast<void**>(pointer), (bytes)), \
+                                                 "cudaMalloc(" #pointer ", " #bytes ")", __FILE__, __LINE__)
+cudaError_t allocate(void** pointer, std::size_t bytes) {
+  cudaError_t status = cudaMalloc(pointer, bytes);
+  if (status != cudaErrorMemoryAllocation) return status;
+  (void)cudaGetLastError();
+  int device = 0;
+  cudaMemPool_t pool;
+  if (cudaGetDevice(&device) != cudaSuccess || cudaDeviceGetDefaultMemPool(&pool, device) != cudaSuccess ||
+      pool_idle_bytes(device) == 0 || cudaDeviceSynchronize() != cudaSuccess || cudaMemPoolTrimTo(pool, 0) != cudaSuccess) {
+    return status;
+  }
+  return cudaMalloc(pointer, bytes);
+}
+
 constexpr int kBlock = 256;
 
 /// QTMV_LABEL_TRACE set: the device build reports each step's time and size on stderr (for
@@ -392,16 +425,6 @@ struct AddSums {
 
 constexpr int kNodeKindList = 1;
 
-/// The node (index into the level's pending) holding work item e: the last start <= e.
-__device__ inline std::int32_t node_of_entry(const unsigned long long* start, std::int32_t n, unsigned long long e) {
-  std::int32_t lo = 0, hi = n;  // start[lo] <= e < start[hi]
-  while (hi - lo > 1) {
-    const std::int32_t mid = (lo + hi) >> 1;
-    if (start[mid] <= e) lo = mid; else hi = mid;
-  }
-  return lo;
-}
-
 __global__ void level_init_kernel(const DevPending* pending, std::int32_t n, int level, bool last, Vec3* centre,
                                   double* radius, unsigned long long* start_in, unsigned long long* min_bits,
                                   std::int32_t* site_min, std::int32_t* site_max, unsigned long long* key) {
@@ -447,30 +470,27 @@ struct MaxI32 {
 // item is one entry of a group's list, and its piece is read once for the four nodes. Node
 // 4 g + c's entries start at start[4 g + c] = 4 start[4 g] / 4 + c * (its list's length).
 
-/// The group holding work item t: start[4 g] <= 4 t < start[4 g + 4].
-__device__ inline std::int32_t group_of_item(const unsigned long long* start, std::int32_t groups,
-                                             unsigned long long t) {
-  std::int32_t lo = 0, hi = groups;
-  while (hi - lo > 1) {
-    const std::int32_t mid = (lo + hi) >> 1;
-    if (start[4 * mid] <= 4 * t) lo = mid; else hi = mid;
-  }
-  return lo;
+/// The group holding work item t (start[4 g] <= 4 t < start[4 g + 4]) is owner[t]: each group
+/// with items marks its first item, and a running maximum fills the rest.
+__global__ void level_owner_kernel(const unsigned long long* start, std::int32_t groups, std::int32_t* heads) {
+  const std::int32_t g = blockIdx.x * blockDim.x + threadIdx.x;
+  if (g < groups && start[4 * g + 4] > start[4 * g]) heads[start[4 * g] / 4] = g;
 }
 
 /// Work item t of a level: the group of four sibling nodes it serves (*group), the position in
 /// their shared parent list (*position) and the item found there.
-__device__ inline std::int32_t list_item(const DevPending* pending, std::int32_t groups, const unsigned long long* start,
-                                         unsigned long long t, const std::int32_t* parent_lists, std::int32_t* group,
+__device__ inline std::int32_t list_item(const DevPending* pending, const std::int32_t* owner,
+                                         const unsigned long long* start, unsigned long long t,
+                                         const std::int32_t* parent_lists, std::int32_t* group,
                                          unsigned long long* position) {
-  const std::int32_t g = group_of_item(start, groups, t);
+  const std::int32_t g = owner[t];
   *group = g;
   *position = t - start[4 * g] / 4;
   return parent_lists[pending[4 * g].parent_offset + *position];
 }
 
 /// Pass 1: per node the least upper bound of the items' distances (squared chords).
-__global__ void level_min_kernel(const DevPending* pending, std::int32_t groups, const unsigned long long* start,
+__global__ void level_min_kernel(const DevPending* pending, const std::int32_t* owner, const unsigned long long* start,
                                  unsigned long long items, const std::int32_t* parent_lists, const Piece* pieces,
                                  const PieceGroup* runs, const Vec3* centre, unsigned long long* min_bits) {
   const unsigned long long t = static_cast<unsigned long long>(blockIdx.x) * blockDim.x + threadIdx.x;
@@ -478,7 +498,7 @@ __global__ void level_min_kernel(const DevPending* pending, std::int32_t groups,
   unsigned long long bits[4] = {~0ull, ~0ull, ~0ull, ~0ull};
   if (t < items) {
     unsigned long long pos;
-    const std::int32_t item = list_item(pending, groups, start, t, parent_lists, &g, &pos);
+    const std::int32_t item = list_item(pending, owner, start, t, parent_lists, &g, &pos);
     for (int c = 0; c < 4; ++c) {
       double lb2, ub2;
       std::int32_t site;
@@ -493,7 +513,7 @@ __global__ void level_min_kernel(const DevPending* pending, std::int32_t groups,
 
 /// Pass 2 (levels above the labelling level): per entry the items it leaves to the node (0, 1,
 /// or a split group's children: kept_items), and the kept sites' range per node.
-__global__ void level_keep_kernel(const DevPending* pending, std::int32_t groups, const unsigned long long* start,
+__global__ void level_keep_kernel(const DevPending* pending, const std::int32_t* owner, const unsigned long long* start,
                                   unsigned long long items, const std::int32_t* parent_lists, const Piece* pieces,
                                   const PieceGroup* runs, const Vec3* centre, const double* radius,
                                   const double* threshold, unsigned int* keep, std::int32_t* site_min,
@@ -503,7 +523,7 @@ __global__ void level_keep_kernel(const DevPending* pending, std::int32_t groups
   std::int32_t lo[4] = {INT_MAX, INT_MAX, INT_MAX, INT_MAX}, hi[4] = {INT_MIN, INT_MIN, INT_MIN, INT_MIN};
   if (t < items) {
     unsigned long long pos;
-    const std::int32_t item = list_item(pending, groups, start, t, parent_lists, &g, &pos);
+    const std::int32_t item = list_item(pending, owner, start, t, parent_lists, &g, &pos);
     for (int c = 0; c < 4; ++c) {
       double lb2, ub2;
       std::int32_t site;
@@ -578,14 +598,12 @@ __global__ void level_decide_kernel(std::int32_t n, bool last, bool with_distanc
   if (q == 0) sums_in[n] = {0, 0, 0};
 }
 
-/// Per node: its TreeNode, its children's pending entries, and at the labelling level its winner.
+/// Per node: its TreeNode, and at the labelling level its winner.
 __global__ void level_write_nodes_kernel(const DevPending* pending, std::int32_t n, bool last,
-                                         const unsigned long long* start, const std::int32_t* parent_lists,
                                          const std::int32_t* kind, const std::int32_t* count,
                                          const std::int32_t* value, const unsigned long long* key,
                                          const LevelSums* offsets, unsigned long long lists_base,
-                                         unsigned long long nodes_base, TreeNode* nodes, std::int32_t* lists,
-                                         DevPending* next) {
+                                         unsigned long long nodes_base, TreeNode* nodes, std::int32_t* lists) {
   const std::int32_t q = blockIdx.x * blockDim.x + threadIdx.x;
   if (q >= n) return;
   const DevPending p = pending[q];
@@ -596,40 +614,54 @@ __global__ void level_write_nodes_kernel(const DevPending* pending, std::int32_t
     nodes[p.node] = {count[q], static_cast<std::int32_t>(lists_base + at.leaf_entries)};
     if (last) lists[lists_base + at.leaf_entries] = static_cast<std::int32_t>(key[q] & 0xffffffffu);
   } else {
-    const std::int32_t first_child = static_cast<std::int32_t>(nodes_base + 4 * at.internals);
-    nodes[p.node] = {kInternal, first_child};
-    grid::Cell kids[4];
-    grid::children(p.cell, kids);
-    for (int k = 0; k < 4; ++k) {
-      next[4 * at.internals + k] = {kids[k], first_child + k, static_cast<std::uint32_t>(count[q]),
-                                    at.internal_entries};
-    }
+    nodes[p.node] = {kInternal, static_cast<std::int32_t>(nodes_base + 4 * at.internals)};
   }
 }
 
-/// Per work item: its kept items (the item, or a split group's children) to the list leaves'
-/// lists or to the next level's parent lists.
-__global__ void level_write_lists_kernel(const DevPending* pending, std::int32_t n, const unsigned long long* start,
-                                         unsigned long long entries, const std::int32_t* parent_lists,
-                                         const PieceGroup* runs, const unsigned int* keep_pos,
-                                         const std::int32_t* kind, const LevelSums* offsets,
-                                         unsigned long long lists_base, std::int32_t* lists,
+/// Per child of an internal node (thread 4 q + k: child k of node q): its pending entry. A
+/// thread per child keeps the writes of the 24-byte entries contiguous across a warp.
+__global__ void level_write_children_kernel(const DevPending* pending, std::int32_t n, const std::int32_t* kind,
+                                            const std::int32_t* count, const LevelSums* offsets,
+                                            unsigned long long nodes_base, DevPending* next) {
+  const std::uint64_t t = static_cast<std::uint64_t>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (t >= 4 * static_cast<std::uint64_t>(n)) return;
+  const auto q = static_cast<std::int32_t>(t >> 2);
+  const int k = static_cast<int>(t & 3u);
+  if (kind[q] != kInternal) return;
+  const LevelSums at = offsets[q];
+  grid::Cell kids[4];
+  grid::children(pending[q].cell, kids);
+  next[4 * at.internals + k] = {kids[k], static_cast<std::int32_t>(nodes_base + 4 * at.internals) + k,
+                                static_cast<std::uint32_t>(count[q]), at.internal_entries};
+}
+
+/// Per work item, for each of its four nodes: the kept items (the item, or a split group's
+/// children) to the list leaves' lists or to the next level's parent lists.
+__global__ void level_write_lists_kernel(const DevPending* pending, const std::int32_t* owner,
+                                         const unsigned long long* start, unsigned long long items,
+                                         const std::int32_t* parent_lists, const PieceGroup* runs,
+                                         const unsigned int* keep_pos, const std::int32_t* kind,
+                                         const LevelSums* offsets, unsigned long long lists_base, std::int32_t* lists,
                                          std::int32_t* next_lists) {
-  const unsigned long long e = static_cast<unsigned long long>(blockIdx.x) * blockDim.x + threadIdx.x;
-  if (e >= entries) return;
-  const unsigned int items = keep_pos[e + 1] - keep_pos[e];
-  if (items == 0) return;
-  const std::int32_t node = node_of_entry(start, n, e);
-  const std::int32_t k = kind[node];
-  if (k == kUniform) return;
-  const unsigned long long local = keep_pos[e] - keep_pos[start[node]];
-  const std::int32_t id = parent_lists[pending[node].parent_offset + (e - start[node])];
-  std::int32_t* out = k == kNodeKindList ? lists + lists_base + offsets[node].leaf_entries + local
-                                         : next_lists + offsets[node].internal_entries + local;
-  if (items == 1) {
-    *out = id;
-  } else {
-    for (unsigned int i = 0; i < items; ++i) out[i] = split_item(runs, item_group(id), static_cast<std::int32_t>(i));
+  const unsigned long long t = static_cast<unsigned long long>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (t >= items) return;
+  std::int32_t g;
+  unsigned long long pos;
+  const std::int32_t id = list_item(pending, owner, start, t, parent_lists, &g, &pos);
+  for (int c = 0; c < 4; ++c) {
+    const std::int32_t node = 4 * g + c;
+    const unsigned long long e = start[node] + pos;
+    const unsigned int kept = keep_pos[e + 1] - keep_pos[e];
+    const std::int32_t k = kind[node];
+    if (kept == 0 || k == kUniform) continue;
+    const unsigned long long local = keep_pos[e] - keep_pos[start[node]];
+    std::int32_t* out = k == kNodeKindList ? lists + lists_base + offsets[node].leaf_entries + local
+                                           : next_lists + offsets[node].internal_entries + local;
+    if (kept == 1) {
+      *out = id;
+    } else {
+      for (unsigned int i = 0; i < kept; ++i) out[i] = split_item(runs, item_group(id), static_cast<std::int32_t>(i));
+    }
   }
 }
 
@@ -681,7 +713,7 @@ template <typename T>
 T* device_alloc(std::size_t count, std::size_t* total) {
   T* p = nullptr;
   if (count == 0) return p;
-  QTMV_CUDA_CHECK(cudaMalloc(&p, count * sizeof(T)));
+  QTMV_CUDA_ALLOCATE(&p, count * sizeof(T));
   *total += count * sizeof(T);
   return p;
 }
@@ -727,7 +759,7 @@ struct Buffer {
   /// The first `count` elements in a plain (cudaMalloc) array of their own.
   T* copy_out(std::size_t count) const {
     T* q = nullptr;
-    QTMV_CUDA_CHECK(cudaMalloc(&q, (count ? count : 1) * sizeof(T)));
+    QTMV_CUDA_ALLOCATE(&q, (count ? count : 1) * sizeof(T));
     if (count) QTMV_CUDA_CHECK(cudaMemcpyAsync(q, p, count * sizeof(T), cudaMemcpyDeviceToDevice, 0));
     return q;
   }
@@ -750,7 +782,7 @@ DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* ru
                            const std::vector<std::int32_t>& top_items, int level, bool with_distance) {
   injected_fault("build");
   const int list_level = tree_list_level(level);
-  // The scratch comes from the device's default pool, kept between builds (trimmed at the end).
+  // The scratch comes from the device's default pool and stays there (pool_idle_bytes).
   cudaMemPool_t pool;
   QTMV_CUDA_CHECK(cudaDeviceGetDefaultMemPool(&pool, device));
   {
@@ -790,6 +822,7 @@ DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* ru
   Buffer<unsigned long long> start_in, start, min_bits, key;
   Buffer<std::int32_t> site_min, site_max, kind, count, value;
   Buffer<unsigned int> keep, keep_pos;
+  Buffer<std::int32_t> owner_heads, owner;
   Buffer<LevelSums> sums_in, offsets;
   Buffer<unsigned char> temp;
   auto scan_temp = [&](std::size_t bytes) { temp.need(bytes ? bytes : 1); };
@@ -851,12 +884,21 @@ DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* ru
         level_settle_kernel<<<blocks_of(n), kBlock>>>(pending.p, nn, parent_lists.p, pieces, runs, centre.p, key.p);
         QTMV_CUDA_CHECK_LAUNCH("level_settle_kernel");
       } else {
-        level_min_kernel<<<blocks_of(items), kBlock>>>(pending.p, groups, start.p, items, parent_lists.p, pieces,
+        owner_heads.need(items);
+        owner.need(items);
+        QTMV_CUDA_CHECK(cudaMemsetAsync(owner_heads.p, 0, items * sizeof(std::int32_t)));
+        level_owner_kernel<<<blocks_of(groups), kBlock>>>(start.p, groups, owner_heads.p);
+        QTMV_CUDA_CHECK_LAUNCH("level_owner_kernel");
+        std::size_t owner_bytes = 0;
+        QTMV_CUDA_CHECK(cub::DeviceScan::InclusiveScan(nullptr, owner_bytes, owner_heads.p, owner.p, MaxI32{}, items));
+        scan_temp(owner_bytes);
+        QTMV_CUDA_CHECK(cub::DeviceScan::InclusiveScan(temp.p, owner_bytes, owner_heads.p, owner.p, MaxI32{}, items));
+        level_min_kernel<<<blocks_of(items), kBlock>>>(pending.p, owner.p, start.p, items, parent_lists.p, pieces,
                                                        runs, centre.p, min_bits.p);
         QTMV_CUDA_CHECK_LAUNCH("level_min_kernel");
         level_threshold_kernel<<<blocks_of(n), kBlock>>>(nn, min_bits.p, radius.p, threshold.p);
         QTMV_CUDA_CHECK_LAUNCH("level_threshold_kernel");
-        level_keep_kernel<<<blocks_of(items), kBlock>>>(pending.p, groups, start.p, items, parent_lists.p, pieces,
+        level_keep_kernel<<<blocks_of(items), kBlock>>>(pending.p, owner.p, start.p, items, parent_lists.p, pieces,
                                                         runs, centre.p, radius.p, threshold.p, keep.p, site_min.p,
                                                         site_max.p);
         QTMV_CUDA_CHECK_LAUNCH("level_keep_kernel");
@@ -887,14 +929,18 @@ DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* ru
     lists.grow_keep(list_count + total.leaf_entries + 1, list_count);
     next.need(4 * total.internals + 1);
     next_lists.need(total.internal_entries + 1);
-    level_write_nodes_kernel<<<blocks_of(n), kBlock>>>(pending.p, nn, last, start.p, parent_lists.p, kind.p, count.p,
-                                                       value.p, key.p, offsets.p, list_count, node_count, nodes.p,
-                                                       lists.p, next.p);
+    level_write_nodes_kernel<<<blocks_of(n), kBlock>>>(pending.p, nn, last, kind.p, count.p, value.p, key.p,
+                                                       offsets.p, list_count, node_count, nodes.p, lists.p);
     QTMV_CUDA_CHECK_LAUNCH("level_write_nodes_kernel");
+    if (total.internals > 0) {
+      level_write_children_kernel<<<blocks_of(4 * n), kBlock>>>(pending.p, nn, kind.p, count.p, offsets.p, node_count,
+                                                                next.p);
+      QTMV_CUDA_CHECK_LAUNCH("level_write_children_kernel");
+    }
     if (!last && entries > 0) {
-      level_write_lists_kernel<<<blocks_of(entries), kBlock>>>(pending.p, nn, start.p, entries, parent_lists.p,
-                                                               runs, keep_pos.p, kind.p, offsets.p, list_count,
-                                                               lists.p, next_lists.p);
+      level_write_lists_kernel<<<blocks_of(entries / 4), kBlock>>>(pending.p, owner.p, start.p, entries / 4,
+                                                                   parent_lists.p, runs, keep_pos.p, kind.p,
+                                                                   offsets.p, list_count, lists.p, next_lists.p);
       QTMV_CUDA_CHECK_LAUNCH("level_write_lists_kernel");
     }
     weighted += static_cast<double>(entries) +
@@ -911,7 +957,7 @@ DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* ru
   }
   t.jump_level = tree_jump_level(level);
   t.jump_count = grid::cell_count(t.jump_level);
-  QTMV_CUDA_CHECK(cudaMalloc(&t.jump, t.jump_count * sizeof(JumpEntry)));
+  QTMV_CUDA_ALLOCATE(&t.jump, t.jump_count * sizeof(JumpEntry));
   jump_kernel<<<blocks_of(t.jump_count), kBlock>>>(nodes.p, t.jump_level, t.jump_count, t.jump);
   QTMV_CUDA_CHECK_LAUNCH("jump_kernel");
   t.node_count = node_count;
@@ -922,7 +968,6 @@ DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* ru
   trace("jump table, copies", t.jump_count, list_count);
   }  // the scratch goes back to the pool here
   QTMV_CUDA_CHECK(cudaDeviceSynchronize());
-  QTMV_CUDA_CHECK(cudaMemPoolTrimTo(pool, std::size_t{256} << 20));
   trim_on_throw.done = true;
   free_on_throw.done = true;
   return t;
@@ -946,6 +991,7 @@ DeviceInfo device_info(int device) {
   DeviceInfo info;
   info.name = prop.name;
   QTMV_CUDA_CHECK(cudaMemGetInfo(&info.free_bytes, &info.total_bytes));
+  info.free_bytes += pool_idle_bytes(device);
   return info;
 }
 
@@ -1083,7 +1129,7 @@ Labeller::Labeller(int device, const LabelInput& input, bool with_distance) : im
   Trace trace;
   SitePiece* site_pieces = nullptr;
   FixedCell* fixed = nullptr;
-  QTMV_CUDA_CHECK(cudaMalloc(&site_pieces, (input.piece_count ? input.piece_count : 1) * sizeof(SitePiece)));
+  QTMV_CUDA_ALLOCATE(&site_pieces, (input.piece_count ? input.piece_count : 1) * sizeof(SitePiece));
   struct Free {
     void* a;
     void* b;
@@ -1092,7 +1138,7 @@ Labeller::Labeller(int device, const LabelInput& input, bool with_distance) : im
       cudaFree(b);
     }
   } free_scratch{site_pieces, nullptr};
-  QTMV_CUDA_CHECK(cudaMalloc(&fixed, (input.fixed_cell_count ? input.fixed_cell_count : 1) * sizeof(FixedCell)));
+  QTMV_CUDA_ALLOCATE(&fixed, (input.fixed_cell_count ? input.fixed_cell_count : 1) * sizeof(FixedCell));
   free_scratch.b = fixed;
   if (input.piece_count) {
     QTMV_CUDA_CHECK(cudaMemcpy(site_pieces, input.pieces, input.piece_count * sizeof(SitePiece), cudaMemcpyHostToDevice));

@@ -35,7 +35,7 @@ int device_count();
 
 struct DeviceInfo {
   std::string name;
-  std::size_t free_bytes = 0;
+  std::size_t free_bytes = 0;  ///< free, plus what the labeller's memory pool holds idle
   std::size_t total_bytes = 0;
 };
 DeviceInfo device_info(int device);

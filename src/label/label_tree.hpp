@@ -35,7 +35,9 @@ constexpr std::uint32_t kMaxLeafList = 64;
 /// The level at which mixed nodes become list leaves, and the level of the jump table.
 QTMV_HD inline int tree_list_level(int level) { return level - kListDepth > 0 ? level - kListDepth : 0; }
 QTMV_HD inline int tree_jump_level(int level) {
-  const int j = level - 4 < 11 ? level - 4 : 11;  // at most 8 * 4^11 entries (256 MiB)
+  // The list leaves' level (most walks from the table end at once), at most 11:
+  // 8 * 4^11 entries (256 MiB).
+  const int j = level - kListDepth < 11 ? level - kListDepth : 11;
   return j > 0 ? j : 0;
 }
 

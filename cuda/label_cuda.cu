@@ -125,13 +125,14 @@ __global__ void tree_label_kernel(TreeView tree, grid::Code first, std::uint64_t
 /// uniform leaf gets the leaf's site, and flag 0 when it lies inside that leaf, else
 /// kBoundaryPending; cells of list leaves are queued per warp in shared memory and then take
 /// tree_label, 32 at a time, so that whole warps work on them; their flags are left pending too.
-/// span_pending[span] tells tree_flag_kernel whether the span has pending flags. Same labels as
-/// tree_label_kernel, and, once tree_flag_kernel has run, the same flags.
+/// A span with pending flags is appended to pending_spans (*pending_count of them) for
+/// tree_flag_kernel. Same labels as tree_label_kernel, and, once tree_flag_kernel has run, the
+/// same flags.
 constexpr int kPaintRounds = 8;
 constexpr int kPaintWarps = kBlock / 32;
 constexpr int kPaintSpan = 32 * 4 * kPaintRounds;  // outputs per warp
 constexpr int kPaintTable = 128;                   // jump cells a one-row span may tabulate
-static_assert(kPaintSpan == 4 * kBlock, "tree_flag_kernel takes one span per block");
+static_assert(kPaintSpan == 4 * kBlock, "tree_flag_kernel's blocks take a span at a time");
 constexpr std::uint64_t kPaintMinCells = std::uint64_t{1} << 21;  // fewer go cell by cell
 
 /// Steps cell c (of a level with `rows` rows per octant) `step` codes on.
@@ -149,7 +150,8 @@ __device__ inline void advance_cell(grid::Cell& c, std::uint32_t step, std::uint
 __global__ void __launch_bounds__(kBlock, 4) tree_paint_kernel(TreeView tree, const std::uint8_t* jump_clean,
                                                                grid::Code first, std::uint64_t count,
                                                                std::int32_t* site, std::uint8_t* boundary,
-                                                               std::uint8_t* span_pending) {
+                                                               std::uint32_t* pending_spans,
+                                                               unsigned int* pending_count) {
   __shared__ std::uint16_t queue[kPaintWarps][kPaintSpan];
   __shared__ std::int32_t table[kPaintWarps][kPaintTable];
   const int level = tree.level, jl = tree.jump_level, k = level - jl;
@@ -271,7 +273,7 @@ __global__ void __launch_bounds__(kBlock, 4) tree_paint_kernel(TreeView tree, co
     }
   }
   pending = __any_sync(0xffffffffu, pending);
-  if (span_pending && lane == 0) span_pending[span] = pending;
+  if (pending_spans && lane == 0 && pending) pending_spans[atomicAdd(pending_count, 1u)] = static_cast<std::uint32_t>(span);
   __syncwarp();  // the queue, before other lanes read it
   for (int e = static_cast<int>(lane); e < queued; e += 32) {
     const std::uint64_t out = warp_out + q[e];
@@ -285,14 +287,11 @@ __global__ void __launch_bounds__(kBlock, 4) tree_paint_kernel(TreeView tree, co
 /// (tree_label, as tree_label_cell does). One paint span per block, skipped when it has no
 /// pending flag; each warp gathers the pending cells of its 128 outputs and settles them 32 at a
 /// time.
-__global__ void __launch_bounds__(kBlock) tree_flag_kernel(TreeView tree, grid::Code first, std::uint64_t count,
-                                                           const std::int32_t* site, std::uint8_t* boundary,
-                                                           const std::uint8_t* span_pending) {
-  __shared__ std::uint8_t queue[kPaintWarps][128];
-  if (!span_pending[blockIdx.x]) return;
-  const unsigned lane = threadIdx.x & 31u, warp = threadIdx.x >> 5;
-  const std::uint64_t warp_out = static_cast<std::uint64_t>(blockIdx.x) * kPaintSpan + warp * 128;
-  if (warp_out >= count) return;  // whole warps leave together
+/// tree_flag_kernel's work for one warp: the pending flags of outputs [warp_out, warp_out + 128).
+__device__ inline void settle_flags(const TreeView& tree, grid::Code first, std::uint64_t count,
+                                    const std::int32_t* site, std::uint8_t* boundary, std::uint64_t warp_out,
+                                    std::uint8_t* q) {
+  const unsigned lane = threadIdx.x & 31u;
   const std::uint64_t out = warp_out + 4 * lane;
   std::uint32_t flags = 0;
   if (out + 4 <= count) {
@@ -300,7 +299,6 @@ __global__ void __launch_bounds__(kBlock) tree_flag_kernel(TreeView tree, grid::
   } else {
     for (std::uint64_t j = 0; out + j < count; ++j) flags |= std::uint32_t{boundary[out + j]} << (8 * j);
   }
-  std::uint8_t* q = queue[warp];
   int queued = 0;
 #pragma unroll
   for (int j = 0; j < 4; ++j) {
@@ -329,6 +327,27 @@ __global__ void __launch_bounds__(kBlock) tree_flag_kernel(TreeView tree, grid::
       if (!flag && !inside[n]) flag = tree_label(tree, grid::cell_of(nb[n], level)) != own;
     }
     boundary[local] = flag;
+  }
+  __syncwarp();  // the queue, before the warp's next use of it
+}
+
+/// The pending flags that tree_paint_kernel left, from the labels it wrote: a cell is a boundary
+/// cell when one of its three edge neighbours has another site. A neighbour inside
+/// [first, first + count) reads its label there; one outside is looked up in the tree
+/// (tree_label, as tree_label_cell does). The paint spans with a pending flag are listed in
+/// pending_spans (in no particular order: each span's flags depend on the labels alone); the
+/// blocks take them a span at a time, each warp gathering the pending cells of its 128 outputs
+/// and settling them 32 at a time.
+__global__ void __launch_bounds__(kBlock) tree_flag_kernel(TreeView tree, grid::Code first, std::uint64_t count,
+                                                           const std::int32_t* site, std::uint8_t* boundary,
+                                                           const std::uint32_t* pending_spans,
+                                                           const unsigned int* pending_count) {
+  __shared__ std::uint8_t queue[kPaintWarps][128];
+  const unsigned warp = threadIdx.x >> 5;
+  const unsigned int spans = *pending_count;
+  for (unsigned int k = blockIdx.x; k < spans; k += gridDim.x) {
+    const std::uint64_t warp_out = static_cast<std::uint64_t>(pending_spans[k]) * kPaintSpan + warp * 128;
+    if (warp_out < count) settle_flags(tree, first, count, site, boundary, warp_out, queue[warp]);
   }
 }
 
@@ -1011,7 +1030,9 @@ struct Labeller::Impl {
   std::int32_t* site = nullptr;
   float* metres = nullptr;
   std::uint8_t* boundary = nullptr;
-  std::uint8_t* span_pending = nullptr;  ///< per paint span: flags left for tree_flag_kernel
+  std::uint32_t* pending_spans = nullptr;  ///< the paint spans with pending flags, and their count
+  unsigned int* pending_count = nullptr;
+  unsigned int flag_blocks = 0;  ///< tree_flag_kernel's grid: enough resident blocks to fill the device
   std::uint64_t capacity = 0;
   std::size_t bytes = 0;
   std::size_t output_bytes = 0;
@@ -1025,6 +1046,9 @@ struct Labeller::Impl {
     level = level_index;
     hier = with_tree;
     QTMV_CUDA_CHECK(cudaSetDevice(device));
+    int sms = 0;
+    QTMV_CUDA_CHECK(cudaDeviceGetAttribute(&sms, cudaDevAttrMultiProcessorCount, device));
+    flag_blocks = static_cast<unsigned int>(sms) * 8;
     QTMV_CUDA_CHECK(cudaEventCreate(&start));
     QTMV_CUDA_CHECK(cudaEventCreate(&stop));
   }
@@ -1065,11 +1089,13 @@ struct Labeller::Impl {
     cudaFree(site);
     cudaFree(metres);
     cudaFree(boundary);
-    cudaFree(span_pending);
+    cudaFree(pending_spans);
+    cudaFree(pending_count);
+    pending_spans = nullptr;
+    pending_count = nullptr;
     site = nullptr;
     metres = nullptr;
     boundary = nullptr;
-    span_pending = nullptr;
     bytes -= output_bytes;
     output_bytes = 0;
     capacity = 0;
@@ -1196,7 +1222,8 @@ void Labeller::reserve(std::uint64_t max_cells, bool want_distance, bool want_bo
   if (want_distance) m.metres = device_alloc<float>(max_cells, &m.bytes);
   if (want_boundary) {
     m.boundary = device_alloc<std::uint8_t>(max_cells, &m.bytes);
-    m.span_pending = device_alloc<std::uint8_t>((max_cells + kPaintSpan - 1) / kPaintSpan, &m.bytes);
+    m.pending_spans = device_alloc<std::uint32_t>((max_cells + kPaintSpan - 1) / kPaintSpan, &m.bytes);
+    m.pending_count = device_alloc<unsigned int>(1, &m.bytes);
   }
   m.output_bytes = m.bytes - before;
   m.capacity = max_cells;
@@ -1226,12 +1253,14 @@ float Labeller::run(grid::Code first, std::uint64_t count, bool want_distance, b
       // Labels, flags 0 inside uniform leaves and pending elsewhere; then the pending flags.
       const std::uint64_t blocks = (count + kPaintWarps * kPaintSpan - 1) / (kPaintWarps * kPaintSpan);
       if (blocks > 0x7fffffffu) throw std::invalid_argument("Labeller::run: too many cells for one launch");
-      tree_paint_kernel<<<static_cast<unsigned int>(blocks), kBlock>>>(view, m.jump_clean, first, count, m.site,
-                                                                        boundary, m.span_pending);
+      if (boundary) QTMV_CUDA_CHECK(cudaMemsetAsync(m.pending_count, 0, sizeof(unsigned int)));
+      tree_paint_kernel<<<static_cast<unsigned int>(blocks), kBlock>>>(
+          view, m.jump_clean, first, count, m.site, boundary, boundary ? m.pending_spans : nullptr, m.pending_count);
       QTMV_CUDA_CHECK_LAUNCH("tree_paint_kernel");
       if (boundary) {
-        tree_flag_kernel<<<blocks_for((count + 3) / 4), kBlock>>>(view, first, count, m.site, boundary,
-                                                                   m.span_pending);
+        // Enough blocks to fill the device; each takes listed spans in turn.
+        tree_flag_kernel<<<m.flag_blocks, kBlock>>>(view, first, count, m.site, boundary, m.pending_spans,
+                                                    m.pending_count);
         QTMV_CUDA_CHECK_LAUNCH("tree_flag_kernel");
       }
     }

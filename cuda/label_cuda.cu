@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <cmath>
 #include <cstdlib>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -75,9 +76,14 @@ cudaError_t allocate(void** pointer, std::size_t bytes) {
   int device = 0;
   cudaMemPool_t pool;
   if (cudaGetDevice(&device) != cudaSuccess || cudaDeviceGetDefaultMemPool(&pool, device) != cudaSuccess ||
-      pool_idle_bytes(device) == 0 || cudaDeviceSynchronize() != cudaSuccess || cudaMemPoolTrimTo(pool, 0) != cudaSuccess) {
+      pool_idle_bytes(device) == 0) {
     return status;
   }
+  // A fault of an earlier kernel surfaces here: report it, not the allocation.
+  const cudaError_t synced = cudaDeviceSynchronize();
+  if (synced != cudaSuccess) return synced;
+  const cudaError_t trimmed = cudaMemPoolTrimTo(pool, 0);
+  if (trimmed != cudaSuccess) return trimmed;
   return cudaMalloc(pointer, bytes);
 }
 
@@ -131,7 +137,7 @@ __global__ void tree_label_kernel(TreeView tree, grid::Code first, std::uint64_t
 constexpr int kPaintRounds = 8;
 constexpr int kPaintWarps = kBlock / 32;
 constexpr int kPaintSpan = 32 * 4 * kPaintRounds;  // outputs per warp
-constexpr int kPaintTable = 128;                   // jump cells a one-row span may tabulate
+constexpr int kPaintTable = 256;                   // jump cells a one-row span may tabulate
 static_assert(kPaintSpan == 4 * kBlock, "tree_flag_kernel's blocks take a span at a time");
 constexpr std::uint64_t kPaintMinCells = std::uint64_t{1} << 21;  // fewer go cell by cell
 
@@ -284,9 +290,6 @@ __global__ void __launch_bounds__(kBlock, 4) tree_paint_kernel(TreeView tree, co
 /// The pending flags that tree_paint_kernel left, from the labels it wrote: a cell is a boundary
 /// cell when one of its three edge neighbours has another site. A neighbour inside
 /// [first, first + count) reads its label there; one outside is looked up in the tree
-/// (tree_label, as tree_label_cell does). One paint span per block, skipped when it has no
-/// pending flag; each warp gathers the pending cells of its 128 outputs and settles them 32 at a
-/// time.
 /// tree_flag_kernel's work for one warp: the pending flags of outputs [warp_out, warp_out + 128).
 __device__ inline void settle_flags(const TreeView& tree, grid::Code first, std::uint64_t count,
                                     const std::int32_t* site, std::uint8_t* boundary, std::uint64_t warp_out,
@@ -685,7 +688,7 @@ __global__ void level_write_lists_kernel(const DevPending* pending, const std::i
 }
 
 /// make_group per span, one warp per group (the lanes share its pieces): the same groups as the
-/// host's make_groups, since the terms are maxima and an AND.
+/// host's make_groups, since the terms are maxima.
 __global__ void make_groups_kernel(const Piece* pieces, const GroupSpan* spans, std::int32_t count,
                                    PieceGroup* groups) {
   const std::uint64_t g = (static_cast<std::uint64_t>(blockIdx.x) * blockDim.x + threadIdx.x) >> 5;
@@ -699,10 +702,11 @@ __global__ void make_groups_kernel(const Piece* pieces, const GroupSpan* spans, 
   }
   for (int off = 16; off > 0; off >>= 1) {
     const double reach = __shfl_xor_sync(0xffffffffu, t.reach, off), cap = __shfl_xor_sync(0xffffffffu, t.cap, off);
+    const double gap = __shfl_xor_sync(0xffffffffu, t.gap, off);
     t.reach = reach > t.reach ? reach : t.reach;
     t.cap = cap > t.cap ? cap : t.cap;
+    t.gap = gap > t.gap ? gap : t.gap;
   }
-  t.connected = __all_sync(0xffffffffu, t.connected);
   if (lane == 0) groups[g] = finish_group(arc, s, t);
 }
 
@@ -736,6 +740,13 @@ T* device_alloc(std::size_t count, std::size_t* total) {
   *total += count * sizeof(T);
   return p;
 }
+
+/// A device array freed when it goes out of scope (a constructor's scratch, on every path).
+struct DeviceFree {
+  void operator()(void* p) const { cudaFree(p); }
+};
+template <typename T>
+using DeviceScratch = std::unique_ptr<T, DeviceFree>;
 
 template <typename T>
 T* device_copy(const std::vector<T>& host, std::size_t* total) {
@@ -865,7 +876,8 @@ DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* ru
   Trace trace;
   for (int l = 0; l <= level && n > 0; ++l) {
     const bool last = l == level;
-    if (n > 0x7ffffffful || entries + 1 > 0xfffffffful) {
+    // keep_pos counts up to kGroupLeafPieces items per entry in 32 bits.
+    if (n > 0x7ffffffful || entries * kGroupLeafPieces + 1 > 0xfffffffful) {
       // std::length_error: label_cells falls back to the host build.
       throw std::length_error("the labeller's tree level " + std::to_string(l) +
                               " has too many nodes or entries to be built on the device");
@@ -1003,6 +1015,14 @@ int device_count() {
   return count;
 }
 
+void release_cached_memory(int device) {
+  QTMV_CUDA_CHECK(cudaSetDevice(device));
+  cudaMemPool_t pool;
+  QTMV_CUDA_CHECK(cudaDeviceGetDefaultMemPool(&pool, device));
+  QTMV_CUDA_CHECK(cudaDeviceSynchronize());
+  QTMV_CUDA_CHECK(cudaMemPoolTrimTo(pool, 0));
+}
+
 DeviceInfo device_info(int device) {
   cudaDeviceProp prop{};
   QTMV_CUDA_CHECK(cudaGetDeviceProperties(&prop, device));
@@ -1057,13 +1077,13 @@ struct Labeller::Impl {
   void build_tree(const GroupPlan& plan, bool with_distance, Trace& trace) {
     trace("groups planned", plan.spans.size(), plan.top_items.size());
     if (!plan.spans.empty()) {
-      GroupSpan* spans = device_copy(plan.spans, &bytes);
+      std::size_t span_bytes = 0;
+      const DeviceScratch<GroupSpan> spans(device_copy(plan.spans, &span_bytes));
       const auto count = static_cast<std::int32_t>(plan.spans.size());
       groups = device_alloc<PieceGroup>(plan.spans.size(), &bytes);
-      make_groups_kernel<<<blocks_for(std::uint64_t{32} * plan.spans.size()), kBlock>>>(pieces, spans, count, groups);
+      make_groups_kernel<<<blocks_for(std::uint64_t{32} * plan.spans.size()), kBlock>>>(pieces, spans.get(), count,
+                                                                                         groups);
       QTMV_CUDA_CHECK_LAUNCH("make_groups_kernel");
-      QTMV_CUDA_CHECK(cudaFree(spans));
-      bytes -= plan.spans.size() * sizeof(GroupSpan);
     }
     trace("groups made");
     const DeviceTree t = build_on_device(device, pieces, groups, plan.top_items, level, with_distance);
@@ -1153,30 +1173,23 @@ Labeller::Labeller(int device, const LabelInput& input, bool with_distance) : im
   m.piece_count = static_cast<int>(count);
   // The input goes over as it is (less to copy than the pieces) and becomes the pieces here.
   Trace trace;
-  SitePiece* site_pieces = nullptr;
-  FixedCell* fixed = nullptr;
-  QTMV_CUDA_ALLOCATE(&site_pieces, (input.piece_count ? input.piece_count : 1) * sizeof(SitePiece));
-  struct Free {
-    void* a;
-    void* b;
-    ~Free() {
-      cudaFree(a);
-      cudaFree(b);
+  {
+    std::size_t scratch = 0;
+    const DeviceScratch<SitePiece> site_pieces(device_alloc<SitePiece>(input.piece_count, &scratch));
+    const DeviceScratch<FixedCell> fixed(device_alloc<FixedCell>(input.fixed_cell_count, &scratch));
+    if (input.piece_count) {
+      QTMV_CUDA_CHECK(cudaMemcpy(site_pieces.get(), input.pieces, input.piece_count * sizeof(SitePiece),
+                                 cudaMemcpyHostToDevice));
     }
-  } free_scratch{site_pieces, nullptr};
-  QTMV_CUDA_ALLOCATE(&fixed, (input.fixed_cell_count ? input.fixed_cell_count : 1) * sizeof(FixedCell));
-  free_scratch.b = fixed;
-  if (input.piece_count) {
-    QTMV_CUDA_CHECK(cudaMemcpy(site_pieces, input.pieces, input.piece_count * sizeof(SitePiece), cudaMemcpyHostToDevice));
-  }
-  if (input.fixed_cell_count) {
-    QTMV_CUDA_CHECK(
-        cudaMemcpy(fixed, input.fixed_cells, input.fixed_cell_count * sizeof(FixedCell), cudaMemcpyHostToDevice));
-  }
-  m.pieces = device_alloc<Piece>(count, &m.bytes);
-  make_pieces_kernel<<<blocks_for(count), kBlock>>>(site_pieces, input.piece_count, fixed, input.fixed_cell_count,
-                                                   input.level, m.pieces);
-  QTMV_CUDA_CHECK_LAUNCH("make_pieces_kernel");
+    if (input.fixed_cell_count) {
+      QTMV_CUDA_CHECK(cudaMemcpy(fixed.get(), input.fixed_cells, input.fixed_cell_count * sizeof(FixedCell),
+                                 cudaMemcpyHostToDevice));
+    }
+    m.pieces = device_alloc<Piece>(count, &m.bytes);
+    make_pieces_kernel<<<blocks_for(count), kBlock>>>(site_pieces.get(), input.piece_count, fixed.get(),
+                                                     input.fixed_cell_count, input.level, m.pieces);
+    QTMV_CUDA_CHECK_LAUNCH("make_pieces_kernel");
+  }  // the input's copies are freed here, before the build
   trace("input to pieces", count);
   const GroupPlan plan = plan_groups(
       static_cast<std::int64_t>(count),

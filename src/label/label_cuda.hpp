@@ -33,6 +33,11 @@ class OutOfMemory : public std::runtime_error {
 /// Number of CUDA devices the runtime can use (0 when there is no driver or no device).
 int device_count();
 
+/// The device tree build keeps its scratch in the device's default memory pool, so that the next
+/// build need not map it again (tens of milliseconds at level 15); this gives it back to the
+/// system. label_cells calls it when it is done with a device.
+void release_cached_memory(int device);
+
 struct DeviceInfo {
   std::string name;
   std::size_t free_bytes = 0;  ///< free, plus what the labeller's memory pool holds idle

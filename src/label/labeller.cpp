@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <memory>
 #include <stdexcept>
@@ -311,9 +313,17 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
   tree.jump_level = tree_jump_level(level);
   tree.nodes.resize(grid::kOctants);
 
+  // QTMV_LABEL_TRACE set: each step's time and size on stderr (for tuning).
+  const bool trace = std::getenv("QTMV_LABEL_TRACE") != nullptr;
+  double t_level = now_seconds();
   // Line runs become groups; the octants start with the runs' top items.
   GroupPlan plan = plan_groups(candidates, threads);
   tree.groups = make_groups(candidates, plan.spans, threads);
+  if (trace) {
+    std::fprintf(stderr, "trace: host groups %9.3f ms  %zu groups, %zu runs\n", (now_seconds() - t_level) * 1e3,
+                 tree.groups.size(), plan.top_items.size());
+    t_level = now_seconds();
+  }
   const PieceGroup* groups = tree.groups.empty() ? nullptr : tree.groups.data();
   std::vector<std::int32_t> parent_lists = std::move(plan.top_items);
   std::vector<Pending> pending;
@@ -476,6 +486,11 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
     weighted_candidates += weighted + evaluations;
     parent_lists.swap(next_lists);
     pending.swap(next);
+    if (trace) {
+      std::fprintf(stderr, "trace: host level %2d %9.3f ms  nodes %lld entries %llu\n", l, (now_seconds() - t_level) * 1e3,
+                   static_cast<long long>(n), static_cast<unsigned long long>(evaluations));
+      t_level = now_seconds();
+    }
     if (level_done) level_done(static_cast<double>(l + 1) / static_cast<double>(level + 1));
   }
   tree.mean_candidates = weighted_candidates / static_cast<double>(grid::cell_count(level));
@@ -673,6 +688,8 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
       }
       const HostTile host{host_tile, site.data(), metres_ptr, boundary_ptr};
       label_on_gpu(*gpu_built, device.index, input.level, options, need, host, sink, stats, done);
+      gpu_built.reset();
+      cuda::release_cached_memory(device.index);
       return stats;
     } catch (const cuda::OutOfMemory& e) {
       leave_gpu(e, done);

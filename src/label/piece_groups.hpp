@@ -18,11 +18,14 @@
 // spans more than 60 degrees). `reach` bounds the distance from every point of every piece of the
 // group to `arc`, so for any x (triangle inequality, and chord(a + b) <= chord(a) + chord(b)):
 //     d(x, piece) >= d(x, arc) - reach                    (the lower bound of every piece)
-// When the run is connected (each piece starts where the previous one ended), thin and short
-// ("tight"), the nearest-point map from the run onto `arc` is continuous and fixes A and B, so
-// every point of `arc` is within `reach` of the run, and
-//     min over the group's pieces of d(x, piece) <= d(x, arc) + reach.
-// Otherwise the upper bound is the distance to A, a point of the first piece.
+// Join each piece's end to the next piece's start by a minor arc (no longer than `gap`, the
+// largest such step; 0 for a line): a chain from A to B within reach + gap / 2 of `arc`, each of
+// whose points is within gap / 2 of a piece (chords: up to a factor 1 / cos(angle / 4)). When that chain is thin and the arc short ("tight"),
+// the nearest-point map from the chain onto `arc` is continuous and fixes A and B, so every point
+// of `arc` is within reach + gap / 2 of the chain, and
+//     min over the group's pieces of d(x, piece) <= d(x, arc) + reach + gap = d(x, arc) + slack.
+// A line's run has no gap; fixed cells along a row have a gap of a cell. Otherwise the upper
+// bound is the distance to A, a point of the first piece.
 #pragma once
 
 #include <cstdint>
@@ -38,19 +41,20 @@ constexpr std::int32_t kGroupLeafPieces = 8;
 /// A group that a node keeps is replaced by its children when its spread exceeds this many node
 /// radii: its bounds are then too loose to settle the node.
 constexpr double kGroupSplit = 1.0;
-/// A run is "tight" only when its reach is below this chord (about 2.9 degrees): the continuity
-/// argument above needs the run close to its arc.
+/// A run is "tight" only when its slack is below this chord (about 2.9 degrees): the continuity
+/// argument above needs the chain close to its arc.
 constexpr double kTightReach = 0.05;
 
 /// A group as the kernels read it.
 struct PieceGroup {
   Piece arc;            ///< A -> B (or a point at A); arc.site is the group's site
   double reach;         ///< chord: every point of the group's pieces lies within it of `arc`
-  double spread;        ///< chord: reach when tight, else the radius about A of the pieces
+  double slack;         ///< chord: reach + gap (see above)
+  double spread;        ///< chord: slack when tight, else the radius about A of the pieces
   std::int32_t first;   ///< first piece
   std::int32_t count;   ///< pieces
   std::int32_t size;    ///< groups in this subtree, itself included (1: a bottom group)
-  std::int32_t tight;   ///< 1: the upper bound d(x, arc) + reach holds
+  std::int32_t tight;   ///< 1: the upper bound d(x, arc) + slack holds
 };
 
 /// Where a group lies in the candidates and in the preorder, before its bounds are computed.
@@ -100,14 +104,12 @@ QTMV_HD inline double piece_reach(const Piece& arc, const Piece& p) {
   return best;
 }
 
-QTMV_HD inline bool same_point(const Vec3& a, const Vec3& b) { return a.x == b.x && a.y == b.y && a.z == b.z; }
-
-/// A group's bounds are maxima over its pieces (and an AND for connectivity): order-free, so the
-/// host's loop (make_group) and the device's warps give the same bits.
+/// A group's bounds are maxima over its pieces: order-free, so the host's loop (make_group) and
+/// the device's warps give the same bits.
 struct GroupTerms {
   double reach = 0.0;  ///< max piece_reach to the arc
   double cap = 0.0;    ///< max piece_reach_point to A
-  bool connected = true;
+  double gap = 0.0;    ///< max chord from a piece's end to the next piece's start
 };
 
 /// The arc of span s: A -> B, or a point at A when B is more than 60 degrees away.
@@ -125,7 +127,10 @@ QTMV_HD inline void add_group_piece(GroupTerms& t, const Piece& arc, const Piece
   const double r = piece_reach(arc, p), c = piece_reach_point(pieces[s.first].a, p);
   t.reach = r > t.reach ? r : t.reach;
   t.cap = c > t.cap ? c : t.cap;
-  if (k > s.first && !same_point(pieces[k - 1].b, p.a)) t.connected = false;
+  if (k > s.first) {
+    const double g = sqrt(grid::chord2(pieces[k - 1].b, p.a));
+    t.gap = g > t.gap ? g : t.gap;
+  }
 }
 
 /// The group of span s from its arc and terms.
@@ -135,8 +140,11 @@ QTMV_HD inline PieceGroup finish_group(const Piece& arc, const GroupSpan& s, con
   // Margins for the float64 rounding of the bounds (a few 1e-16) and of the pieces' own chords.
   g.reach = t.reach * (1.0 + 1e-9) + 1e-12;
   const double cap = t.cap * (1.0 + 1e-9) + 1e-12;
-  g.tight = t.connected && !(arc.flags & kPiecePoint) && g.reach < kTightReach ? 1 : 0;
-  g.spread = g.tight ? g.reach : (cap > g.reach ? cap : g.reach);
+  // A join of chord gap has its middle within gap / (2 cos(angle / 4)) of either end: at most
+  // 1.0001 gap / 2 below kTightReach.
+  g.slack = g.reach + t.gap * (1.0 + 1e-3);
+  g.tight = !(arc.flags & kPiecePoint) && g.slack < kTightReach ? 1 : 0;
+  g.spread = g.tight ? g.slack : (cap > g.reach ? cap : g.reach);
   g.first = s.first;
   g.count = s.count;
   g.size = s.size;
@@ -166,7 +174,7 @@ QTMV_HD inline void item_bounds(const Vec3& x, std::int32_t item, const Piece* p
   const double lo = d - g.reach;
   *lb2 = lo > 0.0 ? lo * lo : 0.0;
   if (g.tight) {
-    const double hi = d + g.reach;
+    const double hi = d + g.slack;
     *ub2 = hi * hi;
   } else {
     *ub2 = grid::chord2(x, g.arc.a);

@@ -21,6 +21,7 @@
 #include "label/label_math.hpp"
 #include "label/label_tree.hpp"
 #include "label/labeller.hpp"
+#include "wiggly_sites.hpp"
 
 namespace qtmv::label {
 namespace {
@@ -523,6 +524,9 @@ TEST_P(LabelDevice, ExactTies) {
 
 TEST_P(LabelDevice, Arcs) {
   for (int level : {1, 4, 6}) check_all(arcs(level, 6, 30, 300 + level), "arcs");
+  // Lines whose groups have a real reach, seams, turns and long runs (piece_groups.hpp).
+  for (int level : {5, 7}) check_all(test::wiggly_sites(level, 700 + level), "wiggly lines");
+  check_all(test::wiggly_sites(9, 709), "wiggly lines", 60000, {{Algorithm::hier, Rule::exact}});
   check_all(arcs(8, 4, 6, 388), "arcs", 40000, {{Algorithm::hier, Rule::exact}, {Algorithm::hier, Rule::cell}});
 }
 
@@ -615,6 +619,8 @@ TEST(LabelDeviceTree, MatchesTheHostTree) {
   cases.push_back({"ties", exact_ties(9)});
   cases.push_back({"arcs", arcs(6, 6, 30, 306)});
   cases.push_back({"dense arcs", arcs(10, 40, 25, 910)});
+  cases.push_back({"wiggly lines", test::wiggly_sites(7, 77)});
+  cases.push_back({"wiggly lines", test::wiggly_sites(10, 710)});
   cases.push_back({"polygons", polygons(6)});
   for (const Case& c : cases) {
     for (const Rule rule : {Rule::exact, Rule::cell}) {

@@ -11,6 +11,7 @@
 #include "grid/qtm.hpp"
 #include "label/labeller.hpp"
 #include "label/piece_groups.hpp"
+#include "wiggly_sites.hpp"
 
 namespace qtmv::label {
 namespace {
@@ -25,37 +26,7 @@ Vec3 along(const Vec3& a, const Vec3& b, double t) {
   return unit(a.x + t * (b.x - a.x), a.y + t * (b.y - a.y), a.z + t * (b.z - a.z));
 }
 
-/// Sites as the readers make them: wiggly polylines (a random walk of arcs, each cut into
-/// quarter-edge pieces), a site of two separate lines, a straight arc, a line duplicated under a
-/// lower site id (exact ties), fixed cells, and points.
-SiteGeometry wiggly_sites(int level, std::uint64_t seed) {
-  SiteGeometry g;
-  g.level = level;
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> lon(-180, 180), lat(-70, 70), turn(-40, 40), step(0.2, 3.0);
-  auto polyline = [&](std::int32_t site, int vertices) {
-    double lo = lon(rng), la = lat(rng), heading = turn(rng) * 4;
-    for (int v = 0; v < vertices; ++v) {
-      heading += turn(rng);
-      const double d = step(rng);
-      const double la2 = std::max(-85.0, std::min(85.0, la + d * std::cos(heading * grid::kDegree)));
-      const double lo2 = grid::normalise_lon(lo + d * std::sin(heading * grid::kDegree) / std::cos(la * grid::kDegree));
-      add_arc(g, lo, la, lo2, la2, site);
-      lo = lo2;
-      la = la2;
-    }
-  };
-  for (std::int32_t s = 0; s < 6; ++s) polyline(s, 12);
-  polyline(6, 5);
-  polyline(6, 5);  // a second line of site 6: one run, not tight across the seam
-  add_arc(g, 20, -10, 31, 2, 7);
-  add_arc(g, -60, 40, -52, 33, 9);
-  add_arc(g, -60, 40, -52, 33, 8);  // the same line as site 9: every distance ties
-  for (grid::Code c = 100; c < 160; ++c) add_fixed_cell(g, c, 10);
-  add_point(g, 100, 10, 11);
-  add_point(g, 101, 10, 11);
-  return g;
-}
+using test::wiggly_sites;
 
 std::vector<Piece> candidates_of(const SiteGeometry& g) { return make_candidates(g.input(), Rule::exact, 1); }
 
@@ -86,7 +57,7 @@ TEST(PieceGroups, PlanIsThePreorderOfHalvedRuns) {
     next += top.count;
   }
   EXPECT_EQ(next, static_cast<std::int32_t>(pieces.size()));
-  EXPECT_EQ(plan.top_items.size(), 12u);  // one run per site: each of sites 0..11 is consecutive
+  EXPECT_EQ(plan.top_items.size(), 14u);  // one run per site: each of sites 0..13 is consecutive
   for (std::size_t k = 0; k < plan.spans.size(); ++k) {
     const GroupSpan& s = plan.spans[k];
     for (std::int32_t p = s.first; p < s.first + s.count; ++p) EXPECT_EQ(pieces[p].site, pieces[s.first].site);
@@ -143,6 +114,33 @@ TEST(PieceGroups, AStraightRunIsTightAndThin) {
   EXPECT_EQ(top.tight, 1);
   EXPECT_LT(top.reach, 1e-9);  // the pieces lie on the arc's great circle
   EXPECT_EQ(top.count, static_cast<std::int32_t>(pieces.size()));
+}
+
+TEST(PieceGroups, PointsAlongARowMakeATightRun) {
+  // Fixed cells along a row of level 12 (row 2000 of octant 0 starts at code 2000^2): no piece
+  // joins the next, but the steps between them are short, so the run is tight with a cell's slack.
+  SiteGeometry g;
+  g.level = 12;
+  const grid::Code row = 2000ull * 2000ull;
+  for (grid::Code c = row; c <= row + 20; ++c) add_fixed_cell(g, c, 0);
+  const std::vector<Piece> pieces = candidates_of(g);
+  const GroupPlan plan = plan_groups(pieces, 1);
+  const std::vector<PieceGroup> groups = make_groups(pieces, plan.spans, 1);
+  ASSERT_EQ(plan.top_items.size(), 1u);
+  const PieceGroup& top = groups[item_group(plan.top_items[0])];
+  const double step = std::sqrt(grid::chord2(pieces[0].a, pieces[1].a));
+  EXPECT_EQ(top.tight, 1);
+  EXPECT_GE(top.slack, top.reach + step);
+  EXPECT_LT(top.slack, 4 * step);
+  // A run across rows (the end of row 2000, the start of row 2001) is not tight as a whole: the
+  // step from a row's end to the next row's start is long.
+  SiteGeometry rows;
+  rows.level = 12;
+  for (grid::Code c = row + 3990; c <= row + 4030; ++c) add_fixed_cell(rows, c, 0);
+  const std::vector<Piece> row_pieces = candidates_of(rows);
+  const GroupPlan row_plan = plan_groups(row_pieces, 1);
+  const std::vector<PieceGroup> row_groups = make_groups(row_pieces, row_plan.spans, 1);
+  EXPECT_GT(row_groups[item_group(row_plan.top_items[0])].slack, 10 * step);
 }
 
 TEST(PieceGroups, BoundsHoldAndBranchAndBoundIsBruteForce) {

@@ -30,6 +30,20 @@ using test::wiggly_sites;
 
 std::vector<Piece> candidates_of(const SiteGeometry& g) { return make_candidates(g.input(), Rule::exact, 1); }
 
+/// The candidates of g, their plan and their groups.
+struct Grouped {
+  std::vector<Piece> pieces;
+  GroupPlan plan;
+  std::vector<PieceGroup> groups;
+};
+Grouped grouped(const SiteGeometry& g, int threads) {
+  Grouped r;
+  r.pieces = candidates_of(g);
+  r.plan = plan_groups(r.pieces, threads);
+  r.groups = make_groups(r.pieces, r.plan.spans, threads);
+  return r;
+}
+
 TEST(PieceGroups, PlanIsThePreorderOfHalvedRuns) {
   const SiteGeometry g = wiggly_sites(9, 1);
   const std::vector<Piece> pieces = candidates_of(g);
@@ -79,10 +93,7 @@ TEST(PieceGroups, PlanIsThePreorderOfHalvedRuns) {
 
 TEST(PieceGroups, ReachBoundsEveryPointOfEveryPiece) {
   for (const int level : {6, 10}) {
-    const SiteGeometry g = wiggly_sites(level, 2 + level);
-    const std::vector<Piece> pieces = candidates_of(g);
-    const GroupPlan plan = plan_groups(pieces, 2);
-    const std::vector<PieceGroup> groups = make_groups(pieces, plan.spans, 2);
+    const auto [pieces, plan, groups] = grouped(wiggly_sites(level, 2 + level), 2);
     std::size_t tight = 0;
     for (const PieceGroup& grp : groups) {
       tight += grp.tight;
@@ -105,10 +116,8 @@ TEST(PieceGroups, AStraightRunIsTightAndThin) {
   SiteGeometry g;
   g.level = 12;
   add_arc(g, 10, 10, 20, 15, 0);
-  const std::vector<Piece> pieces = candidates_of(g);
+  const auto [pieces, plan, groups] = grouped(g, 1);
   ASSERT_GT(pieces.size(), 1000u);
-  const GroupPlan plan = plan_groups(pieces, 1);
-  const std::vector<PieceGroup> groups = make_groups(pieces, plan.spans, 1);
   ASSERT_EQ(plan.top_items.size(), 1u);
   const PieceGroup& top = groups[item_group(plan.top_items[0])];
   EXPECT_EQ(top.tight, 1);
@@ -123,9 +132,7 @@ TEST(PieceGroups, PointsAlongARowMakeATightRun) {
   g.level = 12;
   const grid::Code row = 2000ull * 2000ull;
   for (grid::Code c = row; c <= row + 20; ++c) add_fixed_cell(g, c, 0);
-  const std::vector<Piece> pieces = candidates_of(g);
-  const GroupPlan plan = plan_groups(pieces, 1);
-  const std::vector<PieceGroup> groups = make_groups(pieces, plan.spans, 1);
+  const auto [pieces, plan, groups] = grouped(g, 1);
   ASSERT_EQ(plan.top_items.size(), 1u);
   const PieceGroup& top = groups[item_group(plan.top_items[0])];
   const double step = std::sqrt(grid::chord2(pieces[0].a, pieces[1].a));
@@ -137,18 +144,13 @@ TEST(PieceGroups, PointsAlongARowMakeATightRun) {
   SiteGeometry rows;
   rows.level = 12;
   for (grid::Code c = row + 3990; c <= row + 4030; ++c) add_fixed_cell(rows, c, 0);
-  const std::vector<Piece> row_pieces = candidates_of(rows);
-  const GroupPlan row_plan = plan_groups(row_pieces, 1);
-  const std::vector<PieceGroup> row_groups = make_groups(row_pieces, row_plan.spans, 1);
-  EXPECT_GT(row_groups[item_group(row_plan.top_items[0])].slack, 10 * step);
+  const Grouped across = grouped(rows, 1);
+  EXPECT_GT(across.groups[item_group(across.plan.top_items[0])].slack, 10 * step);
 }
 
 TEST(PieceGroups, BoundsHoldAndBranchAndBoundIsBruteForce) {
   for (const int level : {7, 11}) {
-    const SiteGeometry g = wiggly_sites(level, 30 + level);
-    const std::vector<Piece> pieces = candidates_of(g);
-    const GroupPlan plan = plan_groups(pieces, 2);
-    const std::vector<PieceGroup> groups = make_groups(pieces, plan.spans, 2);
+    const auto [pieces, plan, groups] = grouped(wiggly_sites(level, 30 + level), 2);
     std::mt19937_64 rng(level);
     std::normal_distribution<double> jitter(0.0, 0.01);
     std::uniform_int_distribution<std::size_t> pick(0, pieces.size() - 1);

@@ -6,7 +6,8 @@
 // grid::children(). Each node kept the candidates (items: pieces, or groups of a line run,
 // piece_groups.hpp) that can be nearest to some point of it (label_math.hpp, prune_threshold);
 // a node stops being split when
-//   - all its candidates belong to one site and no distances are asked for (kUniform), or
+//   - all its candidates belong to one site and no distances are asked for, or all its cells
+//     are fixed cells of one site (kUniform), or
 //   - it is at the labelling level, or its candidate list is short enough that the cells
 //     below it may as well test it directly (a "list leaf").
 // A cell's label is then: walk from the root (or from the jump table) to the leaf holding it
@@ -187,6 +188,9 @@ QTMV_HD inline void tree_label_cell(const TreeView& t, grid::Code code, std::int
   std::int32_t site;
   if (leaf.count == kUniform) {
     site = leaf.value;
+    // A tree built with distances has uniform leaves only where every cell is a fixed cell of
+    // the site (build_tree's `fixed`): distance 0.
+    if (metres_out) *metres_out = 0.0f;
   } else {
     const Best best = best_of_list(t, leaf, grid::cell_centre_vector(c, t.level));
     site = best.site;

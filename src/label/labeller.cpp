@@ -195,6 +195,8 @@ void cpu_tree_range(const Tree& tree, const TreeView& tv, grid::Code first, std:
       if (lo >= hi) continue;
       if (node.count == kUniform) {
         std::fill(site + (lo - first), site + (hi - first), node.value);
+        // With distances a uniform leaf is one site's fixed cells (build_tree): distance 0.
+        if (metres) std::fill(metres + (lo - first), metres + (hi - first), 0.0f);
         if (boundary) {
           // Inner cells of the leaf (interior_of_ancestor) have all three neighbours in it: flag
           // 0 now; the others (1: to be decided) go through boundary_from_labels.
@@ -288,6 +290,62 @@ struct Pending {
   std::uint32_t parent_count;
 };
 
+/// The fixed cells in code order, for telling a node whose every cell is a fixed cell of one site
+/// (each such cell's own fixed point wins it at distance 0, so the node needs no candidates).
+class FixedCover {
+ public:
+  FixedCover(const FixedCell* fixed, std::size_t count, int level) : level_(level) {
+    cells_.assign(fixed, fixed + count);
+    std::sort(cells_.begin(), cells_.end(),
+              [](const FixedCell& a, const FixedCell& b) { return a.code != b.code ? a.code < b.code : a.site < b.site; });
+    // run_end_[i]: the last code of the run of consecutive codes, one site, from cells_[i] on; a
+    // code claimed twice (two polygons) ends every run before it.
+    const std::size_t n = cells_.size();
+    run_end_.assign(n, 0);
+    for (std::size_t i = n; i-- > 0;) {
+      const bool twice = (i > 0 && cells_[i - 1].code == cells_[i].code) ||
+                         (i + 1 < n && cells_[i + 1].code == cells_[i].code);
+      if (twice) {
+        run_end_[i] = kNone;
+      } else if (i + 1 < n && run_end_[i + 1] != kNone && cells_[i + 1].code == cells_[i].code + 1 &&
+                 cells_[i + 1].site == cells_[i].site) {
+        run_end_[i] = run_end_[i + 1];
+      } else {
+        run_end_[i] = cells_[i].code;
+      }
+    }
+  }
+  bool empty() const { return cells_.empty(); }
+
+  /// The site whose fixed cells are all the cells below `cell` (of level l), or -1.
+  std::int32_t site_covering(const grid::Cell& cell, int l) const {
+    const int k = level_ - l;
+    const std::uint64_t octant_base = static_cast<std::uint64_t>(cell.octant) * grid::cells_per_octant(level_);
+    const std::uint64_t row0 = std::uint64_t{cell.row} << k, rows = std::uint64_t{1} << k;
+    const std::uint64_t base = std::uint64_t{cell.col / 2} << (k + 1);
+    const bool up = grid::is_up(cell);
+    std::int32_t site = -1;
+    for (std::uint64_t r = 0; r < rows; ++r) {
+      const std::uint64_t row = row0 + r;
+      const grid::Code lo = octant_base + row * row + (up ? base : base + 2 * r + 1);
+      const grid::Code hi = octant_base + row * row + (up ? base + 2 * r : base + 2 * rows - 1);
+      const auto at = std::lower_bound(cells_.begin(), cells_.end(), lo,
+                                       [](const FixedCell& f, grid::Code c) { return f.code < c; });
+      if (at == cells_.end() || at->code != lo) return -1;
+      const std::size_t i = static_cast<std::size_t>(at - cells_.begin());
+      if (run_end_[i] == kNone || run_end_[i] < hi || (site >= 0 && at->site != site)) return -1;
+      site = at->site;
+    }
+    return site;
+  }
+
+ private:
+  static constexpr grid::Code kNone = ~grid::Code{0};
+  int level_;
+  std::vector<FixedCell> cells_;
+  std::vector<grid::Code> run_end_;
+};
+
 /// What the filter decided for one node.
 struct Decision {
   std::int32_t kind;        // kUniform, kInternal, or 1 for a list leaf
@@ -300,7 +358,8 @@ struct Decision {
 }  // namespace
 
 Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_distance, int threads_requested,
-                const std::function<void(double fraction)>& level_done) {
+                const std::function<void(double fraction)>& level_done, const FixedCell* fixed,
+                std::size_t fixed_count) {
   grid::require_level(level);
   if (candidates.empty()) throw std::invalid_argument("build_tree: no candidates");
   if (candidates.size() > 0x7fffffffu) throw std::invalid_argument("build_tree: more than 2^31 candidates");
@@ -315,6 +374,7 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
 
   // QTMV_LABEL_TRACE set: each step's time and size on stderr (for tuning).
   const bool trace = std::getenv("QTMV_LABEL_TRACE") != nullptr;
+  const FixedCover cover(fixed, fixed_count, level);
   double t_level = now_seconds();
   // Line runs become groups; the octants start with the runs' top items.
   GroupPlan plan = plan_groups(candidates, threads);
@@ -383,6 +443,16 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
           } else {
             dec.kind = kUniform;
           }
+          ++leaves;
+          decisions[q] = dec;
+          continue;
+        }
+        // A node all of whose cells are one site's fixed cells is a uniform leaf, with or without
+        // distances (theirs are 0).
+        const std::int32_t covered = cover.empty() ? -1 : cover.site_covering(p.cell, l);
+        if (covered >= 0) {
+          dec.kind = kUniform;
+          dec.site = covered;
           ++leaves;
           decisions[q] = dec;
           continue;
@@ -653,7 +723,8 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
   } else if (hier) {
     // Progress after each level of the build, so that a caller can stop a long build.
     tree = build_tree(host_candidates(), input.level, options.want_distance, threads,
-                      [&](double fraction) { progress(fraction, "prepare"); });
+                      [&](double fraction) { progress(fraction, "prepare"); }, input.fixed_cells,
+                      input.fixed_cell_count);
     stats.tree_nodes = tree.nodes.size();
     stats.tree_list_entries = tree.lists.size();
     stats.mean_candidates = tree.mean_candidates;
@@ -694,7 +765,10 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
     } catch (const cuda::OutOfMemory& e) {
       leave_gpu(e, done);
     }
-    if (hier && tree.nodes.empty()) tree = build_tree(host_candidates(), input.level, options.want_distance, threads);
+    if (hier && tree.nodes.empty()) {
+      tree = build_tree(host_candidates(), input.level, options.want_distance, threads, {}, input.fixed_cells,
+                        input.fixed_cell_count);
+    }
   }
   const TreeView tv = tree.view(host_candidates().data());
   for (std::uint64_t first = done; first < total; first += host_tile) {

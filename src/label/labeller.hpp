@@ -177,8 +177,8 @@ struct TreeLeaf {
   std::int32_t node;
 };
 
-/// The hierarchy, on the host. Leaves are kUniform (no distances asked for) or hold one
-/// candidate: the site's only piece near the leaf, or at the labelling level the winner.
+/// The hierarchy, on the host. Leaves are kUniform (one site: no distances asked for, or all
+/// cells fixed cells of the site) or list leaves (at the labelling level: the winner).
 struct Tree {
   int level = 0;
   int jump_level = 0;
@@ -197,8 +197,13 @@ struct Tree {
 /// where all candidates share one site, so that distances can be computed.
 /// `level_done` (may be empty) is called after each level of the tree with the fraction of the
 /// levels done, outside any parallel region, so that it may throw to stop the build.
+/// `fixed` (may be null): the fixed cells behind the candidates' fixed points; a node all of whose
+/// cells are fixed cells of one site then becomes a uniform leaf even with distances (they are 0),
+/// instead of the tree going on down inside polygons. (The device build does not do this: the
+/// trees then differ, the labels not.)
 Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_distance, int threads = 0,
-                const std::function<void(double fraction)>& level_done = {});
+                const std::function<void(double fraction)>& level_done = {}, const FixedCell* fixed = nullptr,
+                std::size_t fixed_count = 0);
 
 /// Number of usable CUDA devices (0 when built without CUDA or none is present).
 int cuda_device_count();

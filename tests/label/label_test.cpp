@@ -383,6 +383,22 @@ SiteGeometry polygons(int level) {
   return g;
 }
 
+/// A polygon whose fixed cells fill the level-2 cell 37 with one site (no overlap), its triangle
+/// as arcs of that site, and random points around.
+SiteGeometry solid_polygon(int level) {
+  SiteGeometry g = random_points(level, 10, 23);
+  const int poly = 12;
+  const Cell nc = grid::cell_of(37, 2);
+  for (Code code = 0; code < grid::cell_count(level); ++code) {
+    const Cell a = ancestor(grid::cell_of(code, level), level, 2);
+    if (a.octant == nc.octant && a.row == nc.row && a.col == nc.col) add_fixed_cell(g, code, poly);
+  }
+  grid::LonLat v[3];
+  grid::cell_vertices(nc, 2, v);
+  for (int k = 0; k < 3; ++k) add_arc(g, v[k].lon, v[k].lat, v[(k + 1) % 3].lon, v[(k + 1) % 3].lat, poly);
+  return g;
+}
+
 struct RunCase {
   Algorithm algorithm;
   Rule rule;
@@ -542,6 +558,30 @@ TEST_P(LabelDevice, FixedCellsKeepTheirSite) {
       EXPECT_EQ(got.distance_m[f.code], 0.0f);
     }
   }
+}
+
+// Inside a polygon every cell is a fixed cell of its site: the host's tree stops there with
+// uniform leaves (distance 0) even when distances are asked for; labels, distances and flags stay
+// the reference's on every cell.
+TEST_P(LabelDevice, SolidPolygonInteriorsAreUniformLeaves) {
+  for (int level : {5, 7}) check_all(solid_polygon(level), "solid polygon");
+  const SiteGeometry g = solid_polygon(7);
+  const LabelInput in = g.input();
+  const std::vector<Piece> candidates = make_candidates(in, Rule::exact);
+  const Tree plain = build_tree(candidates, g.level, true, 2);
+  const Tree covered = build_tree(candidates, g.level, true, 2, {}, in.fixed_cells, in.fixed_cell_count);
+  std::uint64_t uniform = 0, covered_cells = 0;
+  for (const TreeLeaf& leaf : covered.leaves) {
+    if (covered.nodes[leaf.node].count != kUniform) continue;
+    ++uniform;
+    EXPECT_EQ(covered.nodes[leaf.node].value, 12);
+    covered_cells += std::uint64_t{1} << (2 * (g.level - leaf.level));
+  }
+  EXPECT_GT(uniform, 0u);
+  EXPECT_LE(covered_cells, g.fixed_cells.size());
+  EXPECT_GT(covered_cells, g.fixed_cells.size() / 2);  // most of the interior, in large leaves
+  EXPECT_LT(covered.nodes.size(), plain.nodes.size());
+  for (const TreeLeaf& leaf : plain.leaves) EXPECT_NE(plain.nodes[leaf.node].count, kUniform);
 }
 
 TEST_P(LabelDevice, TilesMatchOneRun) {

@@ -66,25 +66,27 @@ std::size_t pool_idle_bytes(int device) {
   return reserved > used ? static_cast<std::size_t>(reserved - used) : 0;
 }
 
+/// Gives the current device's idle pool memory back to the system, once its work is done (a fault
+/// of an earlier kernel surfaces here, as itself).
+cudaError_t release_pool(int device) {
+  cudaMemPool_t pool;
+  cudaError_t status = cudaDeviceGetDefaultMemPool(&pool, device);
+  if (status == cudaSuccess) status = cudaDeviceSynchronize();
+  if (status == cudaSuccess) status = cudaMemPoolTrimTo(pool, 0);
+  return status;
+}
+
 /// cudaMalloc, once more after the pool's idle memory went back to the system.
 #define QTMV_CUDA_ALLOCATE(pointer, bytes) check(allocate(reinterpret_cast<void**>(pointer), (bytes)), \
                                                  "cudaMalloc(" #pointer ", " #bytes ")", __FILE__, __LINE__)
 cudaError_t allocate(void** pointer, std::size_t bytes) {
-  cudaError_t status = cudaMalloc(pointer, bytes);
+  const cudaError_t status = cudaMalloc(pointer, bytes);
   if (status != cudaErrorMemoryAllocation) return status;
   (void)cudaGetLastError();
   int device = 0;
-  cudaMemPool_t pool;
-  if (cudaGetDevice(&device) != cudaSuccess || cudaDeviceGetDefaultMemPool(&pool, device) != cudaSuccess ||
-      pool_idle_bytes(device) == 0) {
-    return status;
-  }
-  // A fault of an earlier kernel surfaces here: report it, not the allocation.
-  const cudaError_t synced = cudaDeviceSynchronize();
-  if (synced != cudaSuccess) return synced;
-  const cudaError_t trimmed = cudaMemPoolTrimTo(pool, 0);
-  if (trimmed != cudaSuccess) return trimmed;
-  return cudaMalloc(pointer, bytes);
+  if (cudaGetDevice(&device) != cudaSuccess || pool_idle_bytes(device) == 0) return status;
+  const cudaError_t released = release_pool(device);
+  return released == cudaSuccess ? cudaMalloc(pointer, bytes) : released;
 }
 
 constexpr int kBlock = 256;
@@ -1017,10 +1019,7 @@ int device_count() {
 
 void release_cached_memory(int device) {
   QTMV_CUDA_CHECK(cudaSetDevice(device));
-  cudaMemPool_t pool;
-  QTMV_CUDA_CHECK(cudaDeviceGetDefaultMemPool(&pool, device));
-  QTMV_CUDA_CHECK(cudaDeviceSynchronize());
-  QTMV_CUDA_CHECK(cudaMemPoolTrimTo(pool, 0));
+  QTMV_CUDA_CHECK(release_pool(device));
 }
 
 DeviceInfo device_info(int device) {

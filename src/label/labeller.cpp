@@ -161,6 +161,19 @@ void boundary_from_labels(int level, grid::Code first, std::uint64_t count, cons
   }
 }
 
+/// Row r (0 .. 2^k - 1, from the apex) of the cells k levels below `cell`, at `level`: the codes
+/// [first, last] it holds, and the code of its row's column 0 (for a cell's parity).
+struct LeafRow {
+  grid::Code first, last, row_start;
+};
+LeafRow leaf_row(const grid::Cell& cell, int k, std::uint64_t r, int level) {
+  const std::uint64_t row = (std::uint64_t{cell.row} << k) + r, rows = std::uint64_t{1} << k;
+  const std::uint64_t base = std::uint64_t{cell.col / 2} << (k + 1);
+  const grid::Code start = static_cast<std::uint64_t>(cell.octant) * grid::cells_per_octant(level) + row * row;
+  return grid::is_up(cell) ? LeafRow{start + base, start + base + 2 * r, start}
+                           : LeafRow{start + base + 2 * r + 1, start + base + 2 * rows - 1, start};
+}
+
 /// The CPU's hier pass over [first, first + count): every leaf paints its cells, row run by row
 /// run (a uniform leaf writes its site; a list leaf tests its candidates per cell), then the
 /// boundary flags come from the labels.
@@ -174,24 +187,15 @@ void cpu_tree_range(const Tree& tree, const TreeView& tv, grid::Code first, std:
     const TreeLeaf& leaf = tree.leaves[q];
     const TreeNode node = tree.nodes[leaf.node];
     const int k = level - leaf.level;
-    const std::uint64_t octant_base = static_cast<std::uint64_t>(leaf.cell.octant) * grid::cells_per_octant(level);
-    const std::uint64_t row0 = std::uint64_t{leaf.cell.row} << k;
-    const std::uint64_t base = std::uint64_t{leaf.cell.col / 2} << (k + 1);
     const bool up = grid::is_up(leaf.cell);
     const std::uint64_t rows = std::uint64_t{1} << k;
     // Quick rejection by the leaf's code span.
-    const std::uint64_t span_first = octant_base + row0 * row0 + (up ? base : base + 1);
-    const std::uint64_t last_row = row0 + rows - 1;
-    const std::uint64_t span_last =
-        octant_base + last_row * last_row + (up ? base + 2 * (rows - 1) : base + 2 * rows - 1);
-    if (span_last < first || span_first >= end_code) continue;
+    if (leaf_row(leaf.cell, k, rows - 1, level).last < first || leaf_row(leaf.cell, k, 0, level).first >= end_code) {
+      continue;
+    }
     for (std::uint64_t r = 0; r < rows; ++r) {
-      const std::uint64_t row = row0 + r;
-      const std::uint64_t c0 = up ? base : base + 2 * r + 1;
-      const std::uint64_t c1 = up ? base + 2 * r : base + 2 * rows - 1;
-      std::uint64_t lo = octant_base + row * row + c0, hi = octant_base + row * row + c1 + 1;
-      lo = std::max(lo, first);
-      hi = std::min(hi, end_code);
+      const LeafRow codes = leaf_row(leaf.cell, k, r, level);
+      const std::uint64_t lo = std::max(codes.first, first), hi = std::min(codes.last + 1, end_code);
       if (lo >= hi) continue;
       if (node.count == kUniform) {
         std::fill(site + (lo - first), site + (hi - first), node.value);
@@ -200,11 +204,10 @@ void cpu_tree_range(const Tree& tree, const TreeView& tv, grid::Code first, std:
         if (boundary) {
           // Inner cells of the leaf (interior_of_ancestor) have all three neighbours in it: flag
           // 0 now; the others (1: to be decided) go through boundary_from_labels.
-          const std::uint64_t row_first = octant_base + row * row + c0, row_last = octant_base + row * row + c1;
           const bool edge_row = up ? r + 1 == rows : r == 0;
           for (std::uint64_t code = lo; code < hi; ++code) {
-            const bool odd = ((code - octant_base - row * row) & 1u) != 0;  // a down cell
-            const bool inner = code > row_first && code < row_last && !(edge_row && (up ? !odd : odd));
+            const bool odd = ((code - codes.row_start) & 1u) != 0;  // a down cell
+            const bool inner = code > codes.first && code < codes.last && !(edge_row && (up ? !odd : odd));
             boundary[code - first] = inner ? 0 : 1;
           }
         }
@@ -320,20 +323,14 @@ class FixedCover {
   /// The site whose fixed cells are all the cells below `cell` (of level l), or -1.
   std::int32_t site_covering(const grid::Cell& cell, int l) const {
     const int k = level_ - l;
-    const std::uint64_t octant_base = static_cast<std::uint64_t>(cell.octant) * grid::cells_per_octant(level_);
-    const std::uint64_t row0 = std::uint64_t{cell.row} << k, rows = std::uint64_t{1} << k;
-    const std::uint64_t base = std::uint64_t{cell.col / 2} << (k + 1);
-    const bool up = grid::is_up(cell);
     std::int32_t site = -1;
-    for (std::uint64_t r = 0; r < rows; ++r) {
-      const std::uint64_t row = row0 + r;
-      const grid::Code lo = octant_base + row * row + (up ? base : base + 2 * r + 1);
-      const grid::Code hi = octant_base + row * row + (up ? base + 2 * r : base + 2 * rows - 1);
-      const auto at = std::lower_bound(cells_.begin(), cells_.end(), lo,
+    for (std::uint64_t r = 0; r < (std::uint64_t{1} << k); ++r) {
+      const LeafRow codes = leaf_row(cell, k, r, level_);
+      const auto at = std::lower_bound(cells_.begin(), cells_.end(), codes.first,
                                        [](const FixedCell& f, grid::Code c) { return f.code < c; });
-      if (at == cells_.end() || at->code != lo) return -1;
+      if (at == cells_.end() || at->code != codes.first) return -1;
       const std::size_t i = static_cast<std::size_t>(at - cells_.begin());
-      if (run_end_[i] == kNone || run_end_[i] < hi || (site >= 0 && at->site != site)) return -1;
+      if (run_end_[i] == kNone || run_end_[i] < codes.last || (site >= 0 && at->site != site)) return -1;
       site = at->site;
     }
     return site;

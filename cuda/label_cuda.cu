@@ -125,7 +125,7 @@ __global__ void tree_label_kernel(TreeView tree, grid::Code first, std::uint64_t
 }
 
 /// Labels (and boundary flags, no distances) in code order, written coalesced: each warp takes
-/// a span of kPaintSpan = 128 x kPaintRounds consecutive outputs, 4 per lane per round (one
+/// spans of kPaintSpan = 128 x kPaintRounds consecutive outputs in turn, 4 per lane per round (one
 /// 16-byte site store and one 4-byte flag store per lane). A span that lies in one row first
 /// tabulates the jump cells it crosses (a row's cells fall into consecutive jump cells of one
 /// jump row): the site of those in a uniform leaf and clean (jump_clean), so that their cells
@@ -155,19 +155,15 @@ __device__ inline void advance_cell(grid::Cell& c, std::uint32_t step, std::uint
   }
 }
 
-__global__ void __launch_bounds__(kBlock, 4) tree_paint_kernel(TreeView tree, const std::uint8_t* jump_clean,
-                                                               grid::Code first, std::uint64_t count,
-                                                               std::int32_t* site, std::uint8_t* boundary,
-                                                               std::uint32_t* pending_spans,
-                                                               unsigned int* pending_count) {
-  __shared__ std::uint16_t queue[kPaintWarps][kPaintSpan];
-  __shared__ std::int32_t table[kPaintWarps][kPaintTable];
+/// tree_paint_kernel's work for span `span` (outputs [span, span + 1) x kPaintSpan) of one warp;
+/// q and table: the warp's shared memory.
+__device__ inline void paint_span(const TreeView& tree, const std::uint8_t* jump_clean, grid::Code first,
+                                  std::uint64_t count, std::int32_t* site, std::uint8_t* boundary,
+                                  std::uint32_t* pending_spans, unsigned int* pending_count, std::uint64_t span,
+                                  std::uint16_t* q, std::int32_t* table) {
   const int level = tree.level, jl = tree.jump_level, k = level - jl;
-  const unsigned lane = threadIdx.x & 31u, warp = threadIdx.x >> 5;
-  const std::uint64_t span = static_cast<std::uint64_t>(blockIdx.x) * kPaintWarps + warp;
+  const unsigned lane = threadIdx.x & 31u;
   const std::uint64_t warp_out = span * kPaintSpan;
-  if (warp_out >= count) return;  // whole warps leave together: the ballots below need all lanes
-  std::uint16_t* q = queue[warp];
   int queued = 0;
   bool pending = false;
   const std::uint32_t rows = 1u << level;
@@ -189,6 +185,7 @@ __global__ void __launch_bounds__(kBlock, 4) tree_paint_kernel(TreeView tree, co
   // The span's first cell, and the table when the span lies in one row.
   const grid::Cell c0 = grid::cell_of(first + warp_out, level);
   const std::uint64_t span_cells = count - warp_out < kPaintSpan ? count - warp_out : kPaintSpan;
+  const std::uint32_t span_n = static_cast<std::uint32_t>(span_cells);
   const std::uint32_t local_row = c0.row & ((1u << k) - 1u);
   const std::uint32_t jc0 = ancestor_col(c0.col, local_row, k);
   const bool one_row = c0.col + (span_cells - 1) <= 2 * c0.row;
@@ -199,7 +196,7 @@ __global__ void __launch_bounds__(kBlock, 4) tree_paint_kernel(TreeView tree, co
     for (std::uint32_t t = lane; t < entries; t += 32) {
       const grid::Code jcode = grid::code_of(grid::Cell{c0.octant, c0.row >> k, jc0 + t}, jl);
       const TreeNode n = tree.nodes[__ldg(&tree.jump[jcode].node)];
-      table[warp][t] = n.count == kUniform && (!boundary || __ldg(jump_clean + jcode)) ? n.value : -1;
+      table[t] = n.count == kUniform && (!boundary || __ldg(jump_clean + jcode)) ? n.value : -1;
     }
     __syncwarp();
   }
@@ -211,52 +208,55 @@ __global__ void __launch_bounds__(kBlock, 4) tree_paint_kernel(TreeView tree, co
     std::int32_t s[4] = {-1, -1, -1, -1};
     std::uint32_t flags = 0;  // byte j: the flag of cell out + j (0 or kBoundaryPending)
     unsigned slow = 0;        // bit j: cell out + j is queued
-    if (out < count) {
+    if (local < span_n) {
       unsigned todo = 0;  // bit j: cell out + j goes one by one
       if (tabulated) {
 #pragma unroll
         for (int j = 0; j < 4; ++j) {
-          if (out + j < count) {
-            s[j] = table[warp][ancestor_col(c.col + j, local_row, k) - jc0];
+          if (local + j < span_n) {
+            s[j] = table[ancestor_col(c.col + j, local_row, k) - jc0];
             if (s[j] < 0) todo |= 1u << j;
           }
         }
       } else {
-        todo = out + 4 <= count ? 0xfu : (1u << (count - out)) - 1u;
+        todo = local + 4 <= span_n ? 0xfu : (1u << (span_n - local)) - 1u;
       }
-      grid::Cell cc = c;
+      // Skipped as a whole in the common case, a span's table settling all four.
+      if (todo != 0) {
+        grid::Cell cc = c;
 #pragma unroll
-      for (int j = 0; j < 4; ++j) {
-        if ((todo >> j) & 1u) {
-          look_up(ancestor(cc, level, jl));
-          // find_leaf's walk, from the jump entry.
-          int leaf_level = jump_level, leaf_count = node_count, leaf_value = node_value;
-          while (leaf_count == kInternal) {
-            const int2 n = __ldg(reinterpret_cast<const int2*>(tree.nodes + leaf_value +
-                                                               child_digit(ancestor(cc, level, leaf_level + 1))));
-            leaf_count = n.x;
-            leaf_value = n.y;
-            ++leaf_level;
-          }
-          if (leaf_count == kUniform) {
-            s[j] = leaf_value;
-            if (boundary && !clean && !interior_of_ancestor(cc, level, leaf_level)) {
-              flags |= std::uint32_t{kBoundaryPending} << (8 * j);
+        for (int j = 0; j < 4; ++j) {
+          if ((todo >> j) & 1u) {
+            look_up(ancestor(cc, level, jl));
+            // find_leaf's walk, from the jump entry.
+            int leaf_level = jump_level, leaf_count = node_count, leaf_value = node_value;
+            while (leaf_count == kInternal) {
+              const int2 n = __ldg(reinterpret_cast<const int2*>(tree.nodes + leaf_value +
+                                                                 child_digit(ancestor(cc, level, leaf_level + 1))));
+              leaf_count = n.x;
+              leaf_value = n.y;
+              ++leaf_level;
             }
-          } else {
-            slow |= 1u << j;
-            if (boundary) flags |= std::uint32_t{kBoundaryPending} << (8 * j);
+            if (leaf_count == kUniform) {
+              s[j] = leaf_value;
+              if (boundary && !clean && !interior_of_ancestor(cc, level, leaf_level)) {
+                flags |= std::uint32_t{kBoundaryPending} << (8 * j);
+              }
+            } else {
+              slow |= 1u << j;
+              if (boundary) flags |= std::uint32_t{kBoundaryPending} << (8 * j);
+            }
           }
+          if (j < 3) advance_cell(cc, 1, rows);
         }
-        if (j < 3) advance_cell(cc, 1, rows);
       }
-      if (out + 4 <= count) {
+      if (local + 4 <= span_n) {
         *reinterpret_cast<int4*>(site + out) = make_int4(s[0], s[1], s[2], s[3]);
         if (boundary) *reinterpret_cast<std::uint32_t*>(boundary + out) = flags;
       } else {
 #pragma unroll
         for (int j = 0; j < 4; ++j) {
-          if (out + j < count) {
+          if (local + j < span_n) {
             site[out + j] = s[j];
             if (boundary) boundary[out + j] = static_cast<std::uint8_t>(flags >> (8 * j));
           }
@@ -286,6 +286,30 @@ __global__ void __launch_bounds__(kBlock, 4) tree_paint_kernel(TreeView tree, co
   for (int e = static_cast<int>(lane); e < queued; e += 32) {
     const std::uint64_t out = warp_out + q[e];
     site[out] = tree_label(tree, grid::cell_of(first + out, level));
+  }
+  __syncwarp();  // the queue and the table, before the warp's next span
+}
+
+/// The paint pass: a grid that fills the device, each warp taking spans in turn from *next_span
+/// (a span's work varies, lists and walks near boundaries, so fixed blocks would leave their
+/// slots held by their slowest warp).
+__global__ void __launch_bounds__(kBlock, 4) tree_paint_kernel(TreeView tree, const std::uint8_t* jump_clean,
+                                                               grid::Code first, std::uint64_t count,
+                                                               std::int32_t* site, std::uint8_t* boundary,
+                                                               std::uint32_t* pending_spans,
+                                                               unsigned int* pending_count,
+                                                               unsigned int* next_span) {
+  __shared__ std::uint16_t queue[kPaintWarps][kPaintSpan];
+  __shared__ std::int32_t table[kPaintWarps][kPaintTable];
+  const unsigned lane = threadIdx.x & 31u, warp = threadIdx.x >> 5;
+  const std::uint64_t spans = (count + kPaintSpan - 1) / kPaintSpan;
+  for (;;) {
+    unsigned int span = 0;
+    if (lane == 0) span = atomicAdd(next_span, 1u);
+    span = __shfl_sync(0xffffffffu, span, 0);
+    if (span >= spans) return;  // whole warps leave together: the ballots need all lanes
+    paint_span(tree, jump_clean, first, count, site, boundary, pending_spans, pending_count, span, queue[warp],
+               table[warp]);
   }
 }
 
@@ -1050,8 +1074,9 @@ struct Labeller::Impl {
   float* metres = nullptr;
   std::uint8_t* boundary = nullptr;
   std::uint32_t* pending_spans = nullptr;  ///< the paint spans with pending flags, and their count
-  unsigned int* pending_count = nullptr;
-  unsigned int flag_blocks = 0;  ///< tree_flag_kernel's grid: enough resident blocks to fill the device
+  unsigned int* counters = nullptr;  ///< [0]: pending spans listed, [1]: the paint kernel's next span
+  unsigned int flag_blocks = 0;   ///< tree_flag_kernel's grid: enough resident blocks to fill the device
+  unsigned int paint_blocks = 0;  ///< tree_paint_kernel's grid: its resident blocks
   std::uint64_t capacity = 0;
   std::size_t bytes = 0;
   std::size_t output_bytes = 0;
@@ -1068,6 +1093,9 @@ struct Labeller::Impl {
     int sms = 0;
     QTMV_CUDA_CHECK(cudaDeviceGetAttribute(&sms, cudaDevAttrMultiProcessorCount, device));
     flag_blocks = static_cast<unsigned int>(sms) * 8;
+    int per_sm = 0;
+    QTMV_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&per_sm, tree_paint_kernel, kBlock, 0));
+    paint_blocks = static_cast<unsigned int>(sms) * static_cast<unsigned int>(per_sm > 0 ? per_sm : 1);
     QTMV_CUDA_CHECK(cudaEventCreate(&start));
     QTMV_CUDA_CHECK(cudaEventCreate(&stop));
   }
@@ -1109,9 +1137,9 @@ struct Labeller::Impl {
     cudaFree(metres);
     cudaFree(boundary);
     cudaFree(pending_spans);
-    cudaFree(pending_count);
+    cudaFree(counters);
     pending_spans = nullptr;
-    pending_count = nullptr;
+    counters = nullptr;
     site = nullptr;
     metres = nullptr;
     boundary = nullptr;
@@ -1235,8 +1263,8 @@ void Labeller::reserve(std::uint64_t max_cells, bool want_distance, bool want_bo
   if (want_boundary) {
     m.boundary = device_alloc<std::uint8_t>(max_cells, &m.bytes);
     m.pending_spans = device_alloc<std::uint32_t>((max_cells + kPaintSpan - 1) / kPaintSpan, &m.bytes);
-    m.pending_count = device_alloc<unsigned int>(1, &m.bytes);
   }
+  m.counters = device_alloc<unsigned int>(2, &m.bytes);
   m.output_bytes = m.bytes - before;
   m.capacity = max_cells;
 }
@@ -1263,16 +1291,20 @@ float Labeller::run(grid::Code first, std::uint64_t count, bool want_distance, b
       QTMV_CUDA_CHECK_LAUNCH("tree_label_kernel");
     } else {
       // Labels, flags 0 inside uniform leaves and pending elsewhere; then the pending flags.
-      const std::uint64_t blocks = (count + kPaintWarps * kPaintSpan - 1) / (kPaintWarps * kPaintSpan);
-      if (blocks > 0x7fffffffu) throw std::invalid_argument("Labeller::run: too many cells for one launch");
-      if (boundary) QTMV_CUDA_CHECK(cudaMemsetAsync(m.pending_count, 0, sizeof(unsigned int)));
-      tree_paint_kernel<<<static_cast<unsigned int>(blocks), kBlock>>>(
-          view, m.jump_clean, first, count, m.site, boundary, boundary ? m.pending_spans : nullptr, m.pending_count);
+      const std::uint64_t spans = (count + kPaintSpan - 1) / kPaintSpan;
+      if (spans > 0xffffffffu - m.paint_blocks * kPaintWarps) {
+        throw std::invalid_argument("Labeller::run: too many cells for one launch");
+      }
+      QTMV_CUDA_CHECK(cudaMemsetAsync(m.counters, 0, 2 * sizeof(unsigned int)));
+      const std::uint64_t blocks = (spans + kPaintWarps - 1) / kPaintWarps;
+      tree_paint_kernel<<<static_cast<unsigned int>(blocks < m.paint_blocks ? blocks : m.paint_blocks), kBlock>>>(
+          view, m.jump_clean, first, count, m.site, boundary, boundary ? m.pending_spans : nullptr, m.counters,
+          m.counters + 1);
       QTMV_CUDA_CHECK_LAUNCH("tree_paint_kernel");
       if (boundary) {
         // Enough blocks to fill the device; each takes listed spans in turn.
         tree_flag_kernel<<<m.flag_blocks, kBlock>>>(view, first, count, m.site, boundary, m.pending_spans,
-                                                    m.pending_count);
+                                                    m.counters);
         QTMV_CUDA_CHECK_LAUNCH("tree_flag_kernel");
       }
     }

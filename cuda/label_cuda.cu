@@ -37,10 +37,14 @@ void check(cudaError_t status, const char* call, const char* file, int line) {
   throw std::runtime_error(what);
 }
 
-/// Fault injection (OutOfMemory's comment): throws when QTMV_FAULT_CUDA_OOM names `step`.
-void injected_fault(const char* step) {
+/// Fault injection (OutOfMemory's comment): true when QTMV_FAULT_CUDA_OOM names `step`.
+bool fault_injected(const char* step) {
   const char* fault = std::getenv("QTMV_FAULT_CUDA_OOM");
-  if (fault && std::string(fault) == step) {
+  return fault && std::string(fault) == step;
+}
+/// Throws OutOfMemory when QTMV_FAULT_CUDA_OOM names `step`.
+void injected_fault(const char* step) {
+  if (fault_injected(step)) {
     throw OutOfMemory(std::string("CUDA error cudaErrorMemoryAllocation (injected by QTMV_FAULT_CUDA_OOM=") + step +
                       ")");
   }
@@ -79,12 +83,16 @@ cudaError_t release_pool(int device) {
 /// cudaMalloc, once more after the pool's idle memory went back to the system.
 #define QTMV_CUDA_ALLOCATE(pointer, bytes) check(allocate(reinterpret_cast<void**>(pointer), (bytes)), \
                                                  "cudaMalloc(" #pointer ", " #bytes ")", __FILE__, __LINE__)
+/// (QTMV_FAULT_CUDA_OOM=allocate: the first try fails whenever the pool holds idle memory.)
 cudaError_t allocate(void** pointer, std::size_t bytes) {
-  const cudaError_t status = cudaMalloc(pointer, bytes);
+  int device = 0;
+  const cudaError_t current = cudaGetDevice(&device);
+  if (current != cudaSuccess) return current;
+  const bool injected = fault_injected("allocate") && pool_idle_bytes(device) > 0;
+  const cudaError_t status = injected ? cudaErrorMemoryAllocation : cudaMalloc(pointer, bytes);
   if (status != cudaErrorMemoryAllocation) return status;
   (void)cudaGetLastError();
-  int device = 0;
-  if (cudaGetDevice(&device) != cudaSuccess || pool_idle_bytes(device) == 0) return status;
+  if (pool_idle_bytes(device) == 0) return status;
   const cudaError_t released = release_pool(device);
   return released == cudaSuccess ? cudaMalloc(pointer, bytes) : released;
 }
@@ -106,8 +114,10 @@ struct Trace {
   }
 };
 
-/// Threads for the host's share of the build (the groups' plan).
-int host_threads() { return std::max(1u, std::thread::hardware_concurrency()); }
+/// Threads for the host's share of the build (the groups' plan): `asked`, or all when 0.
+int host_threads(int asked) {
+  return asked > 0 ? asked : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+}
 
 unsigned int blocks_for(std::uint64_t count) {
   const std::uint64_t blocks = (count + kBlock - 1) / kBlock;
@@ -1053,7 +1063,8 @@ DeviceInfo device_info(int device) {
   DeviceInfo info;
   info.name = prop.name;
   QTMV_CUDA_CHECK(cudaMemGetInfo(&info.free_bytes, &info.total_bytes));
-  info.free_bytes += pool_idle_bytes(device);
+  info.pool_idle_bytes = pool_idle_bytes(device);
+  info.free_bytes += info.pool_idle_bytes;
   return info;
 }
 
@@ -1178,7 +1189,8 @@ Labeller::Labeller(int device, const std::vector<Piece>& candidates, const Tree*
   }
 }
 
-Labeller::Labeller(int device, const std::vector<Piece>& candidates, int level, bool with_distance)
+Labeller::Labeller(int device, const std::vector<Piece>& candidates, int level, bool with_distance,
+                   int threads)
     : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
   m.open(device, level, true);
@@ -1188,10 +1200,11 @@ Labeller::Labeller(int device, const std::vector<Piece>& candidates, int level, 
   Trace trace;
   m.pieces = device_copy(candidates, &m.bytes);
   trace("pieces to the device", candidates.size());
-  m.build_tree(plan_groups(candidates, host_threads()), with_distance, trace);
+  m.build_tree(plan_groups(candidates, host_threads(threads)), with_distance, trace);
 }
 
-Labeller::Labeller(int device, const LabelInput& input, bool with_distance) : impl_(std::make_unique<Impl>()) {
+Labeller::Labeller(int device, const LabelInput& input, bool with_distance, int threads)
+    : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
   m.open(device, input.level, true);
   const std::size_t count = input.piece_count + input.fixed_cell_count;
@@ -1224,7 +1237,7 @@ Labeller::Labeller(int device, const LabelInput& input, bool with_distance) : im
         return k < static_cast<std::int64_t>(input.piece_count) ? input.pieces[k].site
                                                                 : input.fixed_cells[k - input.piece_count].site;
       },
-      host_threads());
+      host_threads(threads));
   m.build_tree(plan, with_distance, trace);
 }
 

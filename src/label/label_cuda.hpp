@@ -24,7 +24,9 @@ namespace qtmv::label::cuda {
 /// A device allocation failed (cudaErrorMemoryAllocation): the caller may retry with smaller
 /// tiles or go on on the CPU. Fault injection for the tests: the environment variable
 /// QTMV_FAULT_CUDA_OOM set to `build` (the device tree), `reserve` (outputs of more than 65536
-/// cells) or `run` (any tile but the first) makes that step fail this way.
+/// cells) or `run` (any tile but the first) makes that step fail this way; set to `allocate`, a
+/// device allocation's first try fails while the memory pool holds idle memory (which is then
+/// given back, and the allocation tried again).
 class OutOfMemory : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
@@ -40,7 +42,8 @@ void release_cached_memory(int device);
 
 struct DeviceInfo {
   std::string name;
-  std::size_t free_bytes = 0;  ///< free, plus what the labeller's memory pool holds idle
+  std::size_t free_bytes = 0;       ///< free, plus what the labeller's memory pool holds idle
+  std::size_t pool_idle_bytes = 0;  ///< of free_bytes, what that pool holds idle
   std::size_t total_bytes = 0;
 };
 DeviceInfo device_info(int device);
@@ -61,11 +64,12 @@ class Labeller {
   /// tree == nullptr: brute force over all candidates. Throws std::runtime_error on CUDA errors.
   Labeller(int device, const std::vector<Piece>& candidates, const Tree* tree, int level);
   /// `hier` with the tree built on the device, level by level: the tree of build_tree
-  /// (labeller.cpp), node for node and entry for entry.
-  Labeller(int device, const std::vector<Piece>& candidates, int level, bool with_distance);
+  /// (labeller.cpp), node for node and entry for entry. host_threads: CPU threads for the host's
+  /// share (the line runs' plan), as LabelOptions::threads (0: all).
+  Labeller(int device, const std::vector<Piece>& candidates, int level, bool with_distance, int host_threads = 0);
   /// The same for the exact rule, with the candidates made on the device from the input (the
   /// pieces of make_candidates(input, Rule::exact), which the host then need not make).
-  Labeller(int device, const LabelInput& input, bool with_distance);
+  Labeller(int device, const LabelInput& input, bool with_distance, int host_threads = 0);
   ~Labeller();
   /// Size of the device-built tree (zeros for the other constructor).
   TreeInfo tree_info() const;

@@ -702,9 +702,9 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
   if (device_tree) {
     try {
       gpu_built = options.rule == Rule::exact
-                      ? std::make_unique<cuda::Labeller>(device.index, input, options.want_distance)
+                      ? std::make_unique<cuda::Labeller>(device.index, input, options.want_distance, threads)
                       : std::make_unique<cuda::Labeller>(device.index, host_candidates(), input.level,
-                                                         options.want_distance);
+                                                         options.want_distance, threads);
     } catch (const std::length_error&) {
       // Too large for the device build's 32-bit work counts: the host builds it (below).
       gpu_built.reset();

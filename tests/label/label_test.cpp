@@ -818,6 +818,38 @@ TEST(LabelDeviceFaults, OutOfMemoryFallsBackWithTheSameResults) {
   }
 }
 
+// The device build leaves its scratch idle in the memory pool; an allocation that fails while it
+// is there gives it back and tries again (fault injection: the first try fails), and
+// release_cached_memory gives it back on request. Labels and flags stay the CPU's.
+TEST(LabelDeviceFaults, FailedAllocationGivesThePoolBackAndRetries) {
+  if (cuda_device_count() == 0) GTEST_SKIP() << "no CUDA GPU";
+  const int level = 9;
+  const SiteGeometry g = random_points(level, 300, 4242);
+  const LabelInput in = g.input();
+  LabelOptions options;
+  options.want_distance = false;
+  options.device = "cpu";
+  const LabelResult cpu = label_all(in, options);
+  const std::uint64_t cells = grid::cell_count(level);
+  cuda::Labeller gpu(0, in, false);
+  ASSERT_GT(cuda::device_info(0).pool_idle_bytes, 0u) << "the build's scratch is not left in the pool";
+  ::setenv("QTMV_FAULT_CUDA_OOM", "allocate", 1);
+  EXPECT_NO_THROW(gpu.reserve(cells, false, true));
+  ::unsetenv("QTMV_FAULT_CUDA_OOM");
+  EXPECT_EQ(cuda::device_info(0).pool_idle_bytes, 0u) << "the failed try did not give the pool back";
+  gpu.run(0, cells, false, true);
+  std::vector<std::int32_t> site(cells, -7);
+  std::vector<std::uint8_t> flag(cells, 7);
+  gpu.download(0, cells, site.data(), nullptr, flag.data());
+  EXPECT_EQ(site, cpu.site);
+  EXPECT_EQ(flag, cpu.boundary);
+
+  const cuda::Labeller again(0, in, false);
+  ASSERT_GT(cuda::device_info(0).pool_idle_bytes, 0u);
+  cuda::release_cached_memory(0);
+  EXPECT_EQ(cuda::device_info(0).pool_idle_bytes, 0u);
+}
+
 INSTANTIATE_TEST_SUITE_P(Cpu, LabelDevice, ::testing::Values(std::string("cpu")));
 INSTANTIATE_TEST_SUITE_P(Cuda, LabelDevice, ::testing::Values(std::string("cuda")));
 

@@ -320,13 +320,13 @@ Row run_one(const Args& a, const std::string& spec, int level) {
       if (device_tree && a.rule == Rule::exact) {
         // As label_cells does: the input to the GPU, the candidates and the tree made there (the
         // constructor synchronises).
-        built = std::make_unique<label::cuda::Labeller>(device, input, a.distance);
+        built = std::make_unique<label::cuda::Labeller>(device, input, a.distance, a.threads);
         prepare.push_back((now_seconds() - t0) * 1e3);
         continue;
       }
       candidates = label::make_candidates(input, a.rule);
       if (device_tree) {
-        built = std::make_unique<label::cuda::Labeller>(device, candidates, level, a.distance);
+        built = std::make_unique<label::cuda::Labeller>(device, candidates, level, a.distance, a.threads);
       } else if (hier) {
         tree = label::build_tree(candidates, level, a.distance, a.threads);
       }

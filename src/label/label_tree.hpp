@@ -89,6 +89,15 @@ QTMV_HD inline int child_digit(const grid::Cell& c) {
   return m == 3 ? 3 : static_cast<int>(m) + 1;
 }
 
+/// Position of cell c (of `level`) in quadtree order: the octant, then the child digits from
+/// level 1 down, 2 bits each (3 + 2 level bits). The cells below any node have consecutive keys,
+/// those of node a (level l) being [key(a) << 2 (level - l), (key(a) + 1) << 2 (level - l)).
+QTMV_HD inline std::uint64_t quadtree_key(const grid::Cell& c, int level) {
+  std::uint64_t key = static_cast<std::uint64_t>(c.octant);
+  for (int l = 1; l <= level; ++l) key = (key << 2) | static_cast<std::uint64_t>(child_digit(ancestor(c, level, l)));
+  return key;
+}
+
 /// Index of the leaf that holds cell c (of the labelling level); its level in *leaf_level.
 QTMV_HD inline std::int32_t find_leaf(const TreeView& t, const grid::Cell& c, int* leaf_level) {
   const grid::Cell start = ancestor(c, t.level, t.jump_level);

@@ -20,6 +20,7 @@
 
 #ifdef _OPENMP
 #include <omp.h>
+#include <parallel/algorithm>
 #endif
 
 namespace qtmv::label {
@@ -174,6 +175,71 @@ LeafRow leaf_row(const grid::Cell& cell, int k, std::uint64_t r, int level) {
                            : LeafRow{start + base + 2 * r + 1, start + base + 2 * rows - 1, start};
 }
 
+/// The items of one list leaf in the order of a lower bound (chord) on their distance from any
+/// point of the leaf, so that each cell's search (best) meets its nearest items first and stops
+/// at the first item whose bound exceeds its best. Same best as best_of_list, tie included (the
+/// winning piece among equals may differ, which the labels and distances do not show).
+class LeafOrder {
+ public:
+  void make(const TreeView& tv, const TreeNode& leaf, const Vec3& centre, double radius) {
+    leaf_ = leaf;
+    order_.clear();
+    any_group_ = false;
+    for (std::int32_t k = 0; k < leaf.count && !any_group_; ++k) any_group_ = is_group_item(tv.lists[leaf.value + k]);
+    if (!any_group_) return;  // pieces alone: best_of_list, in list order
+    for (std::int32_t k = 0; k < leaf.count; ++k) {
+      const std::int32_t item = tv.lists[leaf.value + k];
+      double d, reach = 0.0;
+      if (is_group_item(item)) {
+        const PieceGroup& g = tv.groups[item_group(item)];
+        d = std::sqrt(piece_chord2(centre, g.arc));
+        reach = g.reach;
+      } else {
+        d = std::sqrt(piece_chord2(centre, tv.pieces[item]));
+      }
+      // Chords obey the triangle inequality, and a chord is shorter than its angle (radius).
+      order_.push_back({d - reach - radius - kPruneMarginRadians, item});
+    }
+    std::sort(order_.begin(), order_.end(), [](const Entry& a, const Entry& b) {
+      return a.lower != b.lower ? a.lower < b.lower : a.item < b.item;
+    });
+  }
+
+  /// The best piece for x, a point of the leaf.
+  Best best(const TreeView& tv, const Vec3& x) const {
+    if (!any_group_) return best_of_list(tv, leaf_, x);
+    Best best = no_best();
+    std::int32_t won = -1;
+    double bound = 1e300;  // squared chord that the best piece's distance cannot exceed
+    // Pieces, and the groups' upper bounds; then the groups' subtrees, nearest first.
+    for (const Entry& e : order_) {
+      if (is_group_item(e.item)) {
+        double lb2, ub2;
+        std::int32_t site;
+        item_bounds(x, e.item, tv.pieces, tv.groups, &lb2, &ub2, &site);
+        bound = std::min(bound, ub2);
+      } else {
+        consider(best, piece_chord2(x, tv.pieces[e.item]), tv.pieces[e.item]);
+      }
+    }
+    for (const Entry& e : order_) {
+      const double limit = best.chord2 < bound ? best.chord2 : bound;
+      if (e.lower > 0.0 && e.lower * e.lower > limit) break;  // so are all the items after it
+      if (is_group_item(e.item)) search_group(x, item_group(e.item), tv.pieces, tv.groups, bound, best, won);
+    }
+    return best;
+  }
+
+ private:
+  struct Entry {
+    double lower;  ///< chord; may be negative
+    std::int32_t item;
+  };
+  TreeNode leaf_{};
+  bool any_group_ = false;
+  std::vector<Entry> order_;
+};
+
 /// The CPU's hier pass over [first, first + count): every leaf paints its cells, row run by row
 /// run (a uniform leaf writes its site; a list leaf tests its candidates per cell), then the
 /// boundary flags come from the labels.
@@ -182,7 +248,10 @@ void cpu_tree_range(const Tree& tree, const TreeView& tv, grid::Code first, std:
   const int level = tree.level;
   const std::uint64_t end_code = first + count;
   const std::int64_t leaves = static_cast<std::int64_t>(tree.leaves.size());
-#pragma omp parallel for schedule(dynamic, 16) num_threads(threads)
+#pragma omp parallel num_threads(threads)
+  {
+  LeafOrder order;  // the list leaf's, per thread
+#pragma omp for schedule(dynamic, 16)
   for (std::int64_t q = 0; q < leaves; ++q) {
     const TreeLeaf& leaf = tree.leaves[q];
     const TreeNode node = tree.nodes[leaf.node];
@@ -193,6 +262,7 @@ void cpu_tree_range(const Tree& tree, const TreeView& tv, grid::Code first, std:
     if (leaf_row(leaf.cell, k, rows - 1, level).last < first || leaf_row(leaf.cell, k, 0, level).first >= end_code) {
       continue;
     }
+    bool ordered = false;  // order made for this leaf
     for (std::uint64_t r = 0; r < rows; ++r) {
       const LeafRow codes = leaf_row(leaf.cell, k, r, level);
       const std::uint64_t lo = std::max(codes.first, first), hi = std::min(codes.last + 1, end_code);
@@ -213,13 +283,19 @@ void cpu_tree_range(const Tree& tree, const TreeView& tv, grid::Code first, std:
         }
       } else {
         if (boundary) std::fill(boundary + (lo - first), boundary + (hi - first), std::uint8_t{1});
+        if (!ordered) {
+          order.make(tv, node, grid::cell_centre_vector(grid::code_of(leaf.cell, leaf.level), leaf.level),
+                     node_radius(leaf.level, leaf.cell));
+          ordered = true;
+        }
         for (std::uint64_t code = lo; code < hi; ++code) {
-          const Best best = best_of_list(tv, node, grid::cell_centre_vector(code, level));
+          const Best best = order.best(tv, grid::cell_centre_vector(code, level));
           site[code - first] = best.site;
           if (metres) metres[code - first] = static_cast<float>(chord2_to_metres(best.chord2));
         }
       }
     }
+  }
   }
   if (boundary) {
     boundary_from_labels(
@@ -645,10 +721,52 @@ void label_on_gpu(cuda::Labeller& gpu, int device, int level, const LabelOptions
 
 }  // namespace
 
-LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
+namespace {
+
+/// The input's fixed cells ordered by site, then in quadtree order (into *storage, unless they are
+/// in that order already). The candidates' groups halve runs of consecutive candidates of one site
+/// (piece_groups.hpp): in this order a group of a site's fixed cells is a compact patch, nearly a
+/// quadtree node, where in rows it was a stretch of rows; near coasts the tree's lists stay short
+/// (110m countries, level 10: 12 M list entries at the labelling level instead of 238 M). Labels
+/// and distances do not depend on the order.
+const FixedCell* fixed_cells_in_quadtree_order(const LabelInput& in, int threads, std::vector<FixedCell>* storage) {
+  struct Keyed {
+    std::int32_t site;
+    std::uint32_t index;
+    std::uint64_t key;
+  };
+  auto before = [](const Keyed& a, const Keyed& b) {
+    return a.site != b.site ? a.site < b.site : a.key != b.key ? a.key < b.key : a.index < b.index;
+  };
+  const std::int64_t n = static_cast<std::int64_t>(in.fixed_cell_count);
+  if (n < 2 || in.fixed_cell_count > 0xffffffffu) return in.fixed_cells;
+  std::vector<Keyed> keyed(in.fixed_cell_count);
+#pragma omp parallel for schedule(static) num_threads(threads)
+  for (std::int64_t k = 0; k < n; ++k) {
+    keyed[k] = {in.fixed_cells[k].site, static_cast<std::uint32_t>(k), quadtree_key(grid::cell_of(in.fixed_cells[k].code, in.level), in.level)};
+  }
+  std::int64_t out_of_order = 0;
+#pragma omp parallel for schedule(static) num_threads(threads) reduction(+ : out_of_order)
+  for (std::int64_t k = 1; k < n; ++k) out_of_order += before(keyed[k], keyed[k - 1]) ? 1 : 0;
+  if (out_of_order == 0) return in.fixed_cells;
+#ifdef _OPENMP
+  __gnu_parallel::sort(keyed.begin(), keyed.end(), before, __gnu_parallel::default_parallel_tag(threads));
+#else
+  std::sort(keyed.begin(), keyed.end(), before);
+#endif
+  storage->resize(keyed.size());
+#pragma omp parallel for schedule(static) num_threads(threads)
+  for (std::int64_t k = 0; k < n; ++k) (*storage)[k] = in.fixed_cells[keyed[k].index];
+  return storage->data();
+}
+
+}  // namespace
+
+LabelStats label_cells(const LabelInput& given, const LabelOptions& options,
                        const std::function<void(const LabelTile&)>& sink) {
-  validate(input, options.rule);
+  validate(given, options.rule);
   const int threads = thread_count(options.threads);
+  LabelInput input = given;
   const DeviceChoice device = choose_device(options.device);
   LabelStats stats;
   auto say = [&](const std::string& message) {
@@ -666,6 +784,8 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
 
   const double t0 = now_seconds();
   progress(0.0, "prepare");
+  std::vector<FixedCell> ordered_fixed;
+  input.fixed_cells = fixed_cells_in_quadtree_order(given, threads, &ordered_fixed);
   // The host's candidates, made when the host needs them: the exact rule's device build makes
   // its own from the input.
   std::vector<Piece> candidates;

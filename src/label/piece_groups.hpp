@@ -199,6 +199,32 @@ QTMV_HD inline std::int32_t kept_items(const PieceGroup* groups, std::int32_t it
   return groups[g].spread > kGroupSplit * radius ? split_count(groups, g) : 1;
 }
 
+/// best_of_items' search of the subtree of group `root` for x: preorder, skipping a subtree whose
+/// lower bound exceeds min(best so far, bound) by more than the pruning margin (bound: a squared
+/// chord that the best piece's distance cannot exceed). *won gets the index of each piece that
+/// improves the best.
+QTMV_HD inline void search_group(const Vec3& x, std::int32_t root, const Piece* pieces, const PieceGroup* groups,
+                                 double bound, Best& best, std::int32_t& won) {
+  const std::int32_t end = root + groups[root].size;
+  for (std::int32_t g = root; g < end;) {
+    const PieceGroup& group = groups[g];
+    const double limit = best.chord2 < bound ? best.chord2 : bound;
+    const double lo = sqrt(piece_chord2(x, group.arc)) - group.reach - kPruneMarginRadians;
+    if (lo > 0.0 && lo * lo > limit) {
+      g += group.size;  // the whole subtree is farther than the best
+      continue;
+    }
+    if (group.size == 1) {
+      for (std::int32_t p = group.first; p < group.first + group.count; ++p) {
+        const Best before = best;
+        consider(best, piece_chord2(x, pieces[p]), pieces[p]);
+        if (best.chord2 != before.chord2 || best.rank != before.rank || best.site != before.site) won = p;
+      }
+    }
+    ++g;
+  }
+}
+
 /// The best piece for x among `count` items, exactly as consider() over all their pieces would
 /// pick it: pieces first; then each group's subtree in preorder, skipping a subtree whose lower
 /// bound exceeds the best so far (or an item's upper bound) by more than the pruning margin, so
@@ -227,26 +253,7 @@ QTMV_HD inline Best best_of_items(const Vec3& x, const std::int32_t* items, std:
   }
   if (any_group) {
     for (std::int32_t k = 0; k < count; ++k) {
-      if (!is_group_item(items[k])) continue;
-      const std::int32_t root = item_group(items[k]);
-      const std::int32_t end = root + groups[root].size;
-      for (std::int32_t g = root; g < end;) {
-        const PieceGroup& group = groups[g];
-        const double limit = best.chord2 < bound ? best.chord2 : bound;
-        const double lo = sqrt(piece_chord2(x, group.arc)) - group.reach - kPruneMarginRadians;
-        if (lo > 0.0 && lo * lo > limit) {
-          g += group.size;  // the whole subtree is farther than the best
-          continue;
-        }
-        if (group.size == 1) {
-          for (std::int32_t p = group.first; p < group.first + group.count; ++p) {
-            const Best before = best;
-            consider(best, piece_chord2(x, pieces[p]), pieces[p]);
-            if (best.chord2 != before.chord2 || best.rank != before.rank || best.site != before.site) won = p;
-          }
-        }
-        ++g;
-      }
+      if (is_group_item(items[k])) search_group(x, item_group(items[k]), pieces, groups, bound, best, won);
     }
   }
   if (winner) *winner = won;

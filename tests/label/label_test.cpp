@@ -144,6 +144,25 @@ TEST(LabelTree, AncestorAndChildDigitAgreeWithTheGrid) {
   }
 }
 
+// Every cell of levels 0 to 6: the keys are a bijection onto [0, 8 4^level), and each ancestor's
+// key is the cell's with its last digits dropped (so a node's cells have consecutive keys).
+TEST(LabelTree, QuadtreeKeysNumberEachNodesCellsConsecutively) {
+  for (int level = 0; level <= 6; ++level) {
+    const Code cells = grid::cell_count(level);
+    std::vector<bool> seen(cells, false);
+    for (Code code = 0; code < cells; ++code) {
+      const Cell c = grid::cell_of(code, level);
+      const std::uint64_t key = quadtree_key(c, level);
+      ASSERT_LT(key, cells) << code;
+      ASSERT_FALSE(seen[key]) << "key " << key << " twice, level " << level;
+      seen[key] = true;
+      for (int to = 0; to < level; ++to) {
+        ASSERT_EQ(key >> (2 * (level - to)), quadtree_key(ancestor(c, level, to), to)) << code << " to " << to;
+      }
+    }
+  }
+}
+
 TEST(LabelTree, DescendantsCoverTheirAncestorOnce) {
   for (int level = 0; level <= 5; ++level) {
     for (int k = 0; k <= 4; ++k) {
@@ -582,6 +601,44 @@ TEST_P(LabelDevice, SolidPolygonInteriorsAreUniformLeaves) {
   EXPECT_GT(covered_cells, g.fixed_cells.size() / 2);  // most of the interior, in large leaves
   EXPECT_LT(covered.nodes.size(), plain.nodes.size());
   for (const TreeLeaf& leaf : plain.leaves) EXPECT_NE(plain.nodes[leaf.node].count, kUniform);
+}
+
+// label_cells orders the fixed cells by site and quadtree (labeller.cpp), making a copy unless
+// they come in that order; the input's order must not show in the results: the same labels,
+// flags and distances (bit for bit) whether the fixed cells come in code order, reversed,
+// shuffled or already in quadtree order (no copy), and the float64 reference's on every cell.
+TEST_P(LabelDevice, FixedCellOrderDoesNotShow) {
+  SiteGeometry g = solid_polygon(7);
+  // A second area (site 3) and some cells that both areas claim.
+  const Cell other = grid::cell_of(40, 2);
+  const std::vector<FixedCell> first_area = g.fixed_cells;
+  for (Code code = 0; code < grid::cell_count(7); ++code) {
+    const Cell a = ancestor(grid::cell_of(code, 7), 7, 2);
+    if (a.octant == other.octant && a.row == other.row && a.col == other.col) add_fixed_cell(g, code, 3);
+  }
+  for (std::size_t k = 0; k < first_area.size(); k += 97) add_fixed_cell(g, first_area[k].code, 3);
+  check_all(g, "two areas");  // against float64 on every cell
+  LabelOptions options;
+  options.device = GetParam();
+  const LabelResult want = label_all(g.input(), options);
+  std::vector<FixedCell> fixed = g.fixed_cells;
+  std::mt19937_64 rng(77);
+  for (int order = 0; order < 3; ++order) {
+    if (order == 0) std::reverse(fixed.begin(), fixed.end());
+    if (order == 1) std::shuffle(fixed.begin(), fixed.end(), rng);
+    if (order == 2) {
+      std::sort(fixed.begin(), fixed.end(), [&](const FixedCell& a, const FixedCell& b) {
+        return a.site != b.site ? a.site < b.site
+                                : quadtree_key(grid::cell_of(a.code, 7), 7) < quadtree_key(grid::cell_of(b.code, 7), 7);
+      });
+    }
+    LabelInput in = g.input();
+    in.fixed_cells = fixed.data();
+    const LabelResult got = label_all(in, options);
+    EXPECT_EQ(got.site, want.site) << "order " << order;
+    EXPECT_EQ(got.boundary, want.boundary) << "order " << order;
+    EXPECT_EQ(got.distance_m, want.distance_m) << "order " << order;
+  }
 }
 
 TEST_P(LabelDevice, TilesMatchOneRun) {

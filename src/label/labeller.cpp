@@ -721,15 +721,13 @@ void label_on_gpu(cuda::Labeller& gpu, int device, int level, const LabelOptions
 
 }  // namespace
 
-namespace {
-
-/// The input's fixed cells ordered by site, then in quadtree order (into *storage, unless they are
-/// in that order already). The candidates' groups halve runs of consecutive candidates of one site
-/// (piece_groups.hpp): in this order a group of a site's fixed cells is a compact patch, nearly a
-/// quadtree node, where in rows it was a stretch of rows; near coasts the tree's lists stay short
-/// (110m countries, level 10: 12 M list entries at the labelling level instead of 238 M). Labels
-/// and distances do not depend on the order.
-const FixedCell* fixed_cells_in_quadtree_order(const LabelInput& in, int threads, std::vector<FixedCell>* storage) {
+// The candidates' groups halve runs of consecutive candidates of one site (piece_groups.hpp): in
+// quadtree order a group of a site's fixed cells is a compact patch, nearly a quadtree node, where
+// in rows it was a stretch of rows; near coasts the tree's lists stay short (110m countries, level
+// 10: 12 M list entries at the labelling level instead of 238 M).
+const FixedCell* fixed_cells_in_quadtree_order(const LabelInput& in, int threads_requested,
+                                               std::vector<FixedCell>* storage) {
+  const int threads = thread_count(threads_requested);
   struct Keyed {
     std::int32_t site;
     std::uint32_t index;
@@ -759,8 +757,6 @@ const FixedCell* fixed_cells_in_quadtree_order(const LabelInput& in, int threads
   for (std::int64_t k = 0; k < n; ++k) (*storage)[k] = in.fixed_cells[keyed[k].index];
   return storage->data();
 }
-
-}  // namespace
 
 LabelStats label_cells(const LabelInput& given, const LabelOptions& options,
                        const std::function<void(const LabelTile&)>& sink) {

@@ -153,6 +153,12 @@ void add_fixed_cell(SiteGeometry& g, grid::Code code, std::int32_t site);
 
 // --- lower-level entry points, for the tests and the benchmark ----------------------------------
 
+/// The input's fixed cells ordered by site, then in quadtree order (quadtree_key): into *storage,
+/// unless they are in that order already (then the input's own array). label_cells orders them
+/// so before making candidates (the groups of a site's fixed cells are then compact patches);
+/// labels and distances do not depend on the order. `threads`: as LabelOptions::threads.
+const FixedCell* fixed_cells_in_quadtree_order(const LabelInput& input, int threads, std::vector<FixedCell>* storage);
+
 /// The exact rule's candidate of a site piece, and of a fixed cell (a fixed point piece at its
 /// centre), on the host and on the device alike.
 QTMV_HD inline Piece candidate_of(const SitePiece& p) {

@@ -6,7 +6,9 @@
 //
 // Sites: a CSV of lon,lat (degrees; a header line and further columns are allowed),
 // uniform:N (N seeded random points, uniform on the sphere), arcs:N (N seeded random
-// great-circle arcs of 5 to 25 degrees, cut into pieces of a quarter cell edge as the readers do).
+// great-circle arcs of 5 to 25 degrees, cut into pieces of a quarter cell edge as the readers do),
+// caps:N (N seeded random polygon sites: regular 36-gons of radius 3 to 15 degrees, their rings as
+// arcs and the cells whose centres lie inside them as fixed cells; caps may overlap).
 // Several site specs or levels may be given, comma-separated (--sites takes ';' between specs).
 #include <algorithm>
 #include <chrono>
@@ -52,6 +54,7 @@ struct Args {
   bool csv = false;
   bool csv_header = true;
   bool host_tree = false;  // GPU runs: build hier's tree on the host (the old way) rather than on the GPU
+  bool fixed_as_given = false;  // GPU runs: the fixed cells in the generator's order (for comparison)
 };
 
 [[noreturn]] void usage(const std::string& error) {
@@ -59,7 +62,8 @@ struct Args {
             << "usage: qtmv_bench [--sites SPEC[;SPEC...]] [--level L[,L...]] [--algorithm brute|hier]\n"
                "                  [--rule exact|cell] [--device auto|cpu|cuda|cuda:N] [--repeat R] [--threads T]\n"
                "                  [--distance] [--no-boundary] [--check N] [--seed S] [--csv] [--no-header] [--host-tree]\n"
-               "  SPEC: FILE.csv (lon,lat per line) | uniform:N | arcs:N\n";
+               "                  [--fixed-as-given]\n"
+               "  SPEC: FILE.csv (lon,lat per line) | uniform:N | arcs:N | caps:N\n";
   std::exit(2);
 }
 
@@ -112,6 +116,8 @@ Args parse(int argc, char** argv) {
       a.csv = true;
     } else if (opt == "--host-tree") {
       a.host_tree = true;
+    } else if (opt == "--fixed-as-given") {
+      a.fixed_as_given = true;
     } else if (opt == "--no-header") {
       a.csv_header = false;
     } else {
@@ -128,6 +134,70 @@ double now_seconds() {
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   return v.empty() ? 0 : v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+}
+
+/// A polygon site for caps:N: a regular spherical polygon of kCapSides great-circle edges on the
+/// circle of angular radius `radius` (radians) about the unit vector c, its edges cut into pieces
+/// as the readers cut rings, and the cells whose centres lie inside it as fixed cells (found by
+/// descending the quadtrees: node_radius bounds each node).
+constexpr int kCapSides = 36;
+void add_cap(label::SiteGeometry& g, const Vec3& c, double radius, std::int32_t site) {
+  // An orthonormal frame (e1, e2) about c, and the vertices counter-clockwise seen from outside.
+  const Vec3 helper = std::fabs(c.z) < 0.9 ? Vec3{0, 0, 1} : Vec3{1, 0, 0};
+  Vec3 e1 = grid::cross(helper, c);
+  const double n1 = std::sqrt(grid::dot(e1, e1));
+  e1 = {e1.x / n1, e1.y / n1, e1.z / n1};
+  const Vec3 e2 = grid::cross(c, e1);
+  std::vector<Vec3> v(kCapSides);
+  for (int k = 0; k < kCapSides; ++k) {
+    const double t = 2 * grid::kPi * k / kCapSides;
+    const double a = std::cos(radius), b = std::sin(radius) * std::cos(t), d = std::sin(radius) * std::sin(t);
+    v[k] = {a * c.x + b * e1.x + d * e2.x, a * c.y + b * e1.y + d * e2.y, a * c.z + b * e1.z + d * e2.z};
+  }
+  auto lon = [](const Vec3& p) { return std::atan2(p.y, p.x) / grid::kDegree; };
+  auto lat = [](const Vec3& p) { return std::asin(std::max(-1.0, std::min(1.0, p.z))) / grid::kDegree; };
+  std::vector<Vec3> normal(kCapSides);  // x is inside when dot(x, normal) > 0 for every edge
+  for (int k = 0; k < kCapSides; ++k) {
+    const Vec3& p = v[k];
+    const Vec3& q = v[(k + 1) % kCapSides];
+    label::add_arc(g, lon(p), lat(p), lon(q), lat(q), site);
+    normal[k] = grid::cross(p, q);
+    if (grid::dot(normal[k], c) < 0) normal[k] = {-normal[k].x, -normal[k].y, -normal[k].z};
+  }
+  // The inscribed circle's angular radius: tan r_in = tan r cos(pi / sides).
+  const double inscribed = std::atan(std::tan(radius) * std::cos(grid::kPi / kCapSides));
+  const int level = g.level;
+  auto inside = [&](const Vec3& x) {
+    for (const Vec3& n : normal) {
+      if (grid::dot(x, n) <= 0) return false;
+    }
+    return true;
+  };
+  auto angle_to_centre = [&](const Vec3& x) { return std::acos(std::max(-1.0, std::min(1.0, grid::dot(x, c)))); };
+  // Depth-first over the quadtrees: a node wholly inside the inscribed circle gives all its cells.
+  std::vector<std::pair<grid::Cell, int>> stack;
+  for (int o = 0; o < grid::kOctants; ++o) stack.push_back({grid::Cell{o, 0, 0}, 0});
+  while (!stack.empty()) {
+    const auto [cell, l] = stack.back();
+    stack.pop_back();
+    const Vec3 p = grid::cell_centre_vector(grid::code_of(cell, l), l);
+    const double angle = angle_to_centre(p), r = l == level ? 0.0 : label::node_radius(l, cell);
+    if (angle > radius + r + 1e-9) continue;
+    if (l == level) {
+      if (inside(p)) label::add_fixed_cell(g, grid::code_of(cell, l), site);
+      continue;
+    }
+    if (angle + r < inscribed - 1e-9) {
+      const int k = level - l;
+      for (std::uint32_t m = 0; m < (std::uint32_t{1} << (2 * k)); ++m) {
+        label::add_fixed_cell(g, grid::code_of(label::descendant(cell, k, m), level), site);
+      }
+      continue;
+    }
+    grid::Cell kids[4];
+    grid::children(cell, kids);
+    for (const grid::Cell& kid : kids) stack.push_back({kid, l + 1});
+  }
 }
 
 label::SiteGeometry make_sites(const std::string& spec, int level, std::uint64_t seed) {
@@ -159,6 +229,13 @@ label::SiteGeometry make_sites(const std::string& spec, int level, std::uint64_t
                    std::cos(ang) * a.z + std::sin(ang) * t.z / tn};
       label::add_arc(g, lo, la, std::atan2(b.y, b.x) / grid::kDegree,
                      std::asin(std::max(-1.0, std::min(1.0, b.z))) / grid::kDegree, static_cast<std::int32_t>(k));
+    }
+  } else if (spec.rfind("caps:", 0) == 0) {
+    const long n = std::stol(spec.substr(5));
+    std::uniform_real_distribution<double> radius(3, 15);
+    for (long k = 0; k < n; ++k) {
+      const double lo = lon(rng), la = random_lat();
+      add_cap(g, grid::unit_vector(lo, la), radius(rng) * grid::kDegree, static_cast<std::int32_t>(k));
     }
   } else {
     std::ifstream in(spec);
@@ -317,14 +394,20 @@ Row run_one(const Args& a, const std::string& spec, int level) {
     for (int r = 0; r < a.repeat; ++r) {
       built.reset();
       const double t0 = now_seconds();
+      // As label_cells does: the fixed cells in quadtree order first.
+      std::vector<label::FixedCell> ordered_fixed;
+      label::LabelInput ordered = input;
+      if (!a.fixed_as_given) {
+        ordered.fixed_cells = label::fixed_cells_in_quadtree_order(input, a.threads, &ordered_fixed);
+      }
       if (device_tree && a.rule == Rule::exact) {
         // As label_cells does: the input to the GPU, the candidates and the tree made there (the
         // constructor synchronises).
-        built = std::make_unique<label::cuda::Labeller>(device, input, a.distance, a.threads);
+        built = std::make_unique<label::cuda::Labeller>(device, ordered, a.distance, a.threads);
         prepare.push_back((now_seconds() - t0) * 1e3);
         continue;
       }
-      candidates = label::make_candidates(input, a.rule);
+      candidates = label::make_candidates(ordered, a.rule);
       if (device_tree) {
         built = std::make_unique<label::cuda::Labeller>(device, candidates, level, a.distance, a.threads);
       } else if (hier) {

@@ -3,6 +3,7 @@
 // --fmad=false), so the labels are those of the CPU path bit for bit.
 #include <cuda_runtime.h>
 
+#include <cub/device/device_radix_sort.cuh>
 #include <cub/device/device_scan.cuh>
 
 #include <algorithm>
@@ -757,6 +758,27 @@ __global__ void make_pieces_kernel(const SitePiece* site_pieces, std::uint64_t p
   }
 }
 
+/// Levels up to which a fixed cell's sort key, site << (3 + 2 level) | quadtree_key, fits 64 bits.
+constexpr int kMaxDeviceOrderLevel = 15;
+
+/// fixed_cells_in_quadtree_order on the device: each cell's key (site, then quadtree order) and
+/// its index, for a stable radix sort.
+__global__ void fixed_keys_kernel(const FixedCell* fixed, std::uint64_t count, int level, unsigned long long* keys,
+                                  std::uint32_t* index) {
+  const std::uint64_t k = static_cast<std::uint64_t>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (k >= count) return;
+  const FixedCell f = fixed[k];
+  keys[k] = (static_cast<unsigned long long>(f.site) << (3 + 2 * level)) |
+            quadtree_key(grid::cell_of(f.code, level), level);
+  index[k] = static_cast<std::uint32_t>(k);
+}
+
+__global__ void gather_fixed_kernel(const FixedCell* fixed, const std::uint32_t* index, std::uint64_t count,
+                                    FixedCell* out) {
+  const std::uint64_t k = static_cast<std::uint64_t>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (k < count) out[k] = fixed[index[k]];
+}
+
 __global__ void jump_kernel(const TreeNode* nodes, int jump_level, std::uint64_t count, JumpEntry* jump) {
   const std::uint64_t k = static_cast<std::uint64_t>(blockIdx.x) * blockDim.x + threadIdx.x;
   if (k >= count) return;
@@ -1211,19 +1233,44 @@ Labeller::Labeller(int device, const LabelInput& input, bool with_distance, int 
   if (count == 0) throw std::invalid_argument("build_tree: no candidates");
   if (count > 0x7fffffffu) throw std::invalid_argument("more than 2^31 candidates");
   m.piece_count = static_cast<int>(count);
-  // The input goes over as it is (less to copy than the pieces) and becomes the pieces here.
+  // The input goes over as it is (less to copy than the pieces) and becomes the pieces here, the
+  // fixed cells in quadtree order (fixed_cells_in_quadtree_order, sorted here; on the host above
+  // kMaxDeviceOrderLevel).
   Trace trace;
+  std::vector<FixedCell> host_ordered;
+  const FixedCell* fixed_input = input.fixed_cells;
+  const bool order_here = input.level <= kMaxDeviceOrderLevel;
+  if (!order_here) fixed_input = fixed_cells_in_quadtree_order(input, threads, &host_ordered);
   {
     std::size_t scratch = 0;
     const DeviceScratch<SitePiece> site_pieces(device_alloc<SitePiece>(input.piece_count, &scratch));
-    const DeviceScratch<FixedCell> fixed(device_alloc<FixedCell>(input.fixed_cell_count, &scratch));
+    DeviceScratch<FixedCell> fixed(device_alloc<FixedCell>(input.fixed_cell_count, &scratch));
     if (input.piece_count) {
       QTMV_CUDA_CHECK(cudaMemcpy(site_pieces.get(), input.pieces, input.piece_count * sizeof(SitePiece),
                                  cudaMemcpyHostToDevice));
     }
-    if (input.fixed_cell_count) {
-      QTMV_CUDA_CHECK(cudaMemcpy(fixed.get(), input.fixed_cells, input.fixed_cell_count * sizeof(FixedCell),
-                                 cudaMemcpyHostToDevice));
+    const std::uint64_t n = input.fixed_cell_count;
+    if (n) {
+      QTMV_CUDA_CHECK(cudaMemcpy(fixed.get(), fixed_input, n * sizeof(FixedCell), cudaMemcpyHostToDevice));
+    }
+    if (order_here && n > 1) {
+      const DeviceScratch<unsigned long long> keys(device_alloc<unsigned long long>(2 * n, &scratch));
+      const DeviceScratch<std::uint32_t> index(device_alloc<std::uint32_t>(2 * n, &scratch));
+      fixed_keys_kernel<<<blocks_for(n), kBlock>>>(fixed.get(), n, input.level, keys.get(), index.get());
+      QTMV_CUDA_CHECK_LAUNCH("fixed_keys_kernel");
+      std::size_t temp_bytes = 0;
+      const int end_bit = 3 + 2 * input.level + 31;
+      QTMV_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(nullptr, temp_bytes, keys.get(), keys.get() + n, index.get(),
+                                                      index.get() + n, n, 0, end_bit));
+      const DeviceScratch<unsigned char> temp(device_alloc<unsigned char>(temp_bytes, &scratch));
+      QTMV_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(temp.get(), temp_bytes, keys.get(), keys.get() + n, index.get(),
+                                                      index.get() + n, n, 0, end_bit));
+      DeviceScratch<FixedCell> sorted(device_alloc<FixedCell>(n, &scratch));
+      gather_fixed_kernel<<<blocks_for(n), kBlock>>>(fixed.get(), index.get() + n, n, sorted.get());
+      QTMV_CUDA_CHECK_LAUNCH("gather_fixed_kernel");
+      QTMV_CUDA_CHECK(cudaDeviceSynchronize());
+      fixed = std::move(sorted);
+      trace("fixed cells in quadtree order", n);
     }
     m.pieces = device_alloc<Piece>(count, &m.bytes);
     make_pieces_kernel<<<blocks_for(count), kBlock>>>(site_pieces.get(), input.piece_count, fixed.get(),
@@ -1231,11 +1278,18 @@ Labeller::Labeller(int device, const LabelInput& input, bool with_distance, int 
     QTMV_CUDA_CHECK_LAUNCH("make_pieces_kernel");
   }  // the input's copies are freed here, before the build
   trace("input to pieces", count);
+  // The plan needs only the candidates' sites: the pieces', then the fixed cells' in ascending
+  // order (their order's first key), from a count per site.
+  std::vector<std::uint64_t> fixed_before(static_cast<std::size_t>(input.site_count) + 1, 0);
+  for (std::size_t k = 0; k < input.fixed_cell_count; ++k) ++fixed_before[input.fixed_cells[k].site + 1];
+  for (std::size_t s = 1; s < fixed_before.size(); ++s) fixed_before[s] += fixed_before[s - 1];
   const GroupPlan plan = plan_groups(
       static_cast<std::int64_t>(count),
       [&](std::int64_t k) {
-        return k < static_cast<std::int64_t>(input.piece_count) ? input.pieces[k].site
-                                                                : input.fixed_cells[k - input.piece_count].site;
+        if (k < static_cast<std::int64_t>(input.piece_count)) return input.pieces[k].site;
+        const auto f = static_cast<std::uint64_t>(k - static_cast<std::int64_t>(input.piece_count));
+        return static_cast<std::int32_t>(std::upper_bound(fixed_before.begin(), fixed_before.end(), f) -
+                                         fixed_before.begin() - 1);
       },
       host_threads(threads));
   m.build_tree(plan, with_distance, trace);

@@ -758,11 +758,10 @@ const FixedCell* fixed_cells_in_quadtree_order(const LabelInput& in, int threads
   return storage->data();
 }
 
-LabelStats label_cells(const LabelInput& given, const LabelOptions& options,
+LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
                        const std::function<void(const LabelTile&)>& sink) {
-  validate(given, options.rule);
+  validate(input, options.rule);
   const int threads = thread_count(options.threads);
-  LabelInput input = given;
   const DeviceChoice device = choose_device(options.device);
   LabelStats stats;
   auto say = [&](const std::string& message) {
@@ -780,14 +779,18 @@ LabelStats label_cells(const LabelInput& given, const LabelOptions& options,
 
   const double t0 = now_seconds();
   progress(0.0, "prepare");
-  std::vector<FixedCell> ordered_fixed;
-  input.fixed_cells = fixed_cells_in_quadtree_order(given, threads, &ordered_fixed);
   // The host's candidates, made when the host needs them: the exact rule's device build makes
   // its own from the input.
   std::vector<Piece> candidates;
   bool candidates_made = false;
   auto host_candidates = [&]() -> const std::vector<Piece>& {
-    if (!candidates_made) candidates = make_candidates(input, options.rule, threads);
+    if (!candidates_made) {
+      // From the fixed cells in quadtree order (the device build orders its own).
+      std::vector<FixedCell> ordered_fixed;
+      LabelInput ordered = input;
+      ordered.fixed_cells = fixed_cells_in_quadtree_order(input, threads, &ordered_fixed);
+      candidates = make_candidates(ordered, options.rule, threads);
+    }
     candidates_made = true;
     return candidates;
   };

@@ -721,7 +721,12 @@ TEST(LabelDeviceTree, MatchesTheHostTree) {
   cases.push_back({"polygons", polygons(6)});
   for (const Case& c : cases) {
     for (const Rule rule : {Rule::exact, Rule::cell}) {
-      const LabelInput in = c.g.input();
+      // The host's candidates from the fixed cells in quadtree order, as label_cells makes them;
+      // the device's from the input as it is (it orders them itself).
+      const LabelInput given = c.g.input();
+      std::vector<FixedCell> ordered_fixed;
+      LabelInput in = given;
+      in.fixed_cells = fixed_cells_in_quadtree_order(given, 2, &ordered_fixed);
       if (rule == Rule::exact && in.piece_count == 0 && in.fixed_cell_count == 0) continue;
       if (rule == Rule::cell && in.site_cell_count == 0 && in.fixed_cell_count == 0) continue;
       const std::vector<Piece> candidates = make_candidates(in, rule);
@@ -734,7 +739,7 @@ TEST(LabelDeviceTree, MatchesTheHostTree) {
           if (from_input && rule != Rule::exact) continue;
           SCOPED_TRACE(from_input ? "device candidates" : "host candidates");
           std::unique_ptr<cuda::Labeller> built =
-              from_input ? std::make_unique<cuda::Labeller>(0, in, with_distance)
+              from_input ? std::make_unique<cuda::Labeller>(0, given, with_distance)
                          : std::make_unique<cuda::Labeller>(0, candidates, c.g.level, with_distance);
           const cuda::Labeller& gpu = *built;
           std::vector<TreeNode> nodes;

@@ -54,7 +54,6 @@ struct Args {
   bool csv = false;
   bool csv_header = true;
   bool host_tree = false;  // GPU runs: build hier's tree on the host (the old way) rather than on the GPU
-  bool fixed_as_given = false;  // GPU runs: the fixed cells in the generator's order (for comparison)
 };
 
 [[noreturn]] void usage(const std::string& error) {
@@ -62,7 +61,6 @@ struct Args {
             << "usage: qtmv_bench [--sites SPEC[;SPEC...]] [--level L[,L...]] [--algorithm brute|hier]\n"
                "                  [--rule exact|cell] [--device auto|cpu|cuda|cuda:N] [--repeat R] [--threads T]\n"
                "                  [--distance] [--no-boundary] [--check N] [--seed S] [--csv] [--no-header] [--host-tree]\n"
-               "                  [--fixed-as-given]\n"
                "  SPEC: FILE.csv (lon,lat per line) | uniform:N | arcs:N | caps:N\n";
   std::exit(2);
 }
@@ -116,8 +114,7 @@ Args parse(int argc, char** argv) {
       a.csv = true;
     } else if (opt == "--host-tree") {
       a.host_tree = true;
-    } else if (opt == "--fixed-as-given") {
-      a.fixed_as_given = true;
+
     } else if (opt == "--no-header") {
       a.csv_header = false;
     } else {
@@ -394,19 +391,17 @@ Row run_one(const Args& a, const std::string& spec, int level) {
     for (int r = 0; r < a.repeat; ++r) {
       built.reset();
       const double t0 = now_seconds();
-      // As label_cells does: the fixed cells in quadtree order first.
-      std::vector<label::FixedCell> ordered_fixed;
-      label::LabelInput ordered = input;
-      if (!a.fixed_as_given) {
-        ordered.fixed_cells = label::fixed_cells_in_quadtree_order(input, a.threads, &ordered_fixed);
-      }
       if (device_tree && a.rule == Rule::exact) {
-        // As label_cells does: the input to the GPU, the candidates and the tree made there (the
-        // constructor synchronises).
-        built = std::make_unique<label::cuda::Labeller>(device, ordered, a.distance, a.threads);
+        // As label_cells does: the input to the GPU, the fixed cells ordered, the candidates and
+        // the tree made there (the constructor synchronises).
+        built = std::make_unique<label::cuda::Labeller>(device, input, a.distance, a.threads);
         prepare.push_back((now_seconds() - t0) * 1e3);
         continue;
       }
+      // As label_cells does: the host's candidates from the fixed cells in quadtree order.
+      std::vector<label::FixedCell> ordered_fixed;
+      label::LabelInput ordered = input;
+      ordered.fixed_cells = label::fixed_cells_in_quadtree_order(input, a.threads, &ordered_fixed);
       candidates = label::make_candidates(ordered, a.rule);
       if (device_tree) {
         built = std::make_unique<label::cuda::Labeller>(device, candidates, level, a.distance, a.threads);

@@ -292,7 +292,9 @@ __device__ inline void paint_span(const TreeView& tree, const std::uint8_t* jump
     }
   }
   pending = __any_sync(0xffffffffu, pending);
-  if (pending_spans && lane == 0 && pending) pending_spans[atomicAdd(pending_count, 1u)] = static_cast<std::uint32_t>(span);
+  if (pending_spans && lane == 0 && pending) {
+    pending_spans[atomicAdd(pending_count, 1u)] = static_cast<std::uint32_t>(span);
+  }
   __syncwarp();  // the queue, before other lanes read it
   for (int e = static_cast<int>(lane); e < queued; e += 32) {
     const std::uint64_t out = warp_out + q[e];

@@ -66,17 +66,17 @@ struct TreeView {
   int level;                   ///< the labelling level L
 };
 
-/// The ancestor at level `to` (<= from) of cell c of level `from`. Row r of an ancestor k = from - to
-/// levels up holds rows r 2^k .. r 2^k + 2^k - 1 below it; in the local row lr of those, the up
-/// ancestor (column 2a) holds columns a 2^(k+1) .. a 2^(k+1) + 2 lr and the down ancestor (column
-/// 2a + 1) the rest of the block of 2^(k+1) columns. Shifts and masks only (the tests compare it
-/// with grid::parent applied k times).
 /// ancestor()'s column, k levels up, of the cell in column `col` of local row `local_row`: the
 /// paint kernel uses it alone for the cells of one row.
 QTMV_HD inline std::uint32_t ancestor_col(std::uint32_t col, std::uint32_t local_row, int k) {
   return ((col >> (k + 1)) << 1) | ((col & ((2u << k) - 1u)) > 2 * local_row ? 1u : 0u);
 }
 
+/// The ancestor at level `to` (<= from) of cell c of level `from`. Row r of an ancestor k = from - to
+/// levels up holds rows r 2^k .. r 2^k + 2^k - 1 below it; in the local row lr of those, the up
+/// ancestor (column 2a) holds columns a 2^(k+1) .. a 2^(k+1) + 2 lr and the down ancestor (column
+/// 2a + 1) the rest of the block of 2^(k+1) columns. Shifts and masks only (the tests compare it
+/// with grid::parent applied k times).
 QTMV_HD inline grid::Cell ancestor(const grid::Cell& c, int from, int to) {
   const int k = from - to;
   return {c.octant, c.row >> k, ancestor_col(c.col, c.row & ((1u << k) - 1u), k)};

@@ -345,8 +345,10 @@ std::vector<Piece> make_candidates(const LabelInput& in, Rule rule, int threads_
   }
   // Fixed cells in both rules: a point at the cell's centre that wins that cell at distance 0.
   // Under the exact rule it is a point of the polygon site, so it never brings the site nearer
-  // than its own geometry would.
-  for (std::size_t k = 0; k < in.fixed_cell_count; ++k) out.push_back(candidate_of(in.fixed_cells[k], in.level));
+  // than its own geometry would. In quadtree order, as the device build makes them.
+  std::vector<FixedCell> ordered;
+  const FixedCell* fixed = fixed_cells_in_quadtree_order(in, threads, &ordered);
+  for (std::size_t k = 0; k < in.fixed_cell_count; ++k) out.push_back(candidate_of(fixed[k], in.level));
   return out;
 }
 
@@ -375,8 +377,11 @@ class FixedCover {
  public:
   FixedCover(const FixedCell* fixed, std::size_t count, int level) : level_(level) {
     cells_.assign(fixed, fixed + count);
-    std::sort(cells_.begin(), cells_.end(),
-              [](const FixedCell& a, const FixedCell& b) { return a.code != b.code ? a.code < b.code : a.site < b.site; });
+    auto before = [](const FixedCell& a, const FixedCell& b) {
+      return a.code != b.code ? a.code < b.code : a.site < b.site;
+    };
+    // The readers give them in code order already (resolve_claims).
+    if (!std::is_sorted(cells_.begin(), cells_.end(), before)) std::sort(cells_.begin(), cells_.end(), before);
     // run_end_[i]: the last code of the run of consecutive codes, one site, from cells_[i] on; a
     // code claimed twice (two polygons) ends every run before it.
     const std::size_t n = cells_.size();
@@ -630,8 +635,9 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
     parent_lists.swap(next_lists);
     pending.swap(next);
     if (trace) {
-      std::fprintf(stderr, "trace: host level %2d %9.3f ms  nodes %lld entries %llu\n", l, (now_seconds() - t_level) * 1e3,
-                   static_cast<long long>(n), static_cast<unsigned long long>(evaluations));
+      std::fprintf(stderr, "trace: host level %2d %9.3f ms  nodes %lld entries %llu\n", l,
+                   (now_seconds() - t_level) * 1e3, static_cast<long long>(n),
+                   static_cast<unsigned long long>(evaluations));
       t_level = now_seconds();
     }
     if (level_done) level_done(static_cast<double>(l + 1) / static_cast<double>(level + 1));
@@ -785,13 +791,7 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
   std::vector<Piece> candidates;
   bool candidates_made = false;
   auto host_candidates = [&]() -> const std::vector<Piece>& {
-    if (!candidates_made) {
-      // From the fixed cells in quadtree order (the device build orders its own).
-      std::vector<FixedCell> ordered_fixed;
-      LabelInput ordered = input;
-      ordered.fixed_cells = fixed_cells_in_quadtree_order(input, threads, &ordered_fixed);
-      candidates = make_candidates(ordered, options.rule, threads);
-    }
+    if (!candidates_made) candidates = make_candidates(input, options.rule, threads);
     candidates_made = true;
     return candidates;
   };

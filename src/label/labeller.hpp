@@ -154,9 +154,9 @@ void add_fixed_cell(SiteGeometry& g, grid::Code code, std::int32_t site);
 // --- lower-level entry points, for the tests and the benchmark ----------------------------------
 
 /// The input's fixed cells ordered by site, then in quadtree order (quadtree_key): into *storage,
-/// unless they are in that order already (then the input's own array). label_cells orders them
-/// so before making candidates (the groups of a site's fixed cells are then compact patches);
-/// labels and distances do not depend on the order. `threads`: as LabelOptions::threads.
+/// unless they are in that order already (then the input's own array). make_candidates and the
+/// device build take them in this order (the groups of a site's fixed cells are then compact
+/// patches); labels and distances do not depend on it. `threads`: as LabelOptions::threads.
 const FixedCell* fixed_cells_in_quadtree_order(const LabelInput& input, int threads, std::vector<FixedCell>* storage);
 
 /// The exact rule's candidate of a site piece, and of a fixed cell (a fixed point piece at its
@@ -170,7 +170,8 @@ QTMV_HD inline Piece candidate_of(const FixedCell& f, int level) {
 }
 
 /// The candidates of a rule as kernel pieces (fixed cells become fixed point pieces at their
-/// centres in both rules). `threads`: as LabelOptions::threads.
+/// centres in both rules, after the other pieces, in fixed_cells_in_quadtree_order's order).
+/// `threads`: as LabelOptions::threads.
 std::vector<Piece> make_candidates(const LabelInput& input, Rule rule, int threads = 0);
 
 /// The float64 brute-force label of one cell (the reference): best over all candidates.

@@ -20,9 +20,10 @@
 //     d(x, piece) >= d(x, arc) - reach                    (the lower bound of every piece)
 // Join each piece's end to the next piece's start by a minor arc (no longer than `gap`, the
 // largest such step; 0 for a line): a chain from A to B within reach + gap / 2 of `arc`, each of
-// whose points is within gap / 2 of a piece (chords: up to a factor 1 / cos(angle / 4)). When that chain is thin and the arc short ("tight"),
-// the nearest-point map from the chain onto `arc` is continuous and fixes A and B, so every point
-// of `arc` is within reach + gap / 2 of the chain, and
+// whose points is within gap / 2 of a piece (chords: up to a factor 1 / cos(angle / 4)). When
+// that chain is thin and the arc short ("tight"), the nearest-point map from the chain onto `arc`
+// is continuous and fixes A and B, so every point of `arc` is within reach + gap / 2 of the
+// chain, and
 //     min over the group's pieces of d(x, piece) <= d(x, arc) + reach + gap = d(x, arc) + slack.
 // A line's run has no gap; fixed cells along a row have a gap of a cell. Otherwise the upper
 // bound is the distance to A, a point of the first piece.

@@ -603,8 +603,8 @@ TEST_P(LabelDevice, SolidPolygonInteriorsAreUniformLeaves) {
   for (const TreeLeaf& leaf : plain.leaves) EXPECT_NE(plain.nodes[leaf.node].count, kUniform);
 }
 
-// label_cells orders the fixed cells by site and quadtree (labeller.cpp), making a copy unless
-// they come in that order; the input's order must not show in the results: the same labels,
+// The candidates take the fixed cells by site and quadtree (fixed_cells_in_quadtree_order: a
+// copy unless they come in that order); the input's order must not show in the results: the same labels,
 // flags and distances (bit for bit) whether the fixed cells come in code order, reversed,
 // shuffled or already in quadtree order (no copy), and the float64 reference's on every cell.
 TEST_P(LabelDevice, FixedCellOrderDoesNotShow) {
@@ -721,12 +721,9 @@ TEST(LabelDeviceTree, MatchesTheHostTree) {
   cases.push_back({"polygons", polygons(6)});
   for (const Case& c : cases) {
     for (const Rule rule : {Rule::exact, Rule::cell}) {
-      // The host's candidates from the fixed cells in quadtree order, as label_cells makes them;
-      // the device's from the input as it is (it orders them itself).
-      const LabelInput given = c.g.input();
-      std::vector<FixedCell> ordered_fixed;
-      LabelInput in = given;
-      in.fixed_cells = fixed_cells_in_quadtree_order(given, 2, &ordered_fixed);
+      // The input's fixed cells come in code order; make_candidates and the device build each
+      // put them in quadtree order (fixed_cells_in_quadtree_order, a radix sort on the device).
+      const LabelInput in = c.g.input();
       if (rule == Rule::exact && in.piece_count == 0 && in.fixed_cell_count == 0) continue;
       if (rule == Rule::cell && in.site_cell_count == 0 && in.fixed_cell_count == 0) continue;
       const std::vector<Piece> candidates = make_candidates(in, rule);
@@ -739,7 +736,7 @@ TEST(LabelDeviceTree, MatchesTheHostTree) {
           if (from_input && rule != Rule::exact) continue;
           SCOPED_TRACE(from_input ? "device candidates" : "host candidates");
           std::unique_ptr<cuda::Labeller> built =
-              from_input ? std::make_unique<cuda::Labeller>(0, given, with_distance)
+              from_input ? std::make_unique<cuda::Labeller>(0, in, with_distance)
                          : std::make_unique<cuda::Labeller>(0, candidates, c.g.level, with_distance);
           const cuda::Labeller& gpu = *built;
           std::vector<TreeNode> nodes;

@@ -42,7 +42,9 @@ inline SiteGeometry wiggly_sites(int level, std::uint64_t seed) {
   add_point(g, 100, 10, 11);
   add_point(g, 101, 10, 11);
   // A zigzag that turns back on itself, and a long polyline (its top groups span > 60 degrees).
-  for (int k = 0; k < 6; ++k) add_arc(g, 140 + (k % 2) * 3, -20 + 0.3 * k, 140 + ((k + 1) % 2) * 3, -20 + 0.3 * (k + 1), 12);
+  for (int k = 0; k < 6; ++k) {
+    add_arc(g, 140 + (k % 2) * 3, -20 + 0.3 * k, 140 + ((k + 1) % 2) * 3, -20 + 0.3 * (k + 1), 12);
+  }
   walk(13, 12, 5, 8);
   return g;
 }

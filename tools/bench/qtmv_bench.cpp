@@ -114,7 +114,6 @@ Args parse(int argc, char** argv) {
       a.csv = true;
     } else if (opt == "--host-tree") {
       a.host_tree = true;
-
     } else if (opt == "--no-header") {
       a.csv_header = false;
     } else {
@@ -398,11 +397,7 @@ Row run_one(const Args& a, const std::string& spec, int level) {
         prepare.push_back((now_seconds() - t0) * 1e3);
         continue;
       }
-      // As label_cells does: the host's candidates from the fixed cells in quadtree order.
-      std::vector<label::FixedCell> ordered_fixed;
-      label::LabelInput ordered = input;
-      ordered.fixed_cells = label::fixed_cells_in_quadtree_order(input, a.threads, &ordered_fixed);
-      candidates = label::make_candidates(ordered, a.rule);
+      candidates = label::make_candidates(input, a.rule, a.threads);
       if (device_tree) {
         built = std::make_unique<label::cuda::Labeller>(device, candidates, level, a.distance, a.threads);
       } else if (hier) {

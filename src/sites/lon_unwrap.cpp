@@ -5,17 +5,22 @@
 namespace qtmv::sites {
 namespace {
 
+enum class EdgeKind { ordinary, jump, seam, polar };
+
 bool at_pole(const grid::LonLat& p) { return std::fabs(p.lat) == 90.0; }
 
-/// Both ends on the meridian +-180.
-bool seam_edge(const grid::LonLat& a, const grid::LonLat& b) {
-  return std::fabs(a.lon) == 180.0 && std::fabs(b.lon) == 180.0;
+EdgeKind classify(const grid::LonLat& a, const grid::LonLat& b) {
+  if (at_pole(a) || at_pole(b)) return EdgeKind::polar;
+  if (std::fabs(a.lon) == 180.0 && std::fabs(b.lon) == 180.0 && a.lon != b.lon) return EdgeKind::seam;
+  if (std::fabs(b.lon - a.lon) > 180.0) return EdgeKind::jump;
+  return EdgeKind::ordinary;
 }
 
-/// An edge that really crosses +-180 in uncut data: more than 180 degrees long in longitude,
-/// neither a seam edge nor an edge to a pole.
-bool crosses_antimeridian(const grid::LonLat& a, const grid::LonLat& b) {
-  return std::fabs(b.lon - a.lon) > 180.0 && !seam_edge(a, b) && !at_pole(a) && !at_pole(b);
+/// Edges drawn as their coordinates say whatever the edge shape: pole lines, and seam edges when
+/// the path is read as written.
+bool straight_edge(EdgeKind kind, const grid::LonLat& a, const grid::LonLat& b, bool as_written) {
+  if (kind == EdgeKind::polar) return at_pole(a) && at_pole(b) && a.lat == b.lat && a.lon != b.lon;
+  return kind == EdgeKind::seam && as_written;
 }
 
 }  // namespace
@@ -23,28 +28,39 @@ bool crosses_antimeridian(const grid::LonLat& a, const grid::LonLat& b) {
 UnwrappedPath unwrap_longitudes(const grid::LonLat* vertices, std::size_t count, bool closed, WrapMode mode) {
   UnwrappedPath out;
   out.vertices.assign(vertices, vertices + count);
-  if (mode == WrapMode::none || count < 2) return out;
-  bool uncut = false;
-  double shift = 0.0;  // multiple of 360 added to the input longitude of the current vertex
+  if (count < 2) return out;
+  std::vector<EdgeKind> kinds(count - 1);
+  bool has_jump = false;
+  double ordinary_turn = 0.0;  // degrees of longitude the ordinary edges travel in all
   for (std::size_t k = 1; k < count; ++k) {
-    const grid::LonLat& a = vertices[k - 1];
-    const grid::LonLat& b = vertices[k];
-    const double step = b.lon - a.lon;
-    if (at_pole(a) || at_pole(b)) {
-      // flat: the longitude of a pole means nothing
-    } else if (seam_edge(a, b)) {
-      shift += a.lon - b.lon;  // along the meridian: same unwrapped longitude
-    } else if (std::fabs(step) > 180.0) {
-      uncut = uncut || crosses_antimeridian(a, b);
-      shift += step > 0 ? -360.0 * std::ceil((step - 180.0) / 360.0) : 360.0 * std::ceil((-step - 180.0) / 360.0);
+    kinds[k - 1] = classify(vertices[k - 1], vertices[k]);
+    has_jump = has_jump || kinds[k - 1] == EdgeKind::jump;
+    if (kinds[k - 1] == EdgeKind::ordinary) ordinary_turn += vertices[k].lon - vertices[k - 1].lon;
+  }
+  // A ring whose ordinary edges go round the globe encloses a pole: its seam edges close it and
+  // are not parallels (world-atlas's Antarctica); one whose ordinary edges do not is cut data.
+  const bool as_written = mode == WrapMode::none || (!has_jump && (!closed || std::fabs(ordinary_turn) < 180.0));
+  out.straight.resize(count - 1);
+  for (std::size_t k = 1; k < count; ++k) {
+    out.straight[k - 1] = straight_edge(kinds[k - 1], vertices[k - 1], vertices[k], as_written) ? 1 : 0;
+  }
+  if (!as_written) {
+    double shift = 0.0;  // multiple of 360 added to the input longitude of the current vertex
+    for (std::size_t k = 1; k < count; ++k) {
+      const grid::LonLat& a = vertices[k - 1];
+      const grid::LonLat& b = vertices[k];
+      const double step = b.lon - a.lon;
+      if (kinds[k - 1] == EdgeKind::seam) {
+        shift += a.lon - b.lon;  // along the meridian: same unwrapped longitude
+        ++out.short_way_edges;
+      } else if (kinds[k - 1] == EdgeKind::jump) {
+        shift += step > 0 ? -360.0 * std::ceil((step - 180.0) / 360.0) : 360.0 * std::ceil((-step - 180.0) / 360.0);
+        ++out.short_way_edges;
+      }
+      out.vertices[k].lon = b.lon + shift;
     }
-    out.vertices[k].lon = b.lon + shift;
   }
   if (closed) out.winding = static_cast<int>(std::lround((out.vertices.back().lon - out.vertices.front().lon) / 360.0));
-  // With no edge across +-180 the data is cut there (or never reaches it), and an edge from -180
-  // to +180 along a parallel is part of the shape (a band round the globe), not a seam: read
-  // such a path flat, unless the seams make a ring wind round a pole (world-atlas's Antarctica).
-  if (!uncut && out.winding == 0) out.vertices.assign(vertices, vertices + count);
   return out;
 }
 

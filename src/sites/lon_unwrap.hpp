@@ -1,7 +1,15 @@
 // Reading longitudes across +-180: a vertex sequence becomes one with continuous longitudes.
+//
+// Two kinds of data meet at +-180. Cut data (Natural Earth's shapefiles, ogr2ogr -wrapdateline,
+// RFC 7946 GeoJSON) stops there and is meant as written in flat lon/lat: an edge from (-180, 86)
+// to (180, 86) is the whole parallel, one from (180, 90) to (-180, 90) runs along the pole.
+// Uncut data (world-atlas's TopoJSON) steps across it: (-180, -16.56) to (179.36, -16.8) is a
+// short edge of Fiji, and (180, -84.71) to (-180, -84.71) closes Antarctica's ring round the pole.
+// unwrap_longitudes tells them apart ring by ring (the rule is stated there and in the man page).
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 #include "grid/qtm.hpp"
@@ -16,18 +24,29 @@ struct UnwrappedPath {
   /// For a closed ring: how many times its longitudes wind around the globe (last - first) / 360;
   /// 0 for an open path or an ordinary ring.
   int winding = 0;
+  /// One flag per edge (edge k joins vertices k and k + 1): 1 where the edge runs along a parallel
+  /// or a pole line as its coordinates say, so that it is traced straight in lon/lat even when
+  /// edges are geodesics (a geodesic between (-180, 86) and (180, 86) would be a point).
+  std::vector<std::uint8_t> straight;
+  /// Edges that -wrap auto joined the short way across +-180 (real jumps, and seam edges read
+  /// as zero length): what the reading changed, for the user's warning.
+  std::size_t short_way_edges = 0;
 };
 
-/// Unwraps longitudes (degrees; latitudes in [-90, 90]). With WrapMode::automatic an edge whose
-/// ends are more than 180 degrees apart in longitude is joined the short way across +-180, except:
-///   - a seam edge, both ends on the meridian +-180 (Antarctica's ring in world-atlas steps from
-///     +180 to -180): it runs along that meridian, so its longitude change is 0;
-///   - an edge with an end at a pole: the longitude of a pole means nothing, the edge is kept flat.
-/// A path with no edge across +-180 (data cut there) is read flat, unless its seam edges make it
-/// a ring that winds round a pole: a ring from (-180, -60) to (180, -60) to (180, 60) to
-/// (-180, 60) is a band round the globe, as GEOS reads it.
-/// WrapMode::none copies the coordinates. `closed`: the sequence is a ring whose last vertex
-/// repeats the first; its winding is then counted.
+/// Unwraps longitudes (degrees; latitudes in [-90, 90]). Edges are classified by their ends:
+///   - a polar edge has an end at a pole (|lat| = 90): the longitude of a pole means nothing, so
+///     it is always taken as written (along the pole line when both ends are at the pole);
+///   - a seam edge joins +-180 to -+180 (both ends exactly on the meridian, opposite signs);
+///   - a jump is any other edge more than 180 degrees of longitude long;
+///   - the rest are ordinary edges.
+/// With WrapMode::automatic a path is read as written (flat lon/lat, seam edges along their
+/// parallel or diagonal as the coordinates say) when it has no jump and, for a ring, when its
+/// ordinary edges do not go round the globe (their longitude changes sum to less than 180
+/// degrees): that is data cut at +-180. Otherwise it is uncut data: jumps are joined the short
+/// way across +-180 and seam edges have zero length (world-atlas's Fiji and Russia step across
+/// +-180; its Antarctica, whose coast goes round the globe, closes with a seam edge and then winds
+/// round the pole). WrapMode::none reads every path as written. `closed`: the sequence is a ring
+/// whose last vertex repeats the first; its winding is then counted.
 UnwrappedPath unwrap_longitudes(const grid::LonLat* vertices, std::size_t count, bool closed, WrapMode mode);
 
 }  // namespace qtmv::sites

@@ -272,6 +272,7 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
 
   std::vector<grid::LonLat> lonlat;
   std::vector<int> transformed_ok;
+  std::string wrapped_fids;  // the first features -wrap auto changed
   std::chrono::steady_clock::duration rasterise{};  // tracing, filling and claims, within the read
   errors.take();
   layer->ResetReading();
@@ -377,6 +378,9 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
       }
     }
     builder.end_site();
+    if (builder.short_way_edges() > 0 && ++summary.wrapped_features <= 10) {
+      wrapped_fids += (wrapped_fids.empty() ? "" : ", ") + std::to_string(fid);
+    }
     rasterise += std::chrono::steady_clock::now() - rasterise_start;
     record.attributes.reset(feature.release());
     out.table.sites.push_back(std::move(record));
@@ -389,6 +393,13 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   }
   if (const std::string pending = errors.take(); !pending.empty()) say(Severity::warning, where_from + ": GDAL: " + pending);
   if (options.progress && !options.progress(1.0, "reading sites")) throw ReadError("interrupted");
+  // A user must never get a silently different geometry.
+  if (summary.wrapped_features > 0) {
+    say(Severity::warning, where_from + ": " + std::to_string(summary.wrapped_features) +
+                               " feature(s) have edges more than 180 degrees of longitude long joined the short way "
+                               "across +-180 (-wrap auto; -wrap none reads them as written) (FIDs " + wrapped_fids +
+                               (summary.wrapped_features > 10 ? ", ..." : "") + ")");
+  }
 
   if (summary.sites == 0) {
     // A table of coordinates read without open options has no geometry at all: say how to read it.

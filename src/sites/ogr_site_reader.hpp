@@ -30,6 +30,7 @@ struct ReadSummary {
   std::uint64_t skipped_unreadable = 0; ///< the driver could not decode the feature
   std::uint64_t sites_without_own_cell = 0;  ///< sites all of whose cells went to other sites
   std::uint64_t vertex_steps = 0;       ///< traced steps through a grid vertex (informative)
+  std::uint64_t wrapped_features = 0;   ///< features with edges joined the short way across +-180 (-wrap auto)
   double rasterise_seconds = 0;         ///< of the read, the time spent tracing, filling and claiming cells (s)
 };
 

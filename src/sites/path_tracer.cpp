@@ -113,7 +113,7 @@ void PathTracer::refine(const Edge& edge, double t0, grid::Code c0, double t1, g
 
 void PathTracer::trace(const grid::LonLat* vertices, std::size_t count, std::int32_t site,
                        std::vector<SitePiece>& pieces, std::vector<CellHit>& hits,
-                       std::vector<grid::LonLat>* samples) {
+                       std::vector<grid::LonLat>* samples, const std::uint8_t* straight) {
   if (count == 0) return;
   const std::size_t first_piece = pieces.size();
   const auto& wgs84 = GeographicLib::Geodesic::WGS84();
@@ -129,7 +129,7 @@ void PathTracer::trace(const grid::LonLat* vertices, std::size_t count, std::int
     Edge edge;
     edge.from = prev;
     edge.to = {vertices[k].lon + lon_shift, vertices[k].lat};
-    if (shape_ == EdgeShape::geodesic) {
+    if (shape_ == EdgeShape::geodesic && !(straight && straight[k - 1])) {
       edge.geodesic = true;
       edge.line = wgs84.InverseLine(edge.from.lat, edge.from.lon, edge.to.lat, edge.to.lon);
       edge.arc = edge.line.Arc();

@@ -38,9 +38,11 @@ class PathTracer {
   /// through to `hits` (a cell repeats when consecutive pieces share it). A path of one vertex
   /// (or whose vertices all coincide) is one point piece. When `samples` is given, the sample
   /// points along the path (degrees, unwrapped, ends included) are appended to it: the densified
-  /// path that polygon fill uses for geodesic edges.
+  /// path that polygon fill uses for geodesic edges. `straight` (may be null): one flag per edge
+  /// (UnwrappedPath::straight); a flagged edge is straight in lon/lat whatever the shape.
   void trace(const grid::LonLat* vertices, std::size_t count, std::int32_t site, std::vector<SitePiece>& pieces,
-             std::vector<CellHit>& hits, std::vector<grid::LonLat>* samples = nullptr);
+             std::vector<CellHit>& hits, std::vector<grid::LonLat>* samples = nullptr,
+             const std::uint8_t* straight = nullptr);
 
   /// Pairs of consecutive cells that share only a vertex (accepted at the bisection limit); for tests.
   std::uint64_t vertex_steps() const { return vertex_steps_; }

@@ -18,6 +18,7 @@ std::int32_t SiteBuilder::begin_site() {
   if (current_ >= 0) throw std::logic_error("SiteBuilder::begin_site: the previous site is not finished");
   current_ = geometry_.site_count++;
   hits_.clear();
+  short_way_edges_ = 0;
   return current_;
 }
 
@@ -25,7 +26,9 @@ void SiteBuilder::add_point(const grid::LonLat& point) { tracer_.trace(&point, 1
 
 void SiteBuilder::add_line(const grid::LonLat* vertices, std::size_t count) {
   const UnwrappedPath path = unwrap_longitudes(vertices, count, false, wrap_);
-  tracer_.trace(path.vertices.data(), path.vertices.size(), current_, geometry_.pieces, hits_);
+  short_way_edges_ += path.short_way_edges;
+  tracer_.trace(path.vertices.data(), path.vertices.size(), current_, geometry_.pieces, hits_, nullptr,
+                path.straight.data());
 }
 
 void SiteBuilder::add_polygon(const std::vector<LonLatPath>& rings) {
@@ -40,11 +43,12 @@ void SiteBuilder::add_polygon(const std::vector<LonLatPath>& rings) {
       ring = &closed;
     }
     UnwrappedPath path = unwrap_longitudes(ring->data(), ring->size(), true, wrap_);
+    short_way_edges_ += path.short_way_edges;
     FillRing fill_ring;
     fill_ring.winding = path.winding;
     // Geodesic edges are filled along their samples (a quarter cell edge apart).
     tracer_.trace(path.vertices.data(), path.vertices.size(), current_, geometry_.pieces, hits_,
-                  edges_ == EdgeShape::geodesic ? &fill_ring.vertices : nullptr);
+                  edges_ == EdgeShape::geodesic ? &fill_ring.vertices : nullptr, path.straight.data());
     if (edges_ != EdgeShape::geodesic) {
       fill_ring.vertices = std::move(path.vertices);
     } else if (fill_ring.vertices.size() > 1) {  // the geodesics chose their own way round

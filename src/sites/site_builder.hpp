@@ -37,6 +37,8 @@ class SiteBuilder {
   SiteGeometry& geometry() { return geometry_; }
   /// Hands the geometry over (the builder is empty afterwards).
   SiteGeometry take_geometry();
+  /// Edges of the current (or last) site that -wrap auto joined the short way across +-180.
+  std::size_t short_way_edges() const { return short_way_edges_; }
   /// Cell pairs sharing only a vertex accepted while tracing (lines through a grid vertex).
   std::uint64_t vertex_steps() const { return tracer_.vertex_steps(); }
 
@@ -50,6 +52,7 @@ class SiteBuilder {
   std::int32_t current_ = -1;
   std::vector<CellHit> hits_;
   std::vector<grid::Code> fill_cells_;
+  std::size_t short_way_edges_ = 0;
 };
 
 }  // namespace qtmv::sites

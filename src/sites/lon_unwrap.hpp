@@ -40,13 +40,17 @@ struct UnwrappedPath {
 ///   - a jump is any other edge more than 180 degrees of longitude long;
 ///   - the rest are ordinary edges.
 /// With WrapMode::automatic a path is read as written (flat lon/lat, seam edges along their
-/// parallel or diagonal as the coordinates say) when it has no jump and, for a ring, when its
-/// ordinary edges do not go round the globe (their longitude changes sum to less than 180
-/// degrees): that is data cut at +-180. Otherwise it is uncut data: jumps are joined the short
-/// way across +-180 and seam edges have zero length (world-atlas's Fiji and Russia step across
-/// +-180; its Antarctica, whose coast goes round the globe, closes with a seam edge and then winds
-/// round the pole). WrapMode::none reads every path as written. `closed`: the sequence is a ring
-/// whose last vertex repeats the first; its winding is then counted.
+/// parallel, or diagonal, as the coordinates say): that is data cut at +-180. Two kinds of path
+/// are uncut data instead, read with jumps joined the short way across +-180 and seam edges of
+/// zero length:
+///   - a path with a jump (world-atlas's Fiji and Russia step across +-180);
+///   - a ring whose ordinary edges go round the globe (their longitude changes sum to 180 degrees
+///     or more) with a seam edge that joins them directly, neither of its neighbouring edges
+///     running along +-180 or to a pole (world-atlas's Antarctica); it then winds round the pole.
+/// Cut data reaches its seam edges along the meridian or from a pole (Natural Earth's Antarctica
+/// at -89.999, caps, bands round the globe). WrapMode::none reads every path as written.
+/// `closed`: the sequence is a ring whose last vertex repeats the first; its winding is then
+/// counted.
 UnwrappedPath unwrap_longitudes(const grid::LonLat* vertices, std::size_t count, bool closed, WrapMode mode);
 
 }  // namespace qtmv::sites

@@ -4,7 +4,7 @@
 //   - a cell whose centre GEOS puts inside a polygon (the polygon as it is meant, in flat lon/lat)
 //     belongs to that polygon at distance 0;
 //   - any other cell to the nearest site, by great-circle distance to the rings and lines drawn
-//     straight in lon/lat (sampled 4 times finer than the readers' pieces) and to the points.
+//     straight in lon/lat (sampled twice as finely than the readers' pieces) and to the points.
 // The readers cut edges into great-circle pieces a quarter cell long, which stray from the
 // lon/lat curve by far less than the tolerance (a twentieth of a piece); a misread edge (a cap's
 // parallel taken as a point, or a 90-degree chord that bulges 1.2 degrees) is off by degrees.
@@ -95,7 +95,7 @@ std::vector<CutCase> cases() {
 class ReferenceSite {
  public:
   ReferenceSite(const OGRGeometry& meaning, int level) : geometry_(meaning.clone()) {
-    step_degrees_ = max_piece_degrees(level) / 4.0;
+    step_degrees_ = max_piece_degrees(level) / 2.0;
     add(*geometry_);
     if (has_area_) prepared_ = OGRCreatePreparedGeometry(OGRGeometry::ToHandle(geometry_.get()));
     for (std::size_t begin = 0; begin < arcs_.size(); begin += kFan) chunks_.push_back(bound(arcs_, begin));
@@ -107,38 +107,39 @@ class ReferenceSite {
     return OGRPreparedGeometryContains(prepared_, OGRGeometry::ToHandle(&point));
   }
 
-  /// Great-circle distance (radians) from x to the site's rings, lines and points.
+  /// Great-circle distance (radians) from x to the site's rings, lines and points. The pruning
+  /// works on chord lengths, a metric: |x - p| >= |x - centre| - radius.
   double distance(const grid::Vec3& x) const {
     double best = std::numeric_limits<double>::infinity();
-    for (const Bound& g : groups_) best = std::min(best, angle(x, g.centre));  // a point of the curve
+    for (const Bound& g : groups_) best = std::min(best, chord(x, g.centre));  // a point of the curve
     for (const Bound& g : groups_) {
-      if (angle(x, g.centre) - g.radius >= best) continue;
+      if (chord(x, g.centre) - g.radius >= best) continue;
       for (std::size_t c = g.begin; c < g.end; ++c) {
-        if (angle(x, chunks_[c].centre) - chunks_[c].radius >= best) continue;
+        if (chord(x, chunks_[c].centre) - chunks_[c].radius >= best) continue;
         for (std::size_t k = chunks_[c].begin; k < chunks_[c].end; ++k) {
-          best = std::min(best, label::chord2_to_angle(label::piece_chord2(x, arcs_[k])));
+          best = std::min(best, std::sqrt(label::piece_chord2(x, arcs_[k])));
         }
       }
     }
-    return best;
+    return label::chord2_to_angle(best * best);
   }
 
  private:
   static constexpr std::size_t kFan = 16;
-  /// Items [begin, end) within `radius` (radians) of `centre`, one of their points: a cap of less
-  /// than a quarter circle holds the arcs between its points.
+  /// Items [begin, end) within the chord `radius` of `centre`, one of their points: a cap of
+  /// less than a quarter circle holds the arcs between its points.
   struct Bound {
     std::size_t begin = 0, end = 0;
     grid::Vec3 centre{};
     double radius = 0;
   };
-  static double angle(const grid::Vec3& a, const grid::Vec3& b) { return label::chord2_to_angle(grid::chord2(a, b)); }
+  static double chord(const grid::Vec3& a, const grid::Vec3& b) { return std::sqrt(grid::chord2(a, b)); }
   static grid::Vec3 any_point(const label::Piece& p) { return p.a; }
   static grid::Vec3 any_point(const Bound& b) { return b.centre; }
   static double reach(const grid::Vec3& centre, const label::Piece& p) {
-    return std::max(angle(centre, p.a), angle(centre, p.b));
+    return std::max(chord(centre, p.a), chord(centre, p.b));
   }
-  static double reach(const grid::Vec3& centre, const Bound& b) { return angle(centre, b.centre) + b.radius; }
+  static double reach(const grid::Vec3& centre, const Bound& b) { return chord(centre, b.centre) + b.radius; }
   template <class Item>
   static Bound bound(const std::vector<Item>& items, std::size_t begin) {
     Bound b;
@@ -229,36 +230,44 @@ class CutRings : public ::testing::TestWithParam<std::string> {
     }
     const double tolerance = 0.05 * max_piece_degrees(level) * M_PI / 180;  // radians
     const double tolerance_m = tolerance * label::kEarthRadiusMetres;
+    const std::size_t sites = c.sites.size();
+    const auto cells = static_cast<std::int64_t>(grid::cell_count(level));
+    std::vector<double> distances(cells * sites);  // the reference's distances, on all cores
+#pragma omp parallel for schedule(dynamic, 1024)
+    for (std::int64_t code = 0; code < cells; ++code) {
+      const grid::Vec3 x = grid::cell_centre_vector(static_cast<grid::Code>(code), level);
+      for (std::size_t s = 0; s < sites; ++s) distances[code * sites + s] = reference[s]->distance(x);
+    }
     std::size_t inside = 0, outside = 0, undecided = 0, failures = 0;
-    std::vector<double> d(c.sites.size());
-    for (grid::Code code = 0; code < grid::cell_count(level) && failures < 10; ++code) {
-      const grid::LonLat centre = grid::cell_centre(code, level);
-      const grid::Vec3 x = grid::cell_centre_vector(code, level);
+    for (std::int64_t code = 0; code < cells && failures < 10; ++code) {
+      const grid::LonLat centre = grid::cell_centre(static_cast<grid::Code>(code), level);
+      const double* d = &distances[code * sites];
       int owner = -1, nearest = 0, second = -1;
-      for (std::size_t s = 0; s < c.sites.size(); ++s) {
-        d[s] = reference[s]->distance(x);
+      for (std::size_t s = 0; s < sites; ++s) {
         if (owner < 0 && reference[s]->contains(centre)) owner = static_cast<int>(s);
         if (d[s] < d[nearest]) nearest = static_cast<int>(s);
       }
-      for (std::size_t s = 0; s < c.sites.size(); ++s) {
+      for (std::size_t s = 0; s < sites; ++s) {
         if (static_cast<int>(s) != nearest && (second < 0 || d[s] < d[second])) second = static_cast<int>(s);
       }
       const std::int32_t got = result.site[code];
       const double got_m = result.distance_m[code];
-      const std::string at = what + ", cell " + std::to_string(code) + " at (" + std::to_string(centre.lon) + ", " +
-                             std::to_string(centre.lat) + ")";
+      auto at = [&] {
+        return what + ", cell " + std::to_string(code) + " at (" + std::to_string(centre.lon) + ", " +
+               std::to_string(centre.lat) + ")";
+      };
       if (owner >= 0 && d[owner] > tolerance) {  // inside, clear of the rings
         ++inside;
         if (got != owner || got_m != 0.0) {
           ++failures;
-          ADD_FAILURE() << at << ": inside site " << owner << ", got site " << got << " at " << got_m << " m";
+          ADD_FAILURE() << at() << ": inside site " << owner << ", got site " << got << " at " << got_m << " m";
         }
       } else if (owner < 0 && d[nearest] > tolerance) {  // outside every polygon
         ++outside;
         const bool tie = second >= 0 && d[second] - d[nearest] < 2 * tolerance;
         if (std::fabs(got_m - d[nearest] * label::kEarthRadiusMetres) > tolerance_m || (!tie && got != nearest)) {
           ++failures;
-          ADD_FAILURE() << at << ": nearest site " << nearest << " at " << d[nearest] * label::kEarthRadiusMetres
+          ADD_FAILURE() << at() << ": nearest site " << nearest << " at " << d[nearest] * label::kEarthRadiusMetres
                         << " m, got site " << got << " at " << got_m << " m";
         }
       } else {
@@ -276,7 +285,7 @@ TEST_P(CutRings, EveryCellMatchesTheReferenceAtLevels6To8) {
   for (const CutCase& c : cases()) {
     for (int level : {6, 7, 8}) {
       check(c, level, EdgeShape::lonlat);
-      if (c.geodesic_same) check(c, level, EdgeShape::geodesic);
+      if (c.geodesic_same && level < 8) check(c, level, EdgeShape::geodesic);
     }
   }
 }

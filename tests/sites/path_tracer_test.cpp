@@ -179,5 +179,77 @@ TEST(LonUnwrap, ShortWayAcrossTheAntimeridianSeamEdgesAndPoles) {
   EXPECT_EQ(std::abs(unwrap_longitudes(wa, 4, true, WrapMode::automatic).winding), 1);
 }
 
+/// The longitudes of a ring read with -wrap auto, and what the reading changed.
+UnwrappedPath read_ring(std::vector<LonLat> ring) {
+  ring.push_back(ring.front());
+  return unwrap_longitudes(ring.data(), ring.size(), true, WrapMode::automatic);
+}
+
+bool as_written(const UnwrappedPath& path, std::vector<LonLat> ring) {
+  ring.push_back(ring.front());
+  if (path.vertices.size() != ring.size() || path.short_way_edges != 0) return false;
+  for (std::size_t k = 0; k < ring.size(); ++k) {
+    if (path.vertices[k].lon != ring[k].lon) return false;
+  }
+  return true;
+}
+
+TEST(LonUnwrap, CutRingsAreReadAsWritten) {
+  // Caps, both ways round, at the pole or at 89.999 (Natural Earth), and bands round the globe:
+  // their seam edges are whole parallels and their pole lines run along the pole.
+  const std::vector<std::vector<LonLat>> cut = {
+      {{-180, 86}, {180, 86}, {180, 90}, {-180, 90}},
+      {{-180, 84}, {-180, 90}, {180, 90}, {180, 84}},
+      {{-180, -80}, {180, -80}, {180, -90}, {-180, -90}},
+      {{-180, 86}, {180, 86}, {180, 89.999}, {-180, 89.999}},
+      {{-180, -60}, {180, -60}, {180, 60}, {-180, 60}},
+      // Natural Earth's Antarctica, down the meridian to -90 or to -89.999.
+      {{-180, -84}, {0, -70}, {180, -84}, {180, -90}, {-180, -90}},
+      {{-180, -84}, {0, -70}, {180, -84}, {180, -89.999}, {-180, -89.999}},
+      // ogr2ogr -wrapdateline: a polygon's half on each side, along +-180.
+      {{170, -20}, {180, -20}, {180, -10}, {170, -10}},
+  };
+  for (const auto& ring : cut) {
+    const UnwrappedPath path = read_ring(ring);
+    EXPECT_TRUE(as_written(path, ring)) << ring[0].lon << " " << ring[0].lat << " " << ring[1].lon << " " << ring[1].lat;
+    EXPECT_EQ(path.winding, 0);
+  }
+  // The cap's seam edge and pole line are traced straight even with geodesic edges.
+  const UnwrappedPath cap = read_ring(cut[0]);
+  EXPECT_EQ(cap.straight, (std::vector<std::uint8_t>{1, 0, 1, 0}));
+}
+
+TEST(LonUnwrap, TheBoundaryBetweenCutAndUncutRings) {
+  // A seam edge that joins a coast going round the globe directly closes it round the pole
+  // (world-atlas); the same ring reaching the seam along +-180 is cut data, read as written.
+  const UnwrappedPath joined = read_ring({{-180, -84}, {0, -70}, {180, -84}});
+  EXPECT_EQ(joined.winding, 1);
+  EXPECT_EQ(joined.short_way_edges, 1u);
+  const std::vector<LonLat> reached = {{-180, -84}, {0, -70}, {180, -84}, {180, -85}, {-180, -85}};
+  EXPECT_TRUE(as_written(read_ring(reached), reached));
+  // The parallel written as two edges through 0 is no seam edge: the ring is read as written, a
+  // band between the coast and the parallel.
+  const std::vector<LonLat> band = {{-180, -84}, {0, -70}, {180, -84}, {0, -84}};
+  EXPECT_TRUE(as_written(read_ring(band), band));
+  // A seam edge needs both ends exactly on +-180: at 179.9999 the cap's long edges are jumps,
+  // joined the short way (and the reader warns).
+  const UnwrappedPath near = read_ring({{-180, 86}, {179.9999, 86}, {179.9999, 90}, {-180, 90}});
+  EXPECT_EQ(near.short_way_edges, 1u);
+  EXPECT_NEAR(near.vertices[1].lon, -180.0001, 1e-9);
+  // An edge of exactly 180 degrees is not a jump; one a little longer is.
+  EXPECT_TRUE(as_written(read_ring({{-90, 0}, {90, 0}, {90, 10}}), {{-90, 0}, {90, 0}, {90, 10}}));
+  EXPECT_EQ(read_ring({{-90, 0}, {90.5, 0}, {90.5, 10}}).short_way_edges, 2u);  // out and back
+  // A jump makes every seam edge of the ring zero length (world-atlas's Fiji).
+  const UnwrappedPath fiji = read_ring({{-180, -16}, {-175, -15}, {-180, -18}, {175, -19}, {176, -16}, {180, -16}});
+  EXPECT_EQ(fiji.short_way_edges, 2u);
+  EXPECT_EQ(fiji.winding, 0);
+  EXPECT_DOUBLE_EQ(fiji.vertices.back().lon, -180);
+  // -wrap none reads every ring as written.
+  const std::vector<LonLat> uncut = {{170, -20}, {-170, -20}, {-170, -10}, {170, -10}};
+  std::vector<LonLat> closed = uncut;
+  closed.push_back(uncut.front());
+  EXPECT_TRUE(as_written(unwrap_longitudes(closed.data(), closed.size(), true, WrapMode::none), uncut));
+}
+
 }  // namespace
 }  // namespace qtmv::sites

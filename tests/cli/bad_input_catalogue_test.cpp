@@ -15,6 +15,7 @@
 #include <map>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <cpl_vsi.h>
@@ -430,6 +431,60 @@ TEST(CatalogueGeometry, PolygonAroundAPoleHoldsThePole) {
   ASSERT_EQ(kept.size(), 3u);
   EXPECT_GT(kept[0].area_fraction, (1 - std::sin(80 * M_PI / 180)) / 2);  // at least the cap
   EXPECT_EQ(kept[1].cells, 0);
+}
+
+// Band 1 (site FID) and band 3 (distance, metres) of a lon/lat raster at (lon, lat) (degrees).
+std::pair<double, double> fid_and_distance_at(const std::string& tif, double lon, double lat) {
+  const auto ds = qtmv::test::open_dataset(tif, GDAL_OF_RASTER);
+  if (!ds) return {-1, -1};
+  double gt[6];
+  ds->GetGeoTransform(gt);
+  const int x = static_cast<int>((lon - gt[0]) / gt[1]), y = static_cast<int>((lat - gt[3]) / gt[5]);
+  double fid = -1, metres = -1;
+  if (ds->GetRasterBand(1)->RasterIO(GF_Read, x, y, 1, 1, &fid, 1, 1, GDT_Float64, 0, 0) != CE_None ||
+      ds->GetRasterBand(3)->RasterIO(GF_Read, x, y, 1, 1, &metres, 1, 1, GDT_Float64, 0, 0) != CE_None) {
+    return {-1, -1};
+  }
+  return {fid, metres};
+}
+
+TEST(CatalogueGeometry, PolarCapCutAtTheAntimeridianIsReadAsWritten) {
+  // Issue 12's cap, as cut data sets write it: the edge from (-180, 86) to (180, 86) is the whole
+  // parallel and the one from (180, 90) to (-180, 90) runs along the pole. Read "the short way"
+  // it had become a line along +-180, and the cell at 88N 45E had got it at 208 km.
+  const std::string dir = test_dir();
+  const std::string src =
+      geojson(dir + "/cap.geojson", {R"({"type":"Polygon","coordinates":[[[-180,86],[180,86],[180,90],[-180,90],[-180,86]]]})",
+                                     R"({"type":"Point","coordinates":[45,60]})"});
+  const Result r = run({"-level", "8", "-device", "cpu", "-raster", "lonlat", "-tr", "1", "1", src, dir + "/cap.tif"});
+  expect_success(r, dir + "/cap.tif");
+  EXPECT_FALSE(contains(r.err, "short way")) << r.err;
+  for (double lon : {-179.5, -90.5, 45.5, 179.5}) {
+    const auto inside = fid_and_distance_at(dir + "/cap.tif", lon, 88.5);
+    EXPECT_EQ(inside.first, 0) << lon;
+    EXPECT_EQ(inside.second, 0) << lon;
+    // Just outside: about a degree from the parallel (the pixel's cell centre, within a cell).
+    const auto outside = fid_and_distance_at(dir + "/cap.tif", lon, 84.5);
+    EXPECT_EQ(outside.first, 0) << lon;
+    EXPECT_NEAR(outside.second, 1.5 * 111195, 0.4 * 111195) << lon;
+  }
+}
+
+TEST(CatalogueGeometry, EdgesJoinedTheShortWayAreNamedInAWarning) {
+  // Uncut data (a ring stepping across +-180, as world-atlas's Fiji and Russia do) is joined the
+  // short way by -wrap auto: said once for the layer, with the features' FIDs.
+  const std::string dir = test_dir();
+  const std::string src = wkt_csv(dir + "/uncut.csv", {"POINT (0 0)", "POLYGON ((170 -20,-170 -20,-170 -10,170 -10,170 -20))",
+                                                       "LINESTRING (175 40,-175 41)"});
+  const Result r = run_small({"-layers", "regions", src, dir + "/out.gpkg"});
+  expect_success(r, dir + "/out.gpkg");
+  EXPECT_TRUE(contains(r.err, "2 feature(s) have edges more than 180 degrees of longitude long joined the short way "
+                              "across +-180 (-wrap auto; -wrap none reads them as written) (FIDs 2, 3)"))
+      << r.err;
+  // With -wrap none they are read as written, and nothing is said.
+  const Result flat = run_small({"-layers", "regions", "-wrap", "none", src, dir + "/flat.gpkg"});
+  expect_success(flat, dir + "/flat.gpkg");
+  EXPECT_FALSE(contains(flat.err, "short way")) << flat.err;
 }
 
 TEST(CatalogueGeometry, ZAndMCoordinatesAreDropped) {

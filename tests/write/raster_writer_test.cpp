@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "../test_temp_dir.hpp"
 #include "grid/qtm.hpp"
 #include "label/labeller.hpp"
 #include "write/raster_writer.hpp"
@@ -54,7 +55,8 @@ struct Fixture {
   }
 };
 
-std::string temp_path(const std::string& name) { return ::testing::TempDir() + "qtmv_raster_" + name; }
+// In the process's own directory: two test runs at once (two checkouts) must not share files.
+std::string temp_path(const std::string& name) { return qtmv::test::process_temp_dir() + "/raster_" + name; }
 
 /// Opens a raster read-only; closed (and the file removed) when the guard ends.
 struct Opened {

@@ -17,6 +17,7 @@
 #include <utility>
 #include <vector>
 
+#include "../test_temp_dir.hpp"
 #include "grid/qtm.hpp"
 #include "label/labeller.hpp"
 #include "write/gpkg_rows.hpp"
@@ -88,7 +89,8 @@ Scene make_scene(int level, int random_points, unsigned seed) {
 
 /// A path under the test directory, removed (with whatever GDAL made there) on destruction.
 struct TempPath {
-  explicit TempPath(const std::string& name) : path(::testing::TempDir() + "qtmv_vector_" + name) {
+  // In the process's own directory: two test runs at once (two checkouts) must not share files.
+  explicit TempPath(const std::string& name) : path(qtmv::test::process_temp_dir() + "/vector_" + name) {
     std::filesystem::remove_all(path);
   }
   ~TempPath() { std::filesystem::remove_all(path); }

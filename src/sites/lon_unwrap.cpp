@@ -32,27 +32,25 @@ UnwrappedPath unwrap_longitudes(const grid::LonLat* vertices, std::size_t count,
   const std::size_t edges = count - 1;
   std::vector<EdgeKind> kinds(edges);
   bool has_jump = false;
-  double ordinary_turn = 0.0;  // degrees of longitude the ordinary edges travel in all
   for (std::size_t k = 0; k < edges; ++k) {
     kinds[k] = classify(vertices[k], vertices[k + 1]);
     has_jump = has_jump || kinds[k] == EdgeKind::jump;
-    if (kinds[k] == EdgeKind::ordinary) ordinary_turn += vertices[k + 1].lon - vertices[k].lon;
   }
-  // A ring whose ordinary edges go round the globe and whose seam edge joins their ends directly
-  // closes round a pole (world-atlas's Antarctica). Cut data reaches its seam edges along the
-  // meridian +-180 or from a pole (Natural Earth's Antarctica, caps, bands).
-  bool seam_joins_ends = false;
-  if (closed && std::fabs(ordinary_turn) >= 180.0) {
-    auto along_seam_meridian = [&](std::size_t k) {  // edge k runs along +-180 or to a pole
-      return kinds[k] == EdgeKind::polar || (vertices[k].lon == vertices[k + 1].lon && std::fabs(vertices[k].lon) == 180.0);
-    };
-    for (std::size_t k = 0; k < edges; ++k) {
-      if (kinds[k] != EdgeKind::seam) continue;
-      const std::size_t before = k > 0 ? k - 1 : edges - 1, after = k + 1 < edges ? k + 1 : 0;
-      seam_joins_ends = seam_joins_ends || (!along_seam_meridian(before) && !along_seam_meridian(after));
-    }
+  // Cut data reaches a seam edge along the meridian +-180 or from a pole (caps, bands, Natural
+  // Earth's Antarctica). A seam edge between two edges that do neither steps across +-180 with a
+  // vertex on each side (world-atlas's Antarctica, whose coast goes round the globe; a line
+  // written through (180, y) and (-180, y)). An open path's end counts as reaching it.
+  auto reaches_seam = [&](std::size_t k) {  // edge k runs along +-180 or to a pole
+    return kinds[k] == EdgeKind::polar || (vertices[k].lon == vertices[k + 1].lon && std::fabs(vertices[k].lon) == 180.0);
+  };
+  bool steps_across = false;
+  for (std::size_t k = 0; k < edges && !steps_across; ++k) {
+    if (kinds[k] != EdgeKind::seam) continue;
+    const bool first = k == 0, last = k + 1 == edges;
+    if (!closed && (first || last)) continue;
+    steps_across = !reaches_seam(first ? edges - 1 : k - 1) && !reaches_seam(last ? 0 : k + 1);
   }
-  const bool as_written = mode == WrapMode::none || (!has_jump && !seam_joins_ends);
+  const bool as_written = mode == WrapMode::none || (!has_jump && !steps_across);
   out.straight.resize(count - 1);
   for (std::size_t k = 1; k < count; ++k) {
     out.straight[k - 1] = straight_edge(kinds[k - 1], vertices[k - 1], vertices[k], as_written) ? 1 : 0;

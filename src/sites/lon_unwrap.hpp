@@ -40,17 +40,17 @@ struct UnwrappedPath {
 ///   - a jump is any other edge more than 180 degrees of longitude long;
 ///   - the rest are ordinary edges.
 /// With WrapMode::automatic a path is read as written (flat lon/lat, seam edges along their
-/// parallel, or diagonal, as the coordinates say): that is data cut at +-180. Two kinds of path
-/// are uncut data instead, read with jumps joined the short way across +-180 and seam edges of
-/// zero length:
-///   - a path with a jump (world-atlas's Fiji and Russia step across +-180);
-///   - a ring whose ordinary edges go round the globe (their longitude changes sum to 180 degrees
-///     or more) with a seam edge that joins them directly, neither of its neighbouring edges
-///     running along +-180 or to a pole (world-atlas's Antarctica); it then winds round the pole.
-/// Cut data reaches its seam edges along the meridian or from a pole (Natural Earth's Antarctica
-/// at -89.999, caps, bands round the globe). WrapMode::none reads every path as written.
-/// `closed`: the sequence is a ring whose last vertex repeats the first; its winding is then
-/// counted.
+/// parallel, or diagonal, as the coordinates say): that is data cut at +-180, which reaches its
+/// seam edges along the meridian +-180 or from a pole (caps, bands round the globe, Natural
+/// Earth's Antarctica). A path is uncut data instead, read with jumps joined the short way across
+/// +-180 and seam edges of zero length, when
+///   - it has a jump (world-atlas's Fiji and Russia step across +-180), or
+///   - it has a seam edge between two edges that neither run along +-180 nor reach a pole: a
+///     step across +-180 written with a vertex on each side (world-atlas's Antarctica, whose
+///     coast goes round the globe and then winds round the pole). An open path's ends count as
+///     reaching the seam edge.
+/// WrapMode::none reads every path as written. `closed`: the sequence is a ring whose last vertex
+/// repeats the first; its winding is then counted.
 UnwrappedPath unwrap_longitudes(const grid::LonLat* vertices, std::size_t count, bool closed, WrapMode mode);
 
 }  // namespace qtmv::sites

@@ -244,6 +244,17 @@ TEST(LonUnwrap, TheBoundaryBetweenCutAndUncutRings) {
   EXPECT_EQ(fiji.short_way_edges, 2u);
   EXPECT_EQ(fiji.winding, 0);
   EXPECT_DOUBLE_EQ(fiji.vertices.back().lon, -180);
+  // A square written across +-180 with a vertex on each side: its seam edges step across.
+  const UnwrappedPath square =
+      read_ring({{170, 10}, {180, 10}, {-180, 10}, {-170, 10}, {-170, 20}, {-180, 20}, {180, 20}, {170, 20}});
+  EXPECT_EQ(square.short_way_edges, 2u);
+  EXPECT_EQ(square.winding, 0);
+  EXPECT_DOUBLE_EQ(square.vertices[3].lon, 190);
+  // So does a line; one that only ends on +-180 is read as written (the whole parallel).
+  const LonLat line[] = {{170, 10}, {180, 10}, {-180, 10}, {-170, 10}};
+  EXPECT_DOUBLE_EQ(unwrap_longitudes(line, 4, false, WrapMode::automatic).vertices[3].lon, 190);
+  const LonLat parallel[] = {{0, 10}, {180, 10}, {-180, 10}};
+  EXPECT_DOUBLE_EQ(unwrap_longitudes(parallel, 3, false, WrapMode::automatic).vertices[2].lon, -180);
   // -wrap none reads every ring as written.
   const std::vector<LonLat> uncut = {{170, -20}, {-170, -20}, {-170, -10}, {170, -10}};
   std::vector<LonLat> closed = uncut;

@@ -198,12 +198,12 @@ __device__ inline void paint_span(const TreeView& tree, const std::uint8_t* jump
   const std::uint64_t span_cells = count - warp_out < kPaintSpan ? count - warp_out : kPaintSpan;
   const std::uint32_t span_n = static_cast<std::uint32_t>(span_cells);
   const std::uint32_t local_row = c0.row & ((1u << k) - 1u);
-  const std::uint32_t jc0 = ancestor_col(c0.col, local_row, k);
+  const std::uint32_t jc0 = grid::ancestor_col(c0.col, local_row, k);
   const bool one_row = c0.col + (span_cells - 1) <= 2 * c0.row;
   const bool tabulated =
-      one_row && ancestor_col(c0.col + static_cast<std::uint32_t>(span_cells - 1), local_row, k) - jc0 < kPaintTable;
+      one_row && grid::ancestor_col(c0.col + static_cast<std::uint32_t>(span_cells - 1), local_row, k) - jc0 < kPaintTable;
   if (tabulated) {
-    const std::uint32_t entries = ancestor_col(c0.col + static_cast<std::uint32_t>(span_cells - 1), local_row, k) - jc0 + 1;
+    const std::uint32_t entries = grid::ancestor_col(c0.col + static_cast<std::uint32_t>(span_cells - 1), local_row, k) - jc0 + 1;
     for (std::uint32_t t = lane; t < entries; t += 32) {
       const grid::Code jcode = grid::code_of(grid::Cell{c0.octant, c0.row >> k, jc0 + t}, jl);
       const TreeNode n = tree.nodes[__ldg(&tree.jump[jcode].node)];
@@ -225,7 +225,7 @@ __device__ inline void paint_span(const TreeView& tree, const std::uint8_t* jump
 #pragma unroll
         for (int j = 0; j < 4; ++j) {
           if (local + j < span_n) {
-            s[j] = table[ancestor_col(c.col + j, local_row, k) - jc0];
+            s[j] = table[grid::ancestor_col(c.col + j, local_row, k) - jc0];
             if (s[j] < 0) todo |= 1u << j;
           }
         }
@@ -238,19 +238,19 @@ __device__ inline void paint_span(const TreeView& tree, const std::uint8_t* jump
 #pragma unroll
         for (int j = 0; j < 4; ++j) {
           if ((todo >> j) & 1u) {
-            look_up(ancestor(cc, level, jl));
+            look_up(grid::ancestor(cc, level, jl));
             // find_leaf's walk, from the jump entry.
             int leaf_level = jump_level, leaf_count = node_count, leaf_value = node_value;
             while (leaf_count == kInternal) {
               const int2 n = __ldg(reinterpret_cast<const int2*>(tree.nodes + leaf_value +
-                                                                 child_digit(ancestor(cc, level, leaf_level + 1))));
+                                                                 grid::child_digit(grid::ancestor(cc, level, leaf_level + 1))));
               leaf_count = n.x;
               leaf_value = n.y;
               ++leaf_level;
             }
             if (leaf_count == kUniform) {
               s[j] = leaf_value;
-              if (boundary && !clean && !interior_of_ancestor(cc, level, leaf_level)) {
+              if (boundary && !clean && !grid::interior_of_ancestor(cc, level, leaf_level)) {
                 flags |= std::uint32_t{kBoundaryPending} << (8 * j);
               }
             } else {
@@ -771,7 +771,7 @@ __global__ void fixed_keys_kernel(const FixedCell* fixed, std::uint64_t count, i
   if (k >= count) return;
   const FixedCell f = fixed[k];
   keys[k] = (static_cast<unsigned long long>(f.site) << (3 + 2 * level)) |
-            quadtree_key(grid::cell_of(f.code, level), level);
+            grid::quadtree_key(grid::cell_of(f.code, level), level);
   index[k] = static_cast<std::uint32_t>(k);
 }
 

@@ -3,5 +3,6 @@
 
 #include "qtm_code.hpp"
 #include "qtm_geometry.hpp"
+#include "qtm_hierarchy.hpp"
 #include "qtm_math.hpp"
 #include "qtm_topology.hpp"

@@ -16,6 +16,7 @@
 
 #include <cstdint>
 
+#include "grid/qtm_hierarchy.hpp"
 #include "label/label_math.hpp"
 #include "label/piece_groups.hpp"
 
@@ -66,47 +67,15 @@ struct TreeView {
   int level;                   ///< the labelling level L
 };
 
-/// ancestor()'s column, k levels up, of the cell in column `col` of local row `local_row`: the
-/// paint kernel uses it alone for the cells of one row.
-QTMV_HD inline std::uint32_t ancestor_col(std::uint32_t col, std::uint32_t local_row, int k) {
-  return ((col >> (k + 1)) << 1) | ((col & ((2u << k) - 1u)) > 2 * local_row ? 1u : 0u);
-}
-
-/// The ancestor at level `to` (<= from) of cell c of level `from`. Row r of an ancestor k = from - to
-/// levels up holds rows r 2^k .. r 2^k + 2^k - 1 below it; in the local row lr of those, the up
-/// ancestor (column 2a) holds columns a 2^(k+1) .. a 2^(k+1) + 2 lr and the down ancestor (column
-/// 2a + 1) the rest of the block of 2^(k+1) columns. Shifts and masks only (the tests compare it
-/// with grid::parent applied k times).
-QTMV_HD inline grid::Cell ancestor(const grid::Cell& c, int from, int to) {
-  const int k = from - to;
-  return {c.octant, c.row >> k, ancestor_col(c.col, c.row & ((1u << k) - 1u), k)};
-}
-
-/// Position (0..3) of cell c among its parent's children, in grid::children() order.
-QTMV_HD inline int child_digit(const grid::Cell& c) {
-  const std::uint32_t m = c.col & 3u;
-  if ((c.row & 1u) == 0) return m == 0 ? 0 : static_cast<int>(m) - 1;
-  return m == 3 ? 3 : static_cast<int>(m) + 1;
-}
-
-/// Position of cell c (of `level`) in quadtree order: the octant, then the child digits from
-/// level 1 down, 2 bits each (3 + 2 level bits). The cells below any node have consecutive keys,
-/// those of node a (level l) being [key(a) << 2 (level - l), (key(a) + 1) << 2 (level - l)).
-QTMV_HD inline std::uint64_t quadtree_key(const grid::Cell& c, int level) {
-  std::uint64_t key = static_cast<std::uint64_t>(c.octant);
-  for (int l = 1; l <= level; ++l) key = (key << 2) | static_cast<std::uint64_t>(child_digit(ancestor(c, level, l)));
-  return key;
-}
-
 /// Index of the leaf that holds cell c (of the labelling level); its level in *leaf_level.
 QTMV_HD inline std::int32_t find_leaf(const TreeView& t, const grid::Cell& c, int* leaf_level) {
-  const grid::Cell start = ancestor(c, t.level, t.jump_level);
+  const grid::Cell start = grid::ancestor(c, t.level, t.jump_level);
   const JumpEntry jump = t.jump[grid::code_of(start, t.jump_level)];
   std::int32_t node = jump.node;
   int level = jump.level;
   TreeNode n = t.nodes[node];
   while (n.count == kInternal) {
-    node = n.value + child_digit(ancestor(c, t.level, level + 1));
+    node = n.value + grid::child_digit(grid::ancestor(c, t.level, level + 1));
     n = t.nodes[node];
     ++level;
   }
@@ -114,41 +83,12 @@ QTMV_HD inline std::int32_t find_leaf(const TreeView& t, const grid::Cell& c, in
   return node;
 }
 
-/// True when all three edge neighbours of cell c (level `level`) lie in c's ancestor at
-/// `leaf_level`, so that a uniform leaf settles c's boundary flag without looking further.
-/// In ancestor()'s terms (local row lr of 2^k, column offset in the block of 2^(k+1)), an up
-/// ancestor holds offsets 0 .. 2 lr and a down one 2 lr + 1 .. 2^(k+1) - 1. The first and last cell
-/// of such a run have a neighbour outside, and so do the up cells of an up ancestor's last row
-/// (below) and the down cells of a down ancestor's first row (above).
-QTMV_HD inline bool interior_of_ancestor(const grid::Cell& c, int level, int leaf_level) {
-  const int k = level - leaf_level;
-  const std::uint32_t lr = c.row & ((1u << k) - 1u);
-  const std::uint32_t offset = c.col & ((2u << k) - 1u);
-  if (offset <= 2 * lr) {  // up ancestor
-    return offset > 0 && offset < 2 * lr && !(grid::is_up(c) && lr == (1u << k) - 1u);
-  }
-  return offset > 2 * lr + 1 && offset < (2u << k) - 1 && !(!grid::is_up(c) && lr == 0);
-}
-
-/// The m-th (0 <= m < 4^k) of the cells k levels below cell a, row by row from a's apex: local
-/// row rr holds 2 rr + 1 cells (the jump cells' painting order on the GPU).
-QTMV_HD inline grid::Cell descendant(const grid::Cell& a, int k, std::uint32_t m) {
-  std::uint32_t rr = static_cast<std::uint32_t>(sqrtf(static_cast<float>(m)));
-  while (rr * rr > m) --rr;
-  while ((rr + 1) * (rr + 1) <= m) ++rr;
-  const std::uint32_t cc = m - rr * rr;
-  const std::uint32_t side = 1u << k, base = (a.col / 2) << (k + 1);
-  const bool up = grid::is_up(a);
-  const std::uint32_t r = up ? rr : side - 1 - rr;
-  return {a.octant, (a.row << k) + r, up ? base + cc : base + 2 * r + 1 + cc};
-}
-
 /// The walk that builds the jump table: from the octant's root down to jump_level or a leaf.
 QTMV_HD inline JumpEntry walk_to_jump_level(const TreeNode* nodes, const grid::Cell& c, int jump_level) {
   std::int32_t node = c.octant;
   int level = 0;
   for (; level < jump_level && nodes[node].count == kInternal; ++level) {
-    node = nodes[node].value + child_digit(ancestor(c, jump_level, level + 1));
+    node = nodes[node].value + grid::child_digit(grid::ancestor(c, jump_level, level + 1));
   }
   return {node, level};
 }
@@ -207,7 +147,7 @@ QTMV_HD inline void tree_label_cell(const TreeView& t, grid::Code code, std::int
   }
   *site_out = site;
   if (!boundary_out) return;
-  if (leaf.count == kUniform && interior_of_ancestor(c, t.level, leaf_level)) {
+  if (leaf.count == kUniform && grid::interior_of_ancestor(c, t.level, leaf_level)) {
     *boundary_out = 0;
     return;
   }

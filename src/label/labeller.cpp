@@ -748,7 +748,7 @@ const FixedCell* fixed_cells_in_quadtree_order(const LabelInput& in, int threads
 #pragma omp parallel for schedule(static) num_threads(threads)
   for (std::int64_t k = 0; k < n; ++k) {
     const FixedCell& f = in.fixed_cells[k];
-    keyed[k] = {f.site, static_cast<std::uint32_t>(k), quadtree_key(grid::cell_of(f.code, in.level), in.level)};
+    keyed[k] = {f.site, static_cast<std::uint32_t>(k), grid::quadtree_key(grid::cell_of(f.code, in.level), in.level)};
   }
   std::int64_t out_of_order = 0;
 #pragma omp parallel for schedule(static) num_threads(threads) reduction(+ : out_of_order)

@@ -121,87 +121,6 @@ TEST(LabelMath, BetterOrdersByDistanceThenFixedThenSite) {
   EXPECT_EQ(c.site, 3);  // away from distance 0, fixed pieces are ordinary points
 }
 
-TEST(LabelTree, AncestorAndChildDigitAgreeWithTheGrid) {
-  std::mt19937_64 rng(3);
-  for (int level = 0; level <= 24; ++level) {
-    std::uniform_int_distribution<Code> pick(0, grid::cell_count(level) - 1);
-    for (int trial = 0; trial < 2000; ++trial) {
-      const Code code = trial < 8 ? std::min<Code>(trial, grid::cell_count(level) - 1) : pick(rng);
-      const Cell c = grid::cell_of(code, level);
-      Cell up = c;
-      for (int to = level - 1; to >= 0; --to) {
-        const Cell child = up;
-        up = grid::parent(up);
-        const Cell anc = ancestor(c, level, to);
-        ASSERT_TRUE(anc.octant == up.octant && anc.row == up.row && anc.col == up.col)
-            << code << " level " << level << " to " << to;
-        Cell kids[4];
-        grid::children(up, kids);
-        const int d = child_digit(child);
-        ASSERT_TRUE(kids[d].row == child.row && kids[d].col == child.col);
-      }
-    }
-  }
-}
-
-// Every cell of levels 0 to 6: the keys are a bijection onto [0, 8 4^level), and each ancestor's
-// key is the cell's with its last digits dropped (so a node's cells have consecutive keys).
-TEST(LabelTree, QuadtreeKeysNumberEachNodesCellsConsecutively) {
-  for (int level = 0; level <= 6; ++level) {
-    const Code cells = grid::cell_count(level);
-    std::vector<bool> seen(cells, false);
-    for (Code code = 0; code < cells; ++code) {
-      const Cell c = grid::cell_of(code, level);
-      const std::uint64_t key = quadtree_key(c, level);
-      ASSERT_LT(key, cells) << code;
-      ASSERT_FALSE(seen[key]) << "key " << key << " twice, level " << level;
-      seen[key] = true;
-      for (int to = 0; to < level; ++to) {
-        ASSERT_EQ(key >> (2 * (level - to)), quadtree_key(ancestor(c, level, to), to)) << code << " to " << to;
-      }
-    }
-  }
-}
-
-TEST(LabelTree, DescendantsCoverTheirAncestorOnce) {
-  for (int level = 0; level <= 5; ++level) {
-    for (int k = 0; k <= 4; ++k) {
-      const int below = level + k;
-      std::vector<std::uint8_t> seen(grid::cell_count(below), 0);
-      for (Code a = 0; a < grid::cell_count(level); ++a) {
-        const Cell ac = grid::cell_of(a, level);
-        for (std::uint32_t m = 0; m < (1u << (2 * k)); ++m) {
-          const Cell d = descendant(ac, k, m);
-          ASSERT_LE(d.col, 2 * d.row);
-          const Cell back = ancestor(d, below, level);
-          ASSERT_EQ(grid::code_of(back, level), a) << "level " << level << " k " << k << " m " << m;
-          ++seen[grid::code_of(d, below)];
-        }
-      }
-      EXPECT_EQ(std::count(seen.begin(), seen.end(), 1), static_cast<std::ptrdiff_t>(seen.size()));
-    }
-  }
-}
-
-TEST(LabelTree, InteriorTestMatchesNeighbourAncestors) {
-  for (int level = 1; level <= 7; ++level) {
-    for (Code code = 0; code < grid::cell_count(level); code += (level > 5 ? 7 : 1)) {
-      const Cell c = grid::cell_of(code, level);
-      Cell nb[3];
-      grid::neighbours(c, level, nb);
-      for (int to = 0; to <= level; ++to) {
-        const Cell a = ancestor(c, level, to);
-        bool all_inside = true;
-        for (const Cell& n : nb) {
-          const Cell na = ancestor(n, level, to);
-          all_inside = all_inside && na.octant == a.octant && na.row == a.row && na.col == a.col;
-        }
-        ASSERT_EQ(interior_of_ancestor(c, level, to), all_inside) << code << " level " << level << " to " << to;
-      }
-    }
-  }
-}
-
 // The node bound: every cell centre of a subtree lies within node_radius of the node's centre.
 TEST(LabelTree, NodeRadiusBoundsEveryCellCentreOfTheSubtree) {
   const int deepest = 8;
@@ -211,7 +130,7 @@ TEST(LabelTree, NodeRadiusBoundsEveryCellCentreOfTheSubtree) {
       const Cell c = grid::cell_of(code, level);
       const Vec3 x = grid::cell_centre_vector(code, level);
       for (int to = std::max(0, level - 6); to < level; ++to) {
-        const Cell a = ancestor(c, level, to);
+        const Cell a = grid::ancestor(c, level, to);
         const double r = node_radius(to, a);
         const double d = static_cast<double>(langle(lv(x), lv(grid::cell_centre_vector(grid::code_of(a, to), to))));
         ASSERT_LE(d, r) << "cell " << code << " of level " << level << ", node level " << to;
@@ -387,7 +306,7 @@ SiteGeometry polygons(int level) {
   const Cell nc = grid::cell_of(node, 2);
   for (Code code = 0; code < grid::cell_count(level); ++code) {
     const Cell c = grid::cell_of(code, level);
-    const Cell a = level >= 2 ? ancestor(c, level, 2) : Cell{-1, 0, 0};
+    const Cell a = level >= 2 ? grid::ancestor(c, level, 2) : Cell{-1, 0, 0};
     if (a.octant == nc.octant && a.row == nc.row && a.col == nc.col) {
       add_fixed_cell(g, code, poly);
       if (code % 5 == 0) add_fixed_cell(g, code, other_poly);  // overlap: the lower id wins
@@ -409,7 +328,7 @@ SiteGeometry solid_polygon(int level) {
   const int poly = 12;
   const Cell nc = grid::cell_of(37, 2);
   for (Code code = 0; code < grid::cell_count(level); ++code) {
-    const Cell a = ancestor(grid::cell_of(code, level), level, 2);
+    const Cell a = grid::ancestor(grid::cell_of(code, level), level, 2);
     if (a.octant == nc.octant && a.row == nc.row && a.col == nc.col) add_fixed_cell(g, code, poly);
   }
   grid::LonLat v[3];
@@ -613,7 +532,7 @@ TEST_P(LabelDevice, FixedCellOrderDoesNotShow) {
   const Cell other = grid::cell_of(40, 2);
   const std::vector<FixedCell> first_area = g.fixed_cells;
   for (Code code = 0; code < grid::cell_count(7); ++code) {
-    const Cell a = ancestor(grid::cell_of(code, 7), 7, 2);
+    const Cell a = grid::ancestor(grid::cell_of(code, 7), 7, 2);
     if (a.octant == other.octant && a.row == other.row && a.col == other.col) add_fixed_cell(g, code, 3);
   }
   for (std::size_t k = 0; k < first_area.size(); k += 97) add_fixed_cell(g, first_area[k].code, 3);
@@ -629,7 +548,7 @@ TEST_P(LabelDevice, FixedCellOrderDoesNotShow) {
     if (order == 2) {
       std::sort(fixed.begin(), fixed.end(), [&](const FixedCell& a, const FixedCell& b) {
         return a.site != b.site ? a.site < b.site
-                                : quadtree_key(grid::cell_of(a.code, 7), 7) < quadtree_key(grid::cell_of(b.code, 7), 7);
+                                : grid::quadtree_key(grid::cell_of(a.code, 7), 7) < grid::quadtree_key(grid::cell_of(b.code, 7), 7);
       });
     }
     LabelInput in = g.input();

@@ -186,7 +186,7 @@ void add_cap(label::SiteGeometry& g, const Vec3& c, double radius, std::int32_t 
     if (angle + r < inscribed - 1e-9) {
       const int k = level - l;
       for (std::uint32_t m = 0; m < (std::uint32_t{1} << (2 * k)); ++m) {
-        label::add_fixed_cell(g, grid::code_of(label::descendant(cell, k, m), level), site);
+        label::add_fixed_cell(g, grid::code_of(grid::descendant(cell, k, m), level), site);
       }
       continue;
     }

@@ -1,6 +1,6 @@
 // QTM cell codes: layout, invariants and conversions to (octant, row, column).
 //
-// The grid is the octahedral quaternary triangular mesh of ../shared/QTM-SPEC.md.
+// The grid is the octahedral quaternary triangular mesh of docs/QTM-SPEC.md.
 //
 // Layout of a code at level L (0 <= L <= kMaxLevel), with I = 2^L rows per octant and
 // P = 4^L cells per octant:

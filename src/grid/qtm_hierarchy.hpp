@@ -1,7 +1,7 @@
 // The QTM hierarchy in cell coordinates: ancestors, child digits, quadtree order, descendants.
 // Shifts and masks only, one body for host and device code (QTMV_HD).
 //
-// Layout (QTM-SPEC.md, docs/QTM-SPEC.md): cell (octant, row i, col j) of level L has 2 i + 1
+// Layout (docs/QTM-SPEC.md): cell (octant, row i, col j) of level L has 2 i + 1
 // columns in its row; even columns are "up" cells, odd "down". Row i of level L - k holds rows
 // i 2^k .. i 2^k + 2^k - 1 below it. The invariants the tests sweep (tests/grid/
 // grid_hierarchy_test.cpp): ancestor() equals grid::parent() applied k times; child_digit() is the

@@ -1,6 +1,6 @@
 // Candidates grouped per line run: a hierarchy of bounding "fat arcs" over consecutive pieces of
-// one site, so that the tree keeps one entry for a stretch of line instead of hundreds of pieces
-// (issue 4: "candidates grouped per line run"). One body for the CPU and the CUDA kernels (QTMV_HD).
+// one site, so that the tree keeps one entry for a stretch of line instead of hundreds of pieces.
+// One body for the CPU and the CUDA kernels (QTMV_HD).
 //
 // Layout. A run is a maximal range of consecutive candidates (in make_candidates' order) with one
 // site (the lines of a site, then its fixed cells: a group across a seam is simply not tight); a

@@ -5,7 +5,7 @@
 // Why: GDAL 3.6's GeoPackage driver takes about 1.6 us per CreateFeature (one INSERT statement a
 // row, Integer64 fields bound as text and converted back by SQLite, per-feature checks); INSERT
 // statements of 64 rows each take about 0.25 us a row, so the 6 million boundary cells of level
-// 11 take about 1.5 s instead of 10 s (bench/RESULTS.md, issue 5).
+// 11 take about 1.5 s instead of 10 s (bench/RESULTS.md, "qtmvoronoi end to end").
 //
 // The file is the one GDAL would have written: the rows in the same order with the same FIDs
 // (the table's AUTOINCREMENT), geometry blobs as GDAL makes them (the "GP" header, version 0,

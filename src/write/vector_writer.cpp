@@ -808,7 +808,7 @@ void write_vector(const std::string& path, const CellLabels& labels, const sites
   }
 
   // Progress shares: each layer's expected time in microseconds, from the level 11 run of
-  // bench/RESULTS.md (issue 5) on 2 cores: regions trace and measure every cell, then write a
+  // bench/RESULTS.md ("qtmvoronoi end to end") on 2 cores: regions trace and measure every cell, then write a
   // feature per site; boundary_cells and cells cost per row; voronoi_edges gathers over every
   // cell and writes about 3 pairs per site. In GeoPackage the close builds the R-trees of regions
   // and voronoi_edges, about 9 us per feature.

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "grid/qtm.hpp"
+#include "label/label_input.hpp"
 #include "label/label_math.hpp"
 #include "label/label_tree.hpp"
 
@@ -31,40 +32,6 @@ enum class Algorithm { hier, brute, automatic };
 /// Cells x candidates up to which `automatic` takes brute force on a GPU (on an H200, 241 sites:
 /// brute 0.67 ms against hier 0.12 ms + 0.9 ms of tree build at level 9, 2^21 cells).
 constexpr double kBruteWorkLimit = 536870912.0;  // 2^29
-
-/// One piece of a site's geometry: a point (a == b) or a great-circle arc from a to b, both unit
-/// vectors. Arcs should be short (a quarter of the level's cell edge, as make_arc_pieces cuts
-/// them): any length below a quarter circle is correct, but long arcs prune badly.
-struct SitePiece {
-  Vec3 a, b;
-  std::int32_t site;
-};
-
-/// A cell that a site passes through, with the pieces of that site in it (for the cell rule,
-/// only the code and the site are used).
-struct SiteCell {
-  grid::Code code;
-  std::int32_t site;
-  std::uint32_t piece_begin, piece_end;  ///< range in the piece array
-};
-
-/// A cell inside a polygon site: it keeps that site at distance 0 (the lower id when two
-/// polygons claim it).
-struct FixedCell {
-  grid::Code code;
-  std::int32_t site;
-};
-
-struct LabelInput {
-  int level = 0;                      ///< QTM level to label (0..24)
-  std::int32_t site_count = 0;        ///< site ids run from 0 to site_count - 1
-  const SitePiece* pieces = nullptr;  ///< for the exact rule
-  std::size_t piece_count = 0;
-  const SiteCell* site_cells = nullptr;  ///< for the cell rule
-  std::size_t site_cell_count = 0;
-  const FixedCell* fixed_cells = nullptr;  ///< both rules
-  std::size_t fixed_cell_count = 0;
-};
 
 struct LabelOptions {
   Rule rule = Rule::exact;
@@ -129,27 +96,6 @@ struct LabelResult {
   LabelStats stats;
 };
 LabelResult label_all(const LabelInput& input, const LabelOptions& options);
-
-// --- helpers that turn coordinates into pieces, as the readers will ---------------------------
-
-/// Pieces, site cells and fixed cells being gathered for one level.
-struct SiteGeometry {
-  int level = 0;
-  std::int32_t site_count = 0;
-  std::vector<SitePiece> pieces;
-  std::vector<SiteCell> site_cells;
-  std::vector<FixedCell> fixed_cells;
-  LabelInput input() const;
-};
-
-/// Adds a point site piece (lon, lat in degrees) and its site cell; site_count grows to cover site.
-void add_point(SiteGeometry& g, double lon, double lat, std::int32_t site);
-/// Adds the great-circle arc from (lon1, lat1) to (lon2, lat2) (degrees; shorter than 180
-/// degrees) cut into pieces no longer than a quarter of the level's cell edge, and the cells
-/// the pieces' ends and middles fall in.
-void add_arc(SiteGeometry& g, double lon1, double lat1, double lon2, double lat2, std::int32_t site);
-/// Adds a fixed cell.
-void add_fixed_cell(SiteGeometry& g, grid::Code code, std::int32_t site);
 
 // --- lower-level entry points, for the tests and the benchmark ----------------------------------
 

@@ -37,8 +37,6 @@ constexpr double kFinestStepDegrees = 1e-9;
 
 }  // namespace
 
-double max_piece_degrees(int level) { return 22.5 / std::ldexp(1.0, level); }
-
 bool share_edge(grid::Code a, grid::Code b, int level) {
   grid::Code n[3];
   grid::neighbours(a, level, n);

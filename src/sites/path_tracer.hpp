@@ -25,9 +25,8 @@ struct CellHit {
   std::uint32_t piece;  ///< index in the piece array
 };
 
-/// Longest piece at a level (degrees of great-circle arc): a quarter of the shortest cell edge,
-/// 90 / 2^L degrees along a meridian or the equator.
-double max_piece_degrees(int level);
+/// Longest piece at a level (degrees of great-circle arc): the labeller's input rule.
+using label::max_piece_degrees;
 
 class PathTracer {
  public:

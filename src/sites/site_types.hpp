@@ -1,8 +1,8 @@
 // The readers' output types: the labeller's plain input structs (SitePiece, SiteCell, FixedCell,
-// SiteGeometry), taken from its header so that what the readers produce is what it reads.
+// SiteGeometry), taken from its input port so that what the readers produce is what it reads.
 #pragma once
 
-#include "label/labeller.hpp"
+#include "label/label_input.hpp"
 
 namespace qtmv::sites {
 

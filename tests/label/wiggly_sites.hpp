@@ -10,6 +10,7 @@
 #include <random>
 
 #include "grid/qtm.hpp"
+#include "label/synthetic_sites.hpp"
 #include "label/labeller.hpp"
 
 namespace qtmv::label::test {

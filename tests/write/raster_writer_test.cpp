@@ -17,6 +17,7 @@
 
 #include "../test_temp_dir.hpp"
 #include "grid/qtm.hpp"
+#include "label/synthetic_sites.hpp"
 #include "label/labeller.hpp"
 #include "write/raster_writer.hpp"
 

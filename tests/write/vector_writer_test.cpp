@@ -19,6 +19,7 @@
 
 #include "../test_temp_dir.hpp"
 #include "grid/qtm.hpp"
+#include "label/synthetic_sites.hpp"
 #include "label/labeller.hpp"
 #include "write/gpkg_rows.hpp"
 #include "write/vector_writer.hpp"

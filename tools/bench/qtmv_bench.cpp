@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "grid/qtm.hpp"
+#include "label/synthetic_sites.hpp"
 #include "label/label_cuda.hpp"
 #include "label/labeller.hpp"
 

@@ -1,0 +1,80 @@
+// The labeller's input port: what the readers hand it, as plain arrays (no GDAL types). The
+// readers (src/sites) include this header only, not the labeller.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "grid/qtm.hpp"
+
+namespace qtmv::label {
+
+using grid::Vec3;
+
+/// Pieces per shortest cell edge: lines and rings are cut into great-circle arcs no longer than
+/// a quarter of the level's shortest cell edge (the readers' path tracer and synthetic sites
+/// alike), so that an arc bends from the line it stands for by far less than a cell.
+constexpr int kPiecesPerCellEdge = 4;
+
+/// Longest piece at a level (degrees of great-circle arc): 90 / 2^L degrees, the shortest cell
+/// edge (along a meridian or the equator), over kPiecesPerCellEdge.
+inline double max_piece_degrees(int level) { return 90.0 / kPiecesPerCellEdge / static_cast<double>(1ull << level); }
+
+/// One piece of a site's geometry: a point (a == b) or a great-circle arc from a to b, both unit
+/// vectors. Arcs should be short (max_piece_degrees): any length below a quarter circle is
+/// correct, but long arcs prune badly.
+struct SitePiece {
+  Vec3 a, b;
+  std::int32_t site;
+};
+
+/// A cell that a site passes through, with the pieces of that site in it (for the cell rule,
+/// only the code and the site are used).
+struct SiteCell {
+  grid::Code code;
+  std::int32_t site;
+  std::uint32_t piece_begin, piece_end;  ///< range in the piece array
+};
+
+/// A cell inside a polygon site: it keeps that site at distance 0 (the lower id when two
+/// polygons claim it).
+struct FixedCell {
+  grid::Code code;
+  std::int32_t site;
+};
+
+/// The input of one labelling run: views of the arrays below (or of the caller's own).
+struct LabelInput {
+  int level = 0;                      ///< QTM level to label (0..24)
+  std::int32_t site_count = 0;        ///< site ids run from 0 to site_count - 1
+  const SitePiece* pieces = nullptr;  ///< for the exact rule
+  std::size_t piece_count = 0;
+  const SiteCell* site_cells = nullptr;  ///< for the cell rule
+  std::size_t site_cell_count = 0;
+  const FixedCell* fixed_cells = nullptr;  ///< both rules
+  std::size_t fixed_cell_count = 0;
+};
+
+/// Pieces, site cells and fixed cells gathered for one level (what the readers produce).
+struct SiteGeometry {
+  int level = 0;
+  std::int32_t site_count = 0;
+  std::vector<SitePiece> pieces;
+  std::vector<SiteCell> site_cells;
+  std::vector<FixedCell> fixed_cells;
+  LabelInput input() const {
+    LabelInput in;
+    in.level = level;
+    in.site_count = site_count;
+    in.pieces = pieces.data();
+    in.piece_count = pieces.size();
+    in.site_cells = site_cells.data();
+    in.site_cell_count = site_cells.size();
+    in.fixed_cells = fixed_cells.data();
+    in.fixed_cell_count = fixed_cells.size();
+    return in;
+  }
+};
+
+}  // namespace qtmv::label

@@ -24,6 +24,7 @@
 #include "gdal/error_capture.hpp"
 #include "grid/qtm_checks.hpp"
 #include "sites/ogr_site_reader.hpp"
+#include "write/output_size.hpp"
 #include "write/raster_writer.hpp"
 #include "write/vector_writer.hpp"
 
@@ -419,6 +420,19 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
                          (gpus == 0 ? std::string("no usable CUDA GPU found")
                                     : "this host has " + std::to_string(gpus) + " CUDA device(s)") +
                          "; use -device cpu or auto");
+    }
+  }
+
+  // An output its file system cannot hold fails now, not after the work (GDAL's GeoTIFF driver
+  // checks the same, late, and only uncompressed files).
+  if (options.check_disk_space) {
+    try {
+      write::check_disk_space(destination,
+                              format.raster ? write::estimate_raster_size(level, raster_options, label_options.want_distance)
+                                            : write::estimate_vector_size(level, vector_options),
+                              format.raster ? "raster" : "cells layer");
+    } catch (const write::WriteError& e) {
+      throw VoronoiError(e.what());
     }
   }
 

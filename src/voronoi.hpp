@@ -43,6 +43,10 @@ struct VoronoiOptions {
   write::VectorOptions vector;  ///< layers, -dsco, -lco (driver set from format)
   write::RasterOptions raster;  ///< layout, -tr (degrees), -ts (pixels), -co (driver set from format)
   bool overwrite = false;       ///< replace an existing destination
+  /// Refuse, before any work, an output larger than the free space of its directory
+  /// (write/output_size.hpp); the GDAL configuration option CHECK_DISK_FREE_SPACE=NO also
+  /// turns this off.
+  bool check_disk_space = true;
   ProgressFunc progress;        ///< may be empty
   MessageSink messages;         ///< warnings, informative lines and the closing summary; may be empty
   /// Host memory (bytes) the run may use for its per-cell arrays; 0: 80% of physical RAM.

@@ -15,7 +15,9 @@
 // only the cells its line runs through.
 //
 // -makevalid replaces the geometry with OGR's MakeValid (GEOS's default "linework" method, as
-// ogr2ogr -makevalid), and says what it became.
+// ogr2ogr -makevalid), and says what it became. It agrees with the reading above but for
+// overlapping parts of a MultiPolygon (linework reads them even-odd: the overlap is a hole) and
+// a hole sharing an edge with its shell (filled; its ring kept as a line).
 //
 // Rings crossing +-180 in uncut lon/lat data (an edge over 180 degrees of longitude, read the
 // short way round under -wrap auto) look self-intersecting in flat lon/lat though they are not:

@@ -998,6 +998,44 @@ TEST(CatalogueLimits, LevelTooLargeForMemoryFailsBeforeReading) {
   EXPECT_FALSE(contains(r.err, "missing.gpkg")) << r.err;
 }
 
+TEST(CatalogueLimits, RasterLargerThanTheFreeDiskSpaceFailsBeforeReading) {
+  const std::string dir = test_dir();
+  const auto start = std::chrono::steady_clock::now();
+  // The 10^12-pixel raster: 24 TB uncompressed. The source does not exist: the
+  // estimate comes first, before any work.
+  const Result r = run_small({"-ts", "1000000", "1000000", dir + "/missing.gpkg", dir + "/out.tif"});
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(10));
+  expect_failure(r, 1,
+                 {"'" + dir + "/out.tif': the raster takes about 24.0 TB uncompressed (1000000 x 1000000 pixels, 3 "
+                  "bands of Float64) and '" + dir + "' has ",
+                  " free: choose fewer pixels (-tr, -ts); for an output that compresses well or is sparse, add "
+                  "--config CHECK_DISK_FREE_SPACE NO"},
+                 dir + "/out.tif");
+  EXPECT_FALSE(contains(r.err, "missing.gpkg")) << r.err;
+}
+
+TEST(CatalogueLimits, CellsLayerLargerThanTheFreeDiskSpaceNeedsTheConfigOption) {
+  const std::string dir = test_dir();
+  const std::string src = wkt_csv(dir + "/pts.csv", {"POINT (10 10)", "POINT (-100 40)"});
+  // A file system with 100 kB free (fault injection) and 2048 cells of about 150 bytes.
+  const std::vector<std::string> small_disk{"--config", "QTMV_FAULT_DISK_FREE_BYTES", "100000", "-layers", "cells"};
+  expect_failure(run_small(concat(small_disk, {src, dir + "/out.gpkg"})), 1,
+                 {"'" + dir + "/out.gpkg': the cells layer takes about 307.2 kB (2048 rows of about 150 bytes) and '" +
+                      dir + "' has 100.0 kB free: choose a lower -level, or -layers without cells",
+                  "CHECK_DISK_FREE_SPACE NO"},
+                 dir + "/out.gpkg");
+  // GDAL's own switch lets it through; 2048 rows written.
+  const Result r = run_small(concat(concat(small_disk, {"--config", "CHECK_DISK_FREE_SPACE", "NO"}), {src, dir + "/out.gpkg"}));
+  expect_success(r, dir + "/out.gpkg");
+  const auto ds = qtmv::test::open_dataset(dir + "/out.gpkg", GDAL_OF_VECTOR);
+  ASSERT_TRUE(ds && ds->GetLayerByName("cells"));
+  EXPECT_EQ(ds->GetLayerByName("cells")->GetFeatureCount(), 2048);
+  // Without the cells layer the output is small: no refusal.
+  expect_success(run_small({"--config", "QTMV_FAULT_DISK_FREE_BYTES", "100000", "-layers", "regions", src,
+                            dir + "/regions.gpkg"}),
+                 dir + "/regions.gpkg");
+}
+
 TEST(CatalogueLimits, SigintWhileLabellingStopsWithinASecond) {
   const std::string dir = test_dir();
   const std::string dst = dir + "/out.gpkg";

@@ -267,7 +267,12 @@ StageEnds stage_ends(bool raster, bool cells_layer, bool label_on_cpu) {
 
 std::string VoronoiSummary::line() const {
   std::ostringstream s;
-  s << sites << " site" << (sites == 1 ? "" : "s") << " read, " << skipped << " skipped; level " << level << ", "
+  s << sites << " site" << (sites == 1 ? "" : "s") << " read, " << skipped << " skipped";
+  if (invalid_polygons > 0) {
+    s << ", " << invalid_polygons << " with an invalid polygon";
+    if (repaired_polygons > 0) s << " (" << repaired_polygons << " repaired)";
+  }
+  s << "; level " << level << ", "
     << cells << " cells; " << device << "; read " << seconds(read_seconds) << " (rasterise " << seconds(rasterise_seconds) << "), label " << seconds(label_seconds)
     << " (prepare " << seconds(prepare_seconds) << "), write " << seconds(write_seconds) << "; total "
     << seconds(total_seconds);
@@ -466,6 +471,8 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   summary.features = sites.summary.features;
   summary.sites = sites.summary.sites;
   summary.skipped = sites.summary.skipped;
+  summary.invalid_polygons = sites.summary.invalid_polygons;
+  summary.repaired_polygons = sites.summary.repaired_polygons;
   summary.read_seconds = now_seconds() - t0;
   summary.rasterise_seconds = sites.summary.rasterise_seconds;
 

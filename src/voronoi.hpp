@@ -60,6 +60,8 @@ struct VoronoiSummary {
   std::uint64_t features = 0;      ///< features read from the source (after -where)
   std::uint64_t sites = 0;         ///< features kept as sites
   std::uint64_t skipped = 0;       ///< features skipped
+  std::uint64_t invalid_polygons = 0;   ///< features with an invalid polygon (named in warnings)
+  std::uint64_t repaired_polygons = 0;  ///< of them, repaired by -makevalid
   int level = 0;                   ///< QTM level
   std::uint64_t cells = 0;         ///< 8 * 4^level
   std::uint64_t sites_without_cell = 0;  ///< sites that got no cell in the labels
@@ -70,7 +72,7 @@ struct VoronoiSummary {
   double label_seconds = 0;        ///< labelling every cell, boundaries included (s)
   double write_seconds = 0;        ///< regions/rasters, the dataset, its close and rename (s)
   double total_seconds = 0;        ///< the whole run (s)
-  /// One line: sites read and skipped, level, cells, device, time per stage.
+  /// One line: sites read and skipped (and invalid polygons), level, cells, device, time per stage.
   std::string line() const;
 };
 

@@ -547,6 +547,7 @@ TEST(CataloguePolygons, HoleOutsideItsShellIsNamedAndReadAsAnIsland) {
                               "at (20, 20)); read by even-odd over all rings (-makevalid repairs it)"))
       << r.err;
   EXPECT_TRUE(contains(r.err, "1 invalid polygon(s) (read by even-odd)")) << r.err;
+  EXPECT_TRUE(contains(r.err, "2 sites read, 0 skipped, 1 with an invalid polygon; level 6")) << r.err;
   // Even-odd: the "hole" is an island of the polygon.
   const CellLabel island = cell_at(dst, 22.5, 22.5, 6);
   EXPECT_EQ(island.site_fid, 1);
@@ -576,6 +577,7 @@ TEST(CataloguePolygons, MakeValidRepairsAndSaysWhatThePolygonBecame) {
                               "polygons"))
       << r.err;
   EXPECT_TRUE(contains(r.err, "1 invalid polygon(s) (1 repaired by -makevalid)")) << r.err;
+  EXPECT_TRUE(contains(r.err, "2 sites read, 0 skipped, 1 with an invalid polygon (1 repaired); level 6")) << r.err;
   EXPECT_FALSE(contains(r.err, "even-odd")) << r.err;
   // GEOS makes the outside hole a polygon of its own (as ogr2ogr -makevalid): the same cells.
   EXPECT_EQ(cell_at(dst, 22.5, 22.5, 6).site_fid, 1);

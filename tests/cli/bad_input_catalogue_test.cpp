@@ -612,6 +612,8 @@ std::vector<InvalidCase> invalid_cases() {
        "Self-intersection at (-90, 5)", "MultiPolygon of 2 polygons"},
       {"hole touching its shell along an edge", "POLYGON ((-150 0,-140 0,-140 10,-150 10,-150 0),(-150 0,-145 0,-145 5,-150 0))",
        "Self-intersection at (-150, 0)", "GeometryCollection (Polygon of 1 ring, LineString)"},
+      {"ring collapsed to a point", "POLYGON ((-120 -30,-120 -30,-120 -30,-120 -30))",
+       "Too few points in geometry component at (-120, -30)", "Point"},
   };
 }
 

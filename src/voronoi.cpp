@@ -24,6 +24,7 @@
 #include "gdal/error_capture.hpp"
 #include "grid/qtm_checks.hpp"
 #include "sites/ogr_site_reader.hpp"
+#include "write/output_size.hpp"
 #include "write/raster_writer.hpp"
 #include "write/vector_writer.hpp"
 
@@ -266,7 +267,12 @@ StageEnds stage_ends(bool raster, bool cells_layer, bool label_on_cpu) {
 
 std::string VoronoiSummary::line() const {
   std::ostringstream s;
-  s << sites << " site" << (sites == 1 ? "" : "s") << " read, " << skipped << " skipped; level " << level << ", "
+  s << sites << " site" << (sites == 1 ? "" : "s") << " read, " << skipped << " skipped";
+  if (invalid_polygons > 0) {
+    s << ", " << invalid_polygons << " with an invalid polygon";
+    if (repaired_polygons > 0) s << " (" << repaired_polygons << " repaired)";
+  }
+  s << "; level " << level << ", "
     << cells << " cells; " << device << "; read " << seconds(read_seconds) << " (rasterise " << seconds(rasterise_seconds) << "), label " << seconds(label_seconds)
     << " (prepare " << seconds(prepare_seconds) << "), write " << seconds(write_seconds) << "; total "
     << seconds(total_seconds);
@@ -422,6 +428,19 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
     }
   }
 
+  // An output its file system cannot hold fails now, not after the work (GDAL's GeoTIFF driver
+  // checks the same, late, and only uncompressed files).
+  if (options.check_disk_space) {
+    try {
+      write::check_disk_space(destination,
+                              format.raster ? write::estimate_raster_size(level, raster_options, label_options.want_distance)
+                                            : write::estimate_vector_size(level, vector_options),
+                              format.raster ? "raster" : "cells layer");
+    } catch (const write::WriteError& e) {
+      throw VoronoiError(e.what());
+    }
+  }
+
   StagedOutput output(destination, options.overwrite);
   Progress progress(options.progress);
   const StageEnds ends = stage_ends(format.raster, wants_cells_layer, labels_on_cpu(label_options));
@@ -452,6 +471,8 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   summary.features = sites.summary.features;
   summary.sites = sites.summary.sites;
   summary.skipped = sites.summary.skipped;
+  summary.invalid_polygons = sites.summary.invalid_polygons;
+  summary.repaired_polygons = sites.summary.repaired_polygons;
   summary.read_seconds = now_seconds() - t0;
   summary.rasterise_seconds = sites.summary.rasterise_seconds;
 

@@ -43,6 +43,10 @@ struct VoronoiOptions {
   write::VectorOptions vector;  ///< layers, -dsco, -lco (driver set from format)
   write::RasterOptions raster;  ///< layout, -tr (degrees), -ts (pixels), -co (driver set from format)
   bool overwrite = false;       ///< replace an existing destination
+  /// Refuse, before any work, an output larger than the free space of its directory
+  /// (write/output_size.hpp); the GDAL configuration option CHECK_DISK_FREE_SPACE=NO also
+  /// turns this off.
+  bool check_disk_space = true;
   ProgressFunc progress;        ///< may be empty
   MessageSink messages;         ///< warnings, informative lines and the closing summary; may be empty
   /// Host memory (bytes) the run may use for its per-cell arrays; 0: 80% of physical RAM.
@@ -56,6 +60,8 @@ struct VoronoiSummary {
   std::uint64_t features = 0;      ///< features read from the source (after -where)
   std::uint64_t sites = 0;         ///< features kept as sites
   std::uint64_t skipped = 0;       ///< features skipped
+  std::uint64_t invalid_polygons = 0;   ///< features with an invalid polygon (named in warnings)
+  std::uint64_t repaired_polygons = 0;  ///< of them, repaired by -makevalid
   int level = 0;                   ///< QTM level
   std::uint64_t cells = 0;         ///< 8 * 4^level
   std::uint64_t sites_without_cell = 0;  ///< sites that got no cell in the labels
@@ -66,7 +72,7 @@ struct VoronoiSummary {
   double label_seconds = 0;        ///< labelling every cell, boundaries included (s)
   double write_seconds = 0;        ///< regions/rasters, the dataset, its close and rename (s)
   double total_seconds = 0;        ///< the whole run (s)
-  /// One line: sites read and skipped, level, cells, device, time per stage.
+  /// One line: sites read and skipped (and invalid polygons), level, cells, device, time per stage.
   std::string line() const;
 };
 

@@ -19,6 +19,7 @@
 
 #include "gdal/error_capture.hpp"
 #include "grid/qtm_checks.hpp"
+#include "sites/polygon_validity.hpp"
 #include "sites/site_builder.hpp"
 #include "sites/site_cells.hpp"
 
@@ -259,6 +260,7 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   out.table.set_source(layer->GetLayerDefn(), dataset_name, layer_name);
   ReadSummary& summary = out.summary;
   SiteBuilder builder(options.level, options.edges, options.wrap);
+  PolygonValidityCheck validity(options, source, where_from);
   const GIntBig feature_count = layer->GetFeatureCount(FALSE);
   if (options.progress && !options.progress(0.0, "reading sites")) throw ReadError("interrupted");
 
@@ -306,7 +308,7 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
       continue;
     }
     // Checked before PROJ sees them (GDAL 3.6 hangs on EPSG:3857 coordinates near +-1e20).
-    const std::size_t n = parts.x.size();
+    std::size_t n = parts.x.size();
     bool usable = true;
     for (std::size_t k = 0; k < n && usable; ++k) {
       const double x = parts.x[k], y = parts.y[k];
@@ -320,6 +322,15 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
       }
     }
     if (!usable) continue;
+    // Invalid polygons are named (or repaired, -makevalid) as the source gives them.
+    if (validity.inspect(fid, geometry)) {
+      parts = FeatureParts{};
+      if (!gather_parts(*geometry, parts, reason) || parts.parts.empty()) {
+        skip(fid, "nothing left after -makevalid", summary.skipped_empty);
+        continue;
+      }
+      n = parts.x.size();
+    }
     if (transform) {
       transformed_ok.assign(n, FALSE);
       gdal::ErrorCapture transform_errors;
@@ -386,6 +397,9 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
     out.table.sites.push_back(std::move(record));
     ++summary.sites;
   }
+  validity.finish();
+  summary.invalid_polygons = validity.invalid();
+  summary.repaired_polygons = validity.repaired();
   // Drivers report a bad filter or a broken file while reading (GeoPackage's -where, say).
   if (errors.failed()) {
     throw ReadError(with_gdal_message(
@@ -440,6 +454,7 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
                      " pieces, " + std::to_string(out.geometry.site_cells.size()) + " site cells, " +
                      std::to_string(out.geometry.fixed_cells.size()) + " fixed cells at level " +
                      std::to_string(options.level);
+  line += validity.summary_text();
   if (summary.skipped > 0) {
     line += "; " + std::to_string(summary.skipped) + " features skipped (" + std::to_string(summary.skipped_empty) +
             " empty, " + std::to_string(summary.skipped_type) + " unsupported type, " +

@@ -28,6 +28,8 @@ struct ReadSummary {
   std::uint64_t skipped_coordinate = 0; ///< NaN, infinite or out-of-range coordinate (before or after transformation)
   std::uint64_t skipped_transform = 0;  ///< the coordinate transformation failed
   std::uint64_t skipped_unreadable = 0; ///< the driver could not decode the feature
+  std::uint64_t invalid_polygons = 0;   ///< features with an invalid polygon (each reported with its FID)
+  std::uint64_t repaired_polygons = 0;  ///< of them, repaired by -makevalid
   std::uint64_t sites_without_own_cell = 0;  ///< sites all of whose cells went to other sites
   std::uint64_t vertex_steps = 0;       ///< traced steps through a grid vertex (informative)
   std::uint64_t wrapped_features = 0;   ///< features with edges joined the short way across +-180 (-wrap auto)

@@ -46,7 +46,8 @@ struct ReadOptions {
   EdgeShape edges = EdgeShape::lonlat;       ///< -edges lonlat|geodesic
   WrapMode wrap = WrapMode::automatic;       ///< -wrap auto|none
   DistanceRule distance = DistanceRule::exact;  ///< -distance exact|cell
-  bool strict = false;           ///< -strict: a skipped feature is an error
+  bool strict = false;           ///< -strict: a skipped feature or an invalid polygon is an error
+  bool make_valid = false;       ///< -makevalid: invalid polygons repaired by OGR's MakeValid
   /// Warn about sites left with no cell of their own by the claims. A caller that labels the
   /// grid afterwards turns this off and reports the final count itself.
   bool warn_sites_without_cell = true;

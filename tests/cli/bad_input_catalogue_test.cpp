@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <set>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -378,6 +379,9 @@ TEST(CatalogueGeometry, UnclosedRingIsClosed) {
   const GIntBig closed = polygon_cells(dir, "closed", "POLYGON ((0 0,10 0,10 10,0 10,0 0))");
   EXPECT_GT(closed, 0);
   EXPECT_EQ(polygon_cells(dir, "unclosed", "POLYGON ((0 0,10 0,10 10,0 10))"), closed);
+  // ... and says so (issue 19).
+  const std::string src = dir + "/unclosed.csv";  // written by polygon_cells
+  expect_kept(src, dir + "/again.gpkg", "'" + src + "', layer 'unclosed', FID 1: invalid polygon (Ring not closed at (0, 10))", 2);
 }
 
 TEST(CatalogueGeometry, DuplicateVerticesChangeNothing) {
@@ -395,6 +399,12 @@ TEST(CatalogueGeometry, BowTieZeroAreaAndTwoPointRingsAreKept) {
   const Result r = run_small({"-layers", "regions", src, dir + "/out.gpkg"});
   expect_success(r, dir + "/out.gpkg");
   EXPECT_FALSE(contains(r.err, "feature skipped")) << r.err;
+  // Kept, but no longer silently (issue 19): each is named with GEOS's reason.
+  const std::string where = "'" + src + "', layer 'odd', FID ";
+  EXPECT_TRUE(contains(r.err, where + "1: invalid polygon (Self-intersection at (25, 5))")) << r.err;
+  EXPECT_TRUE(contains(r.err, where + "2: invalid polygon (Self-intersection at (65, 0))")) << r.err;
+  EXPECT_TRUE(contains(r.err, where + "3: invalid polygon (Too few points in ring at (100, 0))")) << r.err;
+  EXPECT_FALSE(contains(r.err, where + "4: invalid")) << r.err;
   const auto kept = regions(dir + "/out.gpkg");
   ASSERT_EQ(kept.size(), 4u);
   for (const Region& region : kept) EXPECT_GT(region.cells, 0) << "FID " << region.fid;
@@ -542,6 +552,255 @@ TEST(CatalogueGeometry, TenThousandIdenticalPoints) {
   EXPECT_GT(kept[0].cells, 0);
   EXPECT_EQ(kept[1].cells, 0);
   EXPECT_GT(kept[10000].cells, 0);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Invalid polygons (issue 19): each named by file, layer, FID, GEOS's reason and place; read by
+// one rule (even-odd over all rings, parts united, rings traced); -strict fails; -makevalid
+// repairs and says what the polygon became.
+
+// The line of `text` that holds `part` (empty when none does).
+std::string line_with(const std::string& text, const std::string& part) {
+  const std::size_t at = text.find(part);
+  if (at == std::string::npos) return "";
+  const std::size_t begin = text.rfind('\n', at) == std::string::npos ? 0 : text.rfind('\n', at) + 1;
+  const std::size_t end = text.find('\n', at);
+  return text.substr(begin, end == std::string::npos ? std::string::npos : end - begin);
+}
+
+bool ends_with(const std::string& text, const std::string& tail) {
+  return text.size() >= tail.size() && text.compare(text.size() - tail.size(), tail.size(), tail) == 0;
+}
+
+struct CellLabel {
+  GIntBig site_fid = -1;
+  double distance_m = -1;
+};
+
+// The label of the cell holding (lon, lat) in the cells layer of `dst`.
+CellLabel cell_at(const std::string& dst, double lon, double lat, int level) {
+  CellLabel out;
+  const auto ds = qtmv::test::open_dataset(dst, GDAL_OF_VECTOR);
+  OGRLayer* cells = ds ? ds->GetLayerByName("cells") : nullptr;
+  if (!cells) return out;
+  const std::string filter = "code = " + std::to_string(qtmv::grid::lonlat_to_code(lon, lat, level));
+  cells->SetAttributeFilter(filter.c_str());
+  for (auto& f : *cells) out = {f->GetFieldAsInteger64("site_fid"), f->GetFieldAsDouble("distance_m")};
+  return out;
+}
+
+// The hole of the issue's example lies outside its shell; the point is far away.
+const std::string kOutsideHole = "POLYGON ((0 0,10 0,10 10,0 10,0 0),(20 20,25 20,25 25,20 25,20 20))";
+
+TEST(CataloguePolygons, HoleOutsideItsShellIsNamedAndReadAsAnIsland) {
+  const std::string dir = test_dir();
+  const std::string src = wkt_csv(dir + "/hole.csv", {kOutsideHole, "POINT (-100 -40)"});
+  const std::string dst = dir + "/out.gpkg";
+  const Result r = run({"-level", "6", "-device", "cpu", "-layers", "cells,regions", src, dst});
+  expect_success(r, dst);
+  EXPECT_TRUE(contains(r.err, "warning: '" + src + "', layer 'hole', FID 1: invalid polygon (Hole lies outside shell "
+                              "at (20, 20)); read by even-odd over all rings (-makevalid repairs it)"))
+      << r.err;
+  EXPECT_TRUE(contains(r.err, "1 invalid polygon(s) (read by even-odd)")) << r.err;
+  EXPECT_TRUE(contains(r.err, "2 sites read, 0 skipped, 1 with an invalid polygon; level 6")) << r.err;
+  // Even-odd: the "hole" is an island of the polygon.
+  const CellLabel island = cell_at(dst, 22.5, 22.5, 6);
+  EXPECT_EQ(island.site_fid, 1);
+  EXPECT_EQ(island.distance_m, 0.0);
+  EXPECT_EQ(cell_at(dst, 5, 5, 6).distance_m, 0.0);
+}
+
+TEST(CataloguePolygons, InvalidPolygonUnderStrictFailsNamingTheFidAndReason) {
+  const std::string dir = test_dir();
+  const std::string src = wkt_csv(dir + "/hole.csv", {"POINT (-100 -40)", kOutsideHole});
+  const std::string dst = dir + "/out.gpkg";
+  expect_failure(run_small({"-strict", src, dst}), 1,
+                 {"'" + src + "', layer 'hole', FID 2: invalid polygon (Hole lies outside shell at (20, 20)) "
+                  "(-strict; -makevalid repairs it)"},
+                 dst);
+}
+
+TEST(CataloguePolygons, MakeValidRepairsAndSaysWhatThePolygonBecame) {
+  const std::string dir = test_dir();
+  const std::string src = wkt_csv(dir + "/hole.csv", {kOutsideHole, "POINT (-100 -40)"});
+  const std::string dst = dir + "/out.gpkg";
+  // -strict too: a repaired polygon is no error.
+  const Result r = run({"-level", "6", "-device", "cpu", "-makevalid", "-strict", "-layers", "cells,regions", src, dst});
+  expect_success(r, dst);
+  EXPECT_TRUE(contains(r.err, "warning: '" + src + "', layer 'hole', FID 1: invalid polygon (Hole lies outside shell "
+                              "at (20, 20)); repaired by -makevalid: Polygon of 2 rings became MultiPolygon of 2 "
+                              "polygons"))
+      << r.err;
+  EXPECT_TRUE(contains(r.err, "1 invalid polygon(s) (1 repaired by -makevalid)")) << r.err;
+  EXPECT_TRUE(contains(r.err, "2 sites read, 0 skipped, 1 with an invalid polygon (1 repaired); level 6")) << r.err;
+  EXPECT_FALSE(contains(r.err, "even-odd")) << r.err;
+  // GEOS makes the outside hole a polygon of its own (as ogr2ogr -makevalid): the same cells.
+  EXPECT_EQ(cell_at(dst, 22.5, 22.5, 6).site_fid, 1);
+  EXPECT_EQ(cell_at(dst, 22.5, 22.5, 6).distance_m, 0.0);
+  ASSERT_EQ(regions(dst).size(), 2u);
+}
+
+// The kinds of invalid polygon, each at its own longitude, with the reason GEOS (or the reader,
+// for what GEOS cannot take) gives. Each is read by the rule and named; -makevalid gives the
+// same cells for each, as the man page says.
+struct InvalidCase {
+  const char* name;
+  std::string wkt;
+  std::string reason;
+  std::string became;  // -makevalid's result
+};
+
+std::vector<InvalidCase> invalid_cases() {
+  return {
+      {"bow-tie", "POLYGON ((0 0,10 10,10 0,0 10,0 0))", "Self-intersection at (5, 5)", "MultiPolygon of 2 polygons"},
+      {"zero-area ring", "POLYGON ((30 0,40 0,35 0,30 0))", "Self-intersection at (35, 0)",
+       "MultiLineString of 2 parts"},
+      {"ring of two points", "POLYGON ((60 0,70 0))", "Too few points in ring at (60, 0)", "LineString"},
+      {"ring of three points", "POLYGON ((90 0,100 0,90 0))", "Too few points in ring at (90, 0)", "LineString"},
+      {"unclosed ring", "POLYGON ((120 0,130 0,130 10,120 10))", "Ring not closed at (120, 10)", "Polygon of 1 ring"},
+      {"spike", "POLYGON ((150 0,160 0,160 10,155 10,155 20,155 10,150 10,150 0))",
+       "Ring Self-intersection at (155, 10)", "GeometryCollection (Polygon of 1 ring, LineString)"},
+      {"nested holes", "POLYGON ((-60 -10,-40 -10,-40 10,-60 10,-60 -10),(-58 -8,-42 -8,-42 8,-58 8,-58 -8),"
+                       "(-55 -5,-45 -5,-45 5,-55 5,-55 -5))",
+       "Holes are nested at (-55, -5)", "MultiPolygon of 2 polygons"},
+      {"overlapping parts", "MULTIPOLYGON (((-100 0,-90 0,-90 10,-100 10,-100 0)),((-95 5,-85 5,-85 15,-95 15,-95 5)))",
+       "Self-intersection at (-90, 5)", "MultiPolygon of 2 polygons"},
+      {"hole touching its shell along an edge", "POLYGON ((-150 0,-140 0,-140 10,-150 10,-150 0),(-150 0,-145 0,-145 5,-150 0))",
+       "Self-intersection at (-150, 0)", "GeometryCollection (Polygon of 1 ring, LineString)"},
+      {"ring collapsed to a point", "POLYGON ((-120 -30,-120 -30,-120 -30,-120 -30))",
+       "Too few points in geometry component at (-120, -30)", "Point"},
+  };
+}
+
+// The cells at distance 0 from each site (inside its polygons or on its lines), by FID.
+std::map<GIntBig, std::set<GIntBig>> cells_on_sites(const std::string& dst) {
+  std::map<GIntBig, std::set<GIntBig>> out;
+  const auto ds = qtmv::test::open_dataset(dst, GDAL_OF_VECTOR);
+  OGRLayer* cells = ds ? ds->GetLayerByName("cells") : nullptr;
+  if (!cells) return out;
+  cells->SetAttributeFilter("distance_m = 0");
+  for (auto& f : *cells) out[f->GetFieldAsInteger64("site_fid")].insert(f->GetFieldAsInteger64("code"));
+  return out;
+}
+
+TEST(CataloguePolygons, EveryKindIsNamedByFidAndReasonAndReadByTheDocumentedRule) {
+  const std::string dir = test_dir();
+  const std::vector<InvalidCase> cases = invalid_cases();
+  std::vector<std::string> wkts;
+  for (const InvalidCase& c : cases) wkts.push_back(c.wkt);
+  wkts.push_back("POINT (-170 -60)");
+  const std::string src = wkt_csv(dir + "/kinds.csv", wkts);
+  const std::string where = "'" + src + "', layer 'kinds', FID ";
+  const std::size_t n = cases.size();
+
+  const std::vector<std::string> options{"-level", "6", "-device", "cpu", "-layers", "cells,regions"};
+  const Result r = run(concat(options, {src, dir + "/plain.gpkg"}));
+  expect_success(r, dir + "/plain.gpkg");
+  const Result m = run(concat(concat(options, {"-makevalid"}), {src, dir + "/valid.gpkg"}));
+  expect_success(m, dir + "/valid.gpkg");
+  for (std::size_t k = 0; k < n; ++k) {
+    const InvalidCase& c = cases[k];
+    const std::string what = where + std::to_string(k + 1) + ": invalid polygon (" + c.reason + ")";
+    EXPECT_TRUE(contains(r.err, what + "; read by even-odd over all rings (-makevalid repairs it)")) << c.name << ": " << r.err;
+    const std::string repaired = line_with(m.err, what + "; repaired by -makevalid: ");
+    EXPECT_TRUE(ends_with(repaired, " became " + c.became)) << c.name << ": " << m.err;
+  }
+  EXPECT_TRUE(contains(r.err, std::to_string(n) + " invalid polygon(s) (read by even-odd)")) << r.err;
+  EXPECT_FALSE(contains(r.err, "feature skipped")) << r.err;
+  EXPECT_FALSE(contains(m.err, "feature skipped")) << m.err;
+
+  // The rule: the bow-tie is both its triangles, the hole in the hole an island, overlapping
+  // parts their union; a zero-area ring or a spike only the cells along it.
+  auto label = [&](const std::string& dst, double lon, double lat) { return cell_at(dst, lon, lat, 6); };
+  const std::string plain = dir + "/plain.gpkg", valid = dir + "/valid.gpkg";
+  EXPECT_EQ(label(plain, 8, 5).site_fid, 1);            // bow-tie, right triangle
+  EXPECT_EQ(label(plain, 8, 5).distance_m, 0.0);
+  EXPECT_EQ(label(plain, 2, 5).distance_m, 0.0);        // bow-tie, left triangle
+  EXPECT_GT(label(plain, 5, 1.5).distance_m, 0.0);      // between them, outside
+  EXPECT_EQ(label(plain, 155, 15).site_fid, 6);         // along the spike
+  EXPECT_LT(label(plain, 155, 15).distance_m, 1.2e5);   // its centre within a cell of the line
+  EXPECT_EQ(cells_on_sites(plain).count(2), 0u);        // the zero-area ring fills nothing
+  EXPECT_EQ(label(plain, -50, 0).distance_m, 0.0);      // the island in the hole
+  EXPECT_GT(label(plain, -50.5, 6.5).distance_m, 0.0);  // the hole around it
+  EXPECT_EQ(label(plain, -92.5, 7.5).distance_m, 0.0);  // where the parts overlap
+  EXPECT_EQ(label(plain, -92.5, 7.5).site_fid, 8);
+
+  // -makevalid (GEOS's linework method, as ogr2ogr) agrees, except that it reads overlapping
+  // parts even-odd too (their overlap becomes a hole) and fills a hole that touches its shell
+  // along an edge (it keeps the hole's ring as a line).
+  auto before = cells_on_sites(plain), after = cells_on_sites(valid);
+  for (std::size_t k = 0; k < n; ++k) {
+    const GIntBig fid = static_cast<GIntBig>(k + 1);
+    if (cases[k].name == std::string("overlapping parts") || cases[k].name == std::string("hole touching its shell along an edge")) {
+      EXPECT_NE(after[fid], before[fid]) << cases[k].name;
+    } else {
+      EXPECT_EQ(after[fid], before[fid]) << cases[k].name;
+    }
+  }
+  EXPECT_GT(label(valid, -92.5, 7.5).distance_m, 0.0);
+}
+
+TEST(CataloguePolygons, ValidOddPolygonsGetNoWarning) {
+  const std::string dir = test_dir();
+  // Duplicate consecutive vertices, a hole touching its shell at a point, a MultiPolygon whose
+  // parts touch at a corner: valid (OGC, GEOS), so nothing to say.
+  const std::string src = wkt_csv(
+      dir + "/fine.csv", {"POLYGON ((0 0,0 0,10 0,10 0,10 10,0 10,0 10,0 0))",
+                          "POLYGON ((30 0,40 0,40 10,30 10,30 0),(30 0,35 5,38 2,30 0))",
+                          "MULTIPOLYGON (((60 0,70 0,70 10,60 10,60 0)),((70 10,80 10,80 20,70 20,70 10)))"});
+  const Result r = run_small({"-layers", "regions", src, dir + "/out.gpkg"});
+  expect_success(r, dir + "/out.gpkg");
+  EXPECT_FALSE(contains(r.err, "invalid polygon")) << r.err;
+}
+
+TEST(CataloguePolygons, ManyInvalidPolygonsAreListedUpToTwentyThenCounted) {
+  const std::string dir = test_dir();
+  std::vector<std::string> wkts;
+  for (int k = 0; k < 25; ++k) {
+    const int x = -175 + 14 * k;
+    wkts.push_back("POLYGON ((" + std::to_string(x) + " 0," + std::to_string(x + 10) + " 10," + std::to_string(x + 10) +
+                   " 0," + std::to_string(x) + " 10," + std::to_string(x) + " 0))");
+  }
+  const std::string src = wkt_csv(dir + "/ties.csv", wkts);
+  const Result r = run_small({"-layers", "regions", src, dir + "/out.gpkg"});
+  expect_success(r, dir + "/out.gpkg");
+  std::size_t listed = 0;
+  for (std::size_t at = r.err.find("invalid polygon (Self"); at != std::string::npos;
+       at = r.err.find("invalid polygon (Self", at + 1)) {
+    ++listed;
+  }
+  EXPECT_EQ(listed, 20u) << r.err;
+  EXPECT_TRUE(contains(r.err, "FID 20: invalid polygon")) << r.err;
+  EXPECT_FALSE(contains(r.err, "FID 21: invalid polygon")) << r.err;
+  EXPECT_TRUE(contains(r.err, "'" + src + "', layer 'ties': 5 more invalid polygon(s) not listed (25 in all)")) << r.err;
+  EXPECT_TRUE(contains(r.err, "25 invalid polygon(s) (read by even-odd)")) << r.err;
+}
+
+TEST(CataloguePolygons, RingAcrossTheAntimeridianIsNotCalledInvalid) {
+  const std::string dir = test_dir();
+  // Simple when read across +-180 (-wrap auto), self-intersecting in flat lon/lat: as uncut
+  // TopoJSON (world-atlas) gives Fiji and Russia.
+  const std::string src =
+      wkt_csv(dir + "/fiji.csv", {"POLYGON ((170 0,-170 0,-170 10,-175 10,175 5,170 10,170 0))", "POINT (0 0)"});
+  const Result r = run_small({"-layers", "regions", src, dir + "/auto.gpkg"});
+  expect_success(r, dir + "/auto.gpkg");
+  EXPECT_FALSE(contains(r.err, "invalid polygon")) << r.err;
+  // Read flat (-wrap none), it is what GEOS says it is.
+  const Result flat = run_small({"-wrap", "none", "-layers", "regions", src, dir + "/flat.gpkg"});
+  expect_success(flat, dir + "/flat.gpkg");
+  EXPECT_TRUE(contains(flat.err, "FID 1: invalid polygon (Self-intersection at (")) << flat.err;
+}
+
+TEST(CataloguePolygons, ProjectedPolygonIsCheckedInItsOwnCrs) {
+  const std::string dir = test_dir();
+  // A bow-tie in EPSG:3857 metres: the place is given in the source's coordinates.
+  const std::string src = make_dataset(dir + "/merc.gpkg", "GPKG", "merc", "EPSG:3857",
+                                       points({"POLYGON ((0 0,1000000 1000000,1000000 0,0 1000000,0 0))",
+                                               "POINT (-10000000 -5000000)"}));
+  const Result r = run_small({"-layers", "regions", src, dir + "/out.gpkg"});
+  expect_success(r, dir + "/out.gpkg");
+  EXPECT_TRUE(contains(r.err, "'" + src + "', layer 'merc', FID 1: invalid polygon (Self-intersection at (500000, 500000))"))
+      << r.err;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -796,6 +1055,44 @@ TEST(CatalogueLimits, LevelTooLargeForMemoryFailsBeforeReading) {
   expect_failure(r, 1, {"level 24 needs about ", " GiB for its 2251799813685248 cells", "choose a lower -level"},
                  dir + "/out.gpkg");
   EXPECT_FALSE(contains(r.err, "missing.gpkg")) << r.err;
+}
+
+TEST(CatalogueLimits, RasterLargerThanTheFreeDiskSpaceFailsBeforeReading) {
+  const std::string dir = test_dir();
+  const auto start = std::chrono::steady_clock::now();
+  // The issue's 10^12-pixel raster: 24 TB uncompressed. The source does not exist: the
+  // estimate comes first, before any work.
+  const Result r = run_small({"-ts", "1000000", "1000000", dir + "/missing.gpkg", dir + "/out.tif"});
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(10));
+  expect_failure(r, 1,
+                 {"'" + dir + "/out.tif': the raster takes about 24.0 TB uncompressed (1000000 x 1000000 pixels, 3 "
+                  "bands of Float64) and '" + dir + "' has ",
+                  " free: choose fewer pixels (-tr, -ts); for an output that compresses well or is sparse, add "
+                  "--config CHECK_DISK_FREE_SPACE NO"},
+                 dir + "/out.tif");
+  EXPECT_FALSE(contains(r.err, "missing.gpkg")) << r.err;
+}
+
+TEST(CatalogueLimits, CellsLayerLargerThanTheFreeDiskSpaceNeedsTheConfigOption) {
+  const std::string dir = test_dir();
+  const std::string src = wkt_csv(dir + "/pts.csv", {"POINT (10 10)", "POINT (-100 40)"});
+  // A file system with 100 kB free (fault injection) and 2048 cells of about 150 bytes.
+  const std::vector<std::string> small_disk{"--config", "QTMV_FAULT_DISK_FREE_BYTES", "100000", "-layers", "cells"};
+  expect_failure(run_small(concat(small_disk, {src, dir + "/out.gpkg"})), 1,
+                 {"'" + dir + "/out.gpkg': the cells layer takes about 307.2 kB (2048 rows of about 150 bytes) and '" +
+                      dir + "' has 100.0 kB free: choose a lower -level, or -layers without cells",
+                  "CHECK_DISK_FREE_SPACE NO"},
+                 dir + "/out.gpkg");
+  // GDAL's own switch lets it through; 2048 rows written.
+  const Result r = run_small(concat(concat(small_disk, {"--config", "CHECK_DISK_FREE_SPACE", "NO"}), {src, dir + "/out.gpkg"}));
+  expect_success(r, dir + "/out.gpkg");
+  const auto ds = qtmv::test::open_dataset(dir + "/out.gpkg", GDAL_OF_VECTOR);
+  ASSERT_TRUE(ds && ds->GetLayerByName("cells"));
+  EXPECT_EQ(ds->GetLayerByName("cells")->GetFeatureCount(), 2048);
+  // Without the cells layer the output is small: no refusal.
+  expect_success(run_small({"--config", "QTMV_FAULT_DISK_FREE_BYTES", "100000", "-layers", "regions", src,
+                            dir + "/regions.gpkg"}),
+                 dir + "/regions.gpkg");
 }
 
 TEST(CatalogueLimits, SigintWhileLabellingStopsWithinASecond) {

@@ -130,6 +130,9 @@ TEST(QtmvoronoiCore, ParsesOptions) {
   EXPECT_EQ(o.run.read.edges, qtmv::sites::EdgeShape::geodesic);
   EXPECT_EQ(o.run.read.wrap, qtmv::sites::WrapMode::none);
   EXPECT_TRUE(o.run.read.strict);
+  EXPECT_FALSE(o.run.read.make_valid);
+  EXPECT_TRUE(parse_command_line({"-makevalid", "src.shp", "dst.gpkg"}).run.read.make_valid);
+  EXPECT_TRUE(parse_command_line({"--MakeValid", "src.shp", "dst.gpkg"}).run.read.make_valid);
   EXPECT_EQ(o.run.read.distance, qtmv::sites::DistanceRule::cell);
   EXPECT_EQ(o.run.label.device, "cpu");
   EXPECT_EQ(o.run.label.algorithm, qtmv::label::Algorithm::brute);

@@ -164,6 +164,8 @@ Options parse_command_line(const std::vector<std::string>& args) {
       }
     } else if (name == "-strict") {
       run.read.strict = true;
+    } else if (name == "-makevalid") {
+      run.read.make_valid = true;
     } else if (name == "-oo") {
       run.read.open_options.push_back(name_value(arg, value()));
     } else if (name == "-device") {

@@ -1,0 +1,80 @@
+// The output's size before any work (issue 19): the estimates and the refusal.
+#include "write/output_size.hpp"
+
+#include <cpl_conv.h>
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "../test_temp_dir.hpp"
+
+namespace qtmv::write {
+namespace {
+
+TEST(OutputSize, RasterIsPixelsTimesBandsTimesBytes) {
+  RasterOptions o;
+  o.layout = RasterOptions::Layout::lonlat;
+  o.width = o.height = 1000000;
+  const OutputSize big = estimate_raster_size(4, o, true);
+  EXPECT_EQ(big.bytes, 24000000000000ull);  // 10^12 pixels, 3 bands of 8 bytes
+  EXPECT_EQ(big.what, "1000000 x 1000000 pixels, 3 bands of Float64");
+  EXPECT_EQ(big.smaller, "fewer pixels (-tr, -ts)");
+  const OutputSize ints = estimate_raster_size(4, o, false);
+  EXPECT_EQ(ints.bytes, 8000000000000ull);  // 2 bands of Int32
+  EXPECT_EQ(ints.what, "1000000 x 1000000 pixels, 2 bands of Int32");
+  // The QTM-coded raster: (2^(L+1) - 1) x 8 * 2^L pixels.
+  const OutputSize qtm = estimate_raster_size(9, RasterOptions{}, true);
+  EXPECT_EQ(qtm.bytes, 1023ull * 4096 * 24);
+  EXPECT_EQ(qtm.smaller, "a lower -level");
+}
+
+TEST(OutputSize, VectorCountsTheCellsLayerOnly) {
+  VectorOptions o;
+  o.driver = "GPKG";
+  EXPECT_EQ(estimate_vector_size(9, o).bytes, 0u);  // regions, boundary_cells, voronoi_edges
+  o.layers.push_back("cells");
+  const OutputSize cells = estimate_vector_size(9, o);
+  EXPECT_EQ(cells.bytes, (8ull << 18) * 150);
+  EXPECT_EQ(cells.what, "2097152 rows of about 150 bytes");
+  o.driver = "GeoJSON";
+  EXPECT_EQ(estimate_vector_size(9, o).bytes, (8ull << 18) * 300);
+  EXPECT_EQ(bytes_per_cell_row("ESRI Shapefile"), 200u);
+}
+
+TEST(OutputSize, BytesInDecimalUnits) {
+  EXPECT_EQ(format_bytes(24e12), "24.0 TB");
+  EXPECT_EQ(format_bytes(80.1e9), "80.1 GB");
+  EXPECT_EQ(format_bytes(307200), "307.2 kB");
+  EXPECT_EQ(format_bytes(512), "512 bytes");
+}
+
+TEST(OutputSize, RefusedWhenLargerThanTheFreeSpaceUnlessToldNot) {
+  const std::string dir = qtmv::test::process_temp_dir();
+  const std::string dst = dir + "/out.tif";
+  const OutputSize size{2000, "10 x 10 pixels, 3 bands of Float64", "a lower -level"};
+  {
+    CPLConfigOptionSetter disk("QTMV_FAULT_DISK_FREE_BYTES", "1000", false);
+    try {
+      check_disk_space(dst, size, "raster");
+      FAIL() << "not refused";
+    } catch (const WriteError& e) {
+      EXPECT_EQ(std::string(e.what()), "'" + dst + "': the raster takes about 2.0 kB uncompressed (10 x 10 pixels, 3 "
+                                       "bands of Float64) and '" + dir + "' has 1.0 kB free: choose a lower -level; for "
+                                       "an output that compresses well or is sparse, add --config "
+                                       "CHECK_DISK_FREE_SPACE NO");
+    }
+    CPLConfigOptionSetter off("CHECK_DISK_FREE_SPACE", "NO", false);
+    EXPECT_NO_THROW(check_disk_space(dst, size, "raster"));
+  }
+  {
+    CPLConfigOptionSetter disk("QTMV_FAULT_DISK_FREE_BYTES", "2000", false);
+    EXPECT_NO_THROW(check_disk_space(dst, size, "raster"));  // fits exactly
+    EXPECT_NO_THROW(check_disk_space("/vsimem/out.tif", size, "raster"));
+    EXPECT_NO_THROW(check_disk_space(dir + "/no/such/dir/out.tif", OutputSize{1u << 30, "", ""}, "raster"));
+  }
+  // The real free space: nobody has an exabyte.
+  EXPECT_THROW(check_disk_space(dst, OutputSize{4000000000000000000ull, "a lot", "less"}, "raster"), WriteError);
+}
+
+}  // namespace
+}  // namespace qtmv::write

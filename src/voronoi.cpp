@@ -249,7 +249,7 @@ class Progress {
 };
 
 // Where each stage's slice of the whole run ends (fractions), in proportion to its expected
-// time per cell at level 11 on the 2-core development machine (bench/RESULTS.md, issue 5):
+// time per cell at level 11 on the 2-core development machine (bench/RESULTS.md, "qtmvoronoi end to end"):
 // labelling on the CPU ~50 ns (a GPU far less), vector output ~400 ns (the cells layer ~300 ns
 // more), a raster ~100 ns. Reading gets a fixed 5%.
 struct StageEnds {

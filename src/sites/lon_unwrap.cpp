@@ -41,7 +41,8 @@ UnwrappedPath unwrap_longitudes(const grid::LonLat* vertices, std::size_t count,
   // vertex on each side (world-atlas's Antarctica, whose coast goes round the globe; a line
   // written through (180, y) and (-180, y)). An open path's end counts as reaching it.
   auto reaches_seam = [&](std::size_t k) {  // edge k runs along +-180 or to a pole
-    return kinds[k] == EdgeKind::polar || (vertices[k].lon == vertices[k + 1].lon && std::fabs(vertices[k].lon) == 180.0);
+    return kinds[k] == EdgeKind::polar ||
+           (vertices[k].lon == vertices[k + 1].lon && std::fabs(vertices[k].lon) == 180.0);
   };
   bool steps_across = false;
   for (std::size_t k = 0; k < edges && !steps_across; ++k) {

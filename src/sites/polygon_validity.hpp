@@ -1,4 +1,4 @@
-// Polygon validity (issue 19): invalid polygons are named where they are read, never silently
+// Polygon validity: invalid polygons are named where they are read, never silently
 // given a meaning.
 //
 // A feature's polygons are checked as the source gives them (in its CRS, before the

@@ -1,5 +1,5 @@
-// The output's size, estimated before any work, against the free space where it is written
-// (issue 19): a run that cannot fit its destination's file system is refused at once, not after
+// The output's size, estimated before any work, against the free space where it is written:
+// a run that cannot fit its destination's file system is refused at once, not after
 // hours of labelling. GDAL's GeoTIFF driver checks the same for uncompressed files, and its
 // configuration option CHECK_DISK_FREE_SPACE=NO turns both checks off.
 //

@@ -1,4 +1,4 @@
-// The catalogue of bad inputs (issue 6, docs/RELIABILITY.md): each case runs the built
+// The catalogue of bad inputs (docs/RELIABILITY.md): each case runs the built
 // qtmvoronoi on data made here, at run time, and checks the exit status, that the message names
 // the file, layer, FID or argument, and that a failure leaves neither the destination nor a
 // temporary file. A crash or a hang (the runner's time limit) fails the case. Inputs that are
@@ -379,7 +379,7 @@ TEST(CatalogueGeometry, UnclosedRingIsClosed) {
   const GIntBig closed = polygon_cells(dir, "closed", "POLYGON ((0 0,10 0,10 10,0 10,0 0))");
   EXPECT_GT(closed, 0);
   EXPECT_EQ(polygon_cells(dir, "unclosed", "POLYGON ((0 0,10 0,10 10,0 10))"), closed);
-  // ... and says so (issue 19).
+  // ... and says so.
   const std::string src = dir + "/unclosed.csv";  // written by polygon_cells
   expect_kept(src, dir + "/again.gpkg", "'" + src + "', layer 'unclosed', FID 1: invalid polygon (Ring not closed at (0, 10))", 2);
 }
@@ -399,7 +399,7 @@ TEST(CatalogueGeometry, BowTieZeroAreaAndTwoPointRingsAreKept) {
   const Result r = run_small({"-layers", "regions", src, dir + "/out.gpkg"});
   expect_success(r, dir + "/out.gpkg");
   EXPECT_FALSE(contains(r.err, "feature skipped")) << r.err;
-  // Kept, but no longer silently (issue 19): each is named with GEOS's reason.
+  // Kept, but no longer silently: each is named with GEOS's reason.
   const std::string where = "'" + src + "', layer 'odd', FID ";
   EXPECT_TRUE(contains(r.err, where + "1: invalid polygon (Self-intersection at (25, 5))")) << r.err;
   EXPECT_TRUE(contains(r.err, where + "2: invalid polygon (Self-intersection at (65, 0))")) << r.err;
@@ -555,7 +555,7 @@ TEST(CatalogueGeometry, TenThousandIdenticalPoints) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Invalid polygons (issue 19): each named by file, layer, FID, GEOS's reason and place; read by
+// Invalid polygons: each named by file, layer, FID, GEOS's reason and place; read by
 // one rule (even-odd over all rings, parts united, rings traced); -strict fails; -makevalid
 // repairs and says what the polygon became.
 

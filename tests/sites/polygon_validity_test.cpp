@@ -1,4 +1,4 @@
-// The validity module (issue 19): GEOS's reason and place for each kind of invalid polygon, the
+// The validity module: GEOS's reason and place for each kind of invalid polygon, the
 // problems found before GEOS, MakeValid's result, the longitude axis and the +-180 test, and the
 // reader's side (warnings capped, -strict, -makevalid, the summary).
 #include "sites/polygon_validity.hpp"

@@ -1,4 +1,4 @@
-// The output's size before any work (issue 19): the estimates and the refusal.
+// The output's size before any work: the estimates and the refusal.
 #include "write/output_size.hpp"
 
 #include <cpl_conv.h>

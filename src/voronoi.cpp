@@ -1,15 +1,14 @@
+#include "common/host_info.hpp"
 #include "voronoi.hpp"
 
 #include <cpl_conv.h>
 #include <cpl_error.h>
 #include <cpl_vsi.h>
 #include <gdal_priv.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
-#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -34,10 +33,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-double now_seconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-
 std::string lower(std::string s) {
   for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return s;
@@ -49,22 +44,10 @@ bool ends_with(const std::string& s, const std::string& suffix) {
   return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
-std::string gib(double bytes) {
-  char text[64];
-  std::snprintf(text, sizeof text, "%.2f GiB", bytes / double(std::uint64_t{1} << 30));
-  return text;
-}
-
 std::string seconds(double s) {
   char text[64];
   std::snprintf(text, sizeof text, "%.2f s", s);
   return text;
-}
-
-std::uint64_t host_ram_bytes() {
-  const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
-  return pages > 0 && page > 0 ? static_cast<std::uint64_t>(pages) * static_cast<std::uint64_t>(page)
-                               : std::uint64_t{8} << 30;
 }
 
 // The labeller hands its outputs over in tiles and checks for an interrupt between them; on the
@@ -410,10 +393,10 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   const std::uint64_t allowed = options.memory_limit_bytes ? options.memory_limit_bytes : ram / 10 * 8;
   if (need > allowed) {
     const label::MemoryEstimate e = label::estimate_output_memory(level, label_options);
-    throw VoronoiError("level " + std::to_string(level) + " needs about " + gib(double(need)) + " for its " +
+    throw VoronoiError("level " + std::to_string(level) + " needs about " + format_gib(double(need)) + " for its " +
                        std::to_string(e.cells) + " cells (" + std::to_string(e.bytes_per_cell) +
-                       " bytes each, and the labeller's tiles), more than the " + gib(double(allowed)) +
-                       " allowed (80% of this host's " + gib(double(ram)) + " of RAM): choose a lower -level");
+                       " bytes each, and the labeller's tiles), more than the " + format_gib(double(allowed)) +
+                       " allowed (80% of this host's " + format_gib(double(ram)) + " of RAM): choose a lower -level");
   }
 
   // A GPU asked for and missing fails now, not after the read.
@@ -460,12 +443,12 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   read_options.messages = [&](Severity severity, const std::string& message) { say(severity, message); };
   sites::SiteSet sites;
   try {
-    if (!progress.report(0.0, ends.read, 0.0, "read")) throw Interrupted("interrupted");
+    if (!progress.report(0.0, ends.read, 0.0, "read")) throw Interrupted();
     sites = sites::read_sites(source, read_options);
   } catch (const Interrupted&) {
     throw;
   } catch (const std::exception& e) {
-    if (progress.cancelled()) throw Interrupted("interrupted");
+    if (progress.cancelled()) throw Interrupted();
     throw VoronoiError(e.what());
   }
   summary.features = sites.summary.features;
@@ -487,21 +470,11 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
     if (label_options.want_distance) distance.resize(cells);
     if (label_options.want_boundary) boundary.resize(cells);
   } catch (const std::bad_alloc&) {
-    throw VoronoiError("out of memory for the labels of level " + std::to_string(level) + " (" + gib(double(need)) + ")");
+    throw VoronoiError("out of memory for the labels of level " + std::to_string(level) + " (" + format_gib(double(need)) + ")");
   }
-  // The labeller reports between tiles, on this thread: throwing there stops it cleanly.
-  label_options.progress = [&](double f, const char* stage) {
-    if (!progress.report(ends.read, ends.label, f, stage)) throw Interrupted("interrupted");
-  };
-  // The labeller's lines are informative, except its warnings (a GPU out of memory).
-  label_options.log = [&](const std::string& message) {
-    const std::string prefix = "warning: ";
-    if (message.compare(0, prefix.size(), prefix) == 0) {
-      say(Severity::warning, message.substr(prefix.size()));
-    } else {
-      say(Severity::info, message);
-    }
-  };
+  // The labeller reports between tiles, on this thread; false stops it with Interrupted.
+  label_options.progress = [&](double f, const char* stage) { return progress.report(ends.read, ends.label, f, stage); };
+  label_options.messages = [&](Severity severity, const std::string& message) { say(severity, message); };
   label::LabelStats stats;
   try {
     stats = label::label_cells(sites.geometry.input(), label_options, [&](const label::LabelTile& tile) {
@@ -544,7 +517,7 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   };
   try {
     const RenameInMessages name_the_destination(path, destination);
-    if (!progress.report(ends.label, 1.0, 0.0, "write")) throw Interrupted("interrupted");
+    if (!progress.report(ends.label, 1.0, 0.0, "write")) throw Interrupted();
     if (format.raster) {
       raster_options.progress = write_progress;
       write::write_raster(path, labels, sites.table, raster_options);
@@ -562,11 +535,11 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
       write::write_vector(path, labels, sites.table, vector_options);
     }
     // A stop asked for during the close is honoured too: nothing is renamed yet.
-    if (!progress.report(ends.label, 1.0, 1.0, "write")) throw Interrupted("interrupted");
+    if (!progress.report(ends.label, 1.0, 1.0, "write")) throw Interrupted();
   } catch (const Interrupted&) {
     throw;
   } catch (const std::exception& e) {
-    if (progress.cancelled()) throw Interrupted("interrupted");
+    if (progress.cancelled()) throw Interrupted();
     std::string message = e.what();
     replace_all(message, path, destination);  // name the destination, not the temporary file
     throw VoronoiError(message);

@@ -9,18 +9,16 @@
 #include <stdexcept>
 #include <string>
 
+#include "common/run_context.hpp"
 #include "label/labeller.hpp"
 #include "sites/site_options.hpp"
 #include "write/cell_labels.hpp"
 
 namespace qtmv {
 
-using sites::MessageSink;
-using sites::Severity;
-
-/// Called with the fraction of the whole run done (0..1) and the current stage ("read",
-/// "label", "write", or a finer name a part reports); return false to stop the run.
-using ProgressFunc = std::function<bool(double fraction, const char* stage)>;
+// The run's plumbing (common/run_context.hpp): MessageSink, Severity, and ProgressFunc, called
+// here with the fraction of the whole run done (0..1) and the current stage ("read", "label",
+// "write", or a finer name a part reports); returning false stops the run with Interrupted.
 
 /// Vector or raster output; automatic lets the driver decide (vector when it writes both).
 enum class OutputKind { automatic, vector, raster };
@@ -82,11 +80,6 @@ class VoronoiError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-/// The progress callback asked to stop (an interrupt); the destination is untouched.
-class Interrupted : public VoronoiError {
- public:
-  using VoronoiError::VoronoiError;
-};
 
 /// The output driver and kind a run would use: options.format (-of), or the first GDAL driver
 /// whose extensions (GDAL_DMD_EXTENSIONS) list the destination's and that can create vectors
@@ -105,7 +98,7 @@ std::uint64_t estimate_run_memory(int level, const label::LabelOptions& label_op
 /// options, the destination (an existing one is an error unless options.overwrite) and the
 /// memory before any work; writes into a temporary directory beside the destination and renames
 /// the result into place after a clean close (/vsi* destinations are written directly).
-/// Throws VoronoiError (Interrupted when the progress callback returned false); on any throw
+/// Throws VoronoiError, or Interrupted when the progress callback returned false; on any throw
 /// the destination is untouched and the temporary files are gone.
 VoronoiSummary run_voronoi(const std::string& source, const std::string& destination, const VoronoiOptions& options);
 

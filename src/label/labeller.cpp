@@ -2,10 +2,7 @@
 // device choice, tiling, and the hand-over to the CUDA back end.
 #include "label/labeller.hpp"
 
-#include <unistd.h>
-
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -14,6 +11,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "common/device_spec.hpp"
+#include "common/host_info.hpp"
 #include "grid/qtm_checks.hpp"
 #include "label/label_cuda.hpp"
 #include "label/piece_groups.hpp"
@@ -34,22 +33,6 @@ int thread_count(int requested) {
   (void)requested;
   return 1;
 #endif
-}
-
-double now_seconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-
-std::uint64_t host_ram_bytes() {
-  const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
-  return pages > 0 && page > 0 ? static_cast<std::uint64_t>(pages) * static_cast<std::uint64_t>(page)
-                               : std::uint64_t{8} << 30;
-}
-
-std::string gib(double bytes) {
-  char text[64];
-  std::snprintf(text, sizeof text, "%.2f GiB", bytes / double(std::uint64_t{1} << 30));
-  return text;
 }
 
 bool is_unit(const Vec3& v) {
@@ -98,24 +81,16 @@ struct DeviceChoice {
 };
 
 DeviceChoice choose_device(const std::string& name) {
-  if (name == "cpu") return {};
+  const DeviceSpec spec = parse_device_spec(name);
+  if (spec.kind == DeviceSpec::Kind::cpu) return {};
   const int count = cuda::device_count();
-  if (name == "auto") return count > 0 ? DeviceChoice{true, 0} : DeviceChoice{};
-  int index = 0;
-  if (name == "cuda") {
-    index = 0;
-  } else if (name.rfind("cuda:", 0) == 0 && name.size() > 5 &&
-             name.find_first_not_of("0123456789", 5) == std::string::npos) {
-    index = std::stoi(name.substr(5));
-  } else {
-    throw std::invalid_argument("unknown device '" + name + "': use auto, cpu, cuda or cuda:N");
-  }
+  if (spec.kind == DeviceSpec::Kind::automatic) return count > 0 ? DeviceChoice{true, 0} : DeviceChoice{};
   if (count == 0) throw std::runtime_error("device '" + name + "' was asked for, but no usable CUDA GPU was found");
-  if (index >= count) {
+  if (spec.index >= count) {
     throw std::runtime_error("device '" + name + "' was asked for, but there are only " + std::to_string(count) +
                              " CUDA device(s)");
   }
-  return {true, index};
+  return {true, spec.index};
 }
 
 // --- CPU per-range work ---------------------------------------------------------------------
@@ -689,9 +664,9 @@ void label_on_gpu(cuda::Labeller& gpu, int device, int level, const LabelOptions
       options.memory_limit_bytes ? options.memory_limit_bytes : static_cast<std::uint64_t>(info.free_bytes * 0.8);
   std::uint64_t device_tile = std::min<std::uint64_t>(total, device_limit / need.bytes_per_cell);
   if (device_tile < std::min<std::uint64_t>(total, kMinTileCells)) {
-    throw std::runtime_error("level " + std::to_string(level) + " needs " + gib(double(need.output_bytes)) +
+    throw std::runtime_error("level " + std::to_string(level) + " needs " + format_gib(double(need.output_bytes)) +
                              " of outputs on the GPU; not even a tile of 4096 cells fits in the " +
-                             gib(double(device_limit)) + " available");
+                             format_gib(double(device_limit)) + " available");
   }
   for (;;) {
     try {
@@ -700,15 +675,14 @@ void label_on_gpu(cuda::Labeller& gpu, int device, int level, const LabelOptions
     } catch (const cuda::OutOfMemory&) {
       if (device_tile <= kMinTileCells) throw;
       device_tile = std::max<std::uint64_t>(kMinTileCells, device_tile / 4);
-      if (options.log) {
-        options.log("warning: the GPU could not hold the outputs' tile; trying tiles of " +
-                    std::to_string(device_tile) + " cells");
-      }
+      tell(options.messages, Severity::warning,
+           "the GPU could not hold the outputs' tile; trying tiles of " + std::to_string(device_tile) + " cells");
     }
   }
-  if (device_tile < total && options.log) {
-    options.log("level " + std::to_string(level) + " outputs take " + gib(double(need.output_bytes)) +
-                "; labelling in tiles of " + std::to_string(device_tile) + " cells");
+  if (device_tile < total) {
+    tell(options.messages, Severity::info,
+         "level " + std::to_string(level) + " outputs take " + format_gib(double(need.output_bytes)) +
+             "; labelling in tiles of " + std::to_string(device_tile) + " cells");
   }
   stats.device_bytes = gpu.device_bytes();
   for (std::uint64_t first = done; first < total; first += device_tile) {
@@ -721,7 +695,7 @@ void label_on_gpu(cuda::Labeller& gpu, int device, int level, const LabelOptions
       sink({first + offset, part, host.site, host.metres, host.boundary});
       done = first + offset + part;
     }
-    if (options.progress) options.progress(double(first + count) / double(total), "label");
+    report_progress(options.progress, double(first + count) / double(total), "label");
   }
 }
 
@@ -771,12 +745,8 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
   const int threads = thread_count(options.threads);
   const DeviceChoice device = choose_device(options.device);
   LabelStats stats;
-  auto say = [&](const std::string& message) {
-    if (options.log) options.log(message);
-  };
-  auto progress = [&](double fraction, const char* stage) {
-    if (options.progress) options.progress(fraction, stage);
-  };
+  auto say = [&](const std::string& message) { tell(options.messages, Severity::info, message); };
+  auto progress = [&](double fraction, const char* stage) { report_progress(options.progress, fraction, stage); };
   if (device.cuda) {
     const cuda::DeviceInfo info = cuda::device_info(device.index);
     stats.device = "cuda:" + std::to_string(device.index) + " (" + info.name + ")";
@@ -857,8 +827,8 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
   std::uint64_t host_tile = std::min<std::uint64_t>(total, std::max<std::uint64_t>(1, host_limit / need.bytes_per_cell));
   host_tile = std::min<std::uint64_t>(host_tile, std::uint64_t{1} << 28);
   if (host_tile < std::min<std::uint64_t>(total, kMinTileCells)) {
-    throw std::runtime_error("level " + std::to_string(input.level) + " needs " + gib(double(need.output_bytes)) +
-                             " of outputs; not even a tile of 4096 cells fits in the " + gib(double(host_limit)) +
+    throw std::runtime_error("level " + std::to_string(input.level) + " needs " + format_gib(double(need.output_bytes)) +
+                             " of outputs; not even a tile of 4096 cells fits in the " + format_gib(double(host_limit)) +
                              " allowed");
   }
   std::vector<std::int32_t> site(host_tile);
@@ -909,8 +879,8 @@ LabelResult label_all(const LabelInput& input, const LabelOptions& options) {
   const MemoryEstimate need = estimate_output_memory(input.level, options);
   const std::uint64_t ram = host_ram_bytes();
   if (need.output_bytes > ram / 2) {
-    throw std::runtime_error("level " + std::to_string(input.level) + " needs " + gib(double(need.output_bytes)) +
-                             " for its dense outputs, more than half of this host's " + gib(double(ram)) +
+    throw std::runtime_error("level " + std::to_string(input.level) + " needs " + format_gib(double(need.output_bytes)) +
+                             " for its dense outputs, more than half of this host's " + format_gib(double(ram)) +
                              "; use label_cells() to stream tiles instead");
   }
   LabelResult result;

@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "common/run_context.hpp"
 #include "grid/qtm.hpp"
 #include "label/label_input.hpp"
 #include "label/label_math.hpp"
@@ -36,7 +37,7 @@ constexpr double kBruteWorkLimit = 536870912.0;  // 2^29
 struct LabelOptions {
   Rule rule = Rule::exact;
   Algorithm algorithm = Algorithm::hier;
-  std::string device = "auto";  ///< auto | cpu | cuda | cuda:N
+  std::string device = "auto";  ///< auto | cpu | cuda | cuda:N (common/device_spec.hpp)
   bool want_distance = true;    ///< fill LabelTile::distance_m
   bool want_boundary = true;    ///< fill LabelTile::boundary
   int threads = 0;              ///< CPU threads; 0: all (OpenMP's default)
@@ -45,10 +46,12 @@ struct LabelOptions {
   /// Memory (bytes) the dense outputs of one tile may take on the device that computes them
   /// (and on the host that receives them); 0: from the device's free memory / the host's RAM.
   std::size_t memory_limit_bytes = 0;
-  /// Called with a fraction done (0..1) and the stage's name.
-  std::function<void(double fraction, const char* stage)> progress;
-  /// Called with one-line messages for the user (which device was chosen, tiling).
-  std::function<void(const std::string& message)> log;
+  /// Called with a fraction done (0..1) and the stage's name, between tiles and after each level
+  /// of the tree build, on the calling thread; returning false stops the run with Interrupted.
+  ProgressFunc progress;
+  /// One-line messages for the user: which device was chosen, tiling (info), a GPU out of
+  /// memory (warning).
+  MessageSink messages;
 };
 
 /// A contiguous range of codes with its outputs (host memory, valid during the sink call).

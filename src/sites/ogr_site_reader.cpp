@@ -262,7 +262,7 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   SiteBuilder builder(options.level, options.edges, options.wrap);
   PolygonValidityCheck validity(options, source, where_from);
   const GIntBig feature_count = layer->GetFeatureCount(FALSE);
-  if (options.progress && !options.progress(0.0, "reading sites")) throw ReadError("interrupted");
+  report_progress(options.progress, 0.0, "reading sites");
 
   auto skip = [&](GIntBig fid, const std::string& reason, std::uint64_t& counter) {
     const std::string message = where_from + ", FID " + std::to_string(fid) + ": " + reason;
@@ -282,7 +282,7 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
     ++summary.features;
     if (options.progress && feature_count > 0 && summary.features % 256 == 0 &&
         !options.progress(std::min(1.0, static_cast<double>(summary.features) / feature_count), "reading sites")) {
-      throw ReadError("interrupted");
+      throw Interrupted();
     }
     const GIntBig fid = feature->GetFID();
     // A driver that cannot decode one feature (a corrupt geometry blob, say) reports it while
@@ -406,7 +406,7 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
         where_from + (options.where.empty() ? ": reading failed" : ": bad -where: " + options.where), errors.take()));
   }
   if (const std::string pending = errors.take(); !pending.empty()) say(Severity::warning, where_from + ": GDAL: " + pending);
-  if (options.progress && !options.progress(1.0, "reading sites")) throw ReadError("interrupted");
+  report_progress(options.progress, 1.0, "reading sites");
   // A user must never get a silently different geometry.
   if (summary.wrapped_features > 0) {
     say(Severity::warning, where_from + ": " + std::to_string(summary.wrapped_features) +

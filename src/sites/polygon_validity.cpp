@@ -20,8 +20,6 @@ namespace qtmv::sites {
 
 namespace {
 
-bool is_polygon(const OGRGeometry& g) { return wkbFlatten(g.getGeometryType()) == wkbPolygon; }
-
 bool has_polygon(const OGRGeometry& g) {
   const OGRwkbGeometryType type = wkbFlatten(g.getGeometryType());
   if (type == wkbPolygon) return !g.IsEmpty();

@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "common/run_context.hpp"
+
 namespace qtmv::sites {
 
 /// Shape of a segment between two consecutive vertices of a line or ring.
@@ -27,13 +29,12 @@ enum class DistanceRule {
   cell,   ///< the paper's rule: the lower site id
 };
 
-enum class Severity { info, warning };
-
-/// Receives one-line messages for the user (warnings and the summary).
-using MessageSink = std::function<void(Severity severity, const std::string& message)>;
-
-/// Called with the fraction done (0..1) and the stage; return false to stop reading.
-using ProgressFunc = std::function<bool(double fraction, const char* stage)>;
+// The run's plumbing (common/run_context.hpp): a progress callback returning false stops the
+// reading with Interrupted.
+using qtmv::Interrupted;
+using qtmv::MessageSink;
+using qtmv::ProgressFunc;
+using qtmv::Severity;
 
 struct ReadOptions {
   int level = 8;                 ///< QTM level (0..24)

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "common/run_context.hpp"
 #include "grid/qtm.hpp"
 
 namespace qtmv::write {
@@ -29,8 +30,10 @@ inline bool is_boundary(const CellLabels& labels, grid::Code code) {
   return labels.site[nb[0]] != site || labels.site[nb[1]] != site || labels.site[nb[2]] != site;
 }
 
-/// Called with the fraction done (0..1) and the stage; return false to stop writing.
-using ProgressFunc = std::function<bool(double fraction, const char* stage)>;
+// The run's plumbing (common/run_context.hpp): a progress callback returning false stops the
+// writing with Interrupted, and what was written is removed.
+using qtmv::Interrupted;
+using qtmv::ProgressFunc;
 
 /// A writing error: the message names the destination, the layer or band, and GDAL's reason.
 class WriteError : public std::runtime_error {

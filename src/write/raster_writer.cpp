@@ -342,7 +342,7 @@ void write_raster(const std::string& path, const CellLabels& labels, const sites
     std::vector<double> doubles;
     (type == GDT_Int32 ? ints.resize(strip * size.width * bands) : doubles.resize(strip * size.width * bands));
     const double write_share = can_create ? 1.0 : 0.5;
-    if (options.progress && !options.progress(0.0, kStage)) throw WriteError("interrupted");
+    if (options.progress && !options.progress(0.0, kStage)) throw Interrupted();
     for (int y0 = 0; y0 < size.height; y0 += strip_rows) {
       const int rows = std::min(strip_rows, size.height - y0);
       void* buffer;
@@ -367,7 +367,7 @@ void write_raster(const std::string& path, const CellLabels& labels, const sites
         }
       }
       if (options.progress && !options.progress(write_share * (y0 + rows) / size.height, kStage)) {
-        throw WriteError("interrupted");
+        throw Interrupted();
       }
     }
 
@@ -386,7 +386,7 @@ void write_raster(const std::string& path, const CellLabels& labels, const sites
       if (copy != nullptr) out.created = true;
       if (ctx.interrupted) {
         if (copy != nullptr) GDALClose(copy);
-        throw WriteError("interrupted");
+        throw Interrupted();
       }
       if (copy == nullptr || errors.failed()) {
         if (copy != nullptr) GDALClose(copy);

@@ -50,7 +50,7 @@ constexpr double kRasterNodata = -1.0;
 
 /// Writes the raster to `path` with options.driver. Throws WriteError naming the destination,
 /// the band and GDAL's message on any failure (after removing what it had written), and
-/// WriteError("interrupted") when options.progress returns false. FIDs must lie in
+/// Interrupted when options.progress returns false. FIDs must lie in
 /// [0, 2^31 - 1]; a site id outside the table is an error.
 void write_raster(const std::string& path, const CellLabels& labels, const sites::SiteTable& table,
                   const RasterOptions& options);

@@ -516,7 +516,7 @@ class Writer {
   void report() {
     if (!options_.progress) return;
     const double fraction = std::min(1.0, (work_done_ + layer_done_) / total_work_);
-    if (!options_.progress(fraction, "write")) throw WriteError("interrupted");
+    if (!options_.progress(fraction, "write")) throw Interrupted();
   }
 
   std::string path_;

@@ -90,7 +90,9 @@ void expect_failure(const Result& r, int status, const std::vector<std::string>&
   EXPECT_EQ(contains(r.err, "Usage:"), status == 2) << r.err;
   EXPECT_FALSE(fs::exists(dst)) << dst;
   const std::string dir = fs::path(dst).parent_path().string();
-  if (fs::is_directory(dir)) EXPECT_TRUE(hidden_entries(dir).empty()) << dir;
+  if (fs::is_directory(dir)) {
+    EXPECT_TRUE(hidden_entries(dir).empty()) << dir;
+  }
 }
 
 // A successful run: status 0, the destination in place, no temporary directory, and no GDAL

@@ -71,12 +71,6 @@ std::map<int, std::vector<std::map<std::string, std::string>>> by_level(const st
   return groups;
 }
 
-std::string join(const std::vector<std::string>& v, const std::string& sep = "\n") {
-  std::string s;
-  for (const std::string& x : v) s += x + sep;
-  return s;
-}
-
 // The points of a WKT POLYGON ((x y,x y,...)) as (lon, lat) pairs; empty if it does not parse.
 std::vector<grid::LonLat> wkt_ring(const std::string& wkt) {
   static const std::regex shape(R"(^POLYGON \(\(([^()]*)\)\)$)");

@@ -774,7 +774,9 @@ TEST(LabelDeviceFaults, OutOfMemoryFallsBackWithTheSameResults) {
     options.device = "cuda";
     if (step == "run") options.memory_limit_bytes = 9 * 50000;  // tiles of 50000 cells: a run after the first fails
     std::string log;
-    options.log = [&](const std::string& message) { log += message + "\n"; };
+    options.messages = [&](Severity severity, const std::string& message) {
+      log += (severity == Severity::warning ? "warning: " : "") + message + "\n";
+    };
     ::setenv("QTMV_FAULT_CUDA_OOM", step.c_str(), 1);
     const LabelResult got = label_all(g.input(), options);
     ::unsetenv("QTMV_FAULT_CUDA_OOM");
@@ -862,28 +864,39 @@ TEST(LabelInterface, AutoSaysWhichDevice) {
   const SiteGeometry g = random_points(2, 5, 1);
   LabelOptions options;
   std::string said;
-  options.log = [&](const std::string& m) { said += m; };
+  options.messages = [&](Severity, const std::string& m) { said += m; };
   double last_progress = -1;
-  options.progress = [&](double f, const char*) { last_progress = f; };
+  options.progress = [&](double f, const char*) {
+    last_progress = f;
+    return true;
+  };
   const LabelResult r = label_all(g.input(), options);
   EXPECT_NE(said.find(cuda_device_count() > 0 ? "cuda:0" : "cpu"), std::string::npos) << said;
   EXPECT_EQ(last_progress, 1.0);
 }
 
 TEST(LabelInterface, ProgressDuringTheTreeBuildCanStopIt) {
-  // A caller stops a run by throwing from progress; on the CPU the tree build reports after each
-  // level, so the run stops in the build, before any cell is labelled.
+  // A caller stops a run by returning false from progress (or by throwing); on the CPU the tree
+  // build reports after each level, so the run stops in the build, before any cell is labelled.
   const SiteGeometry g = random_points(8, 200, 3);
   LabelOptions options;
   options.device = "cpu";
   int prepare_calls = 0;
   bool labelled = false;
-  struct Stop {};
   options.progress = [&](double f, const char* stage) {
+    return !(std::string(stage) == "prepare" && f > 0 && ++prepare_calls == 3);
+  };
+  EXPECT_THROW(label_cells(g.input(), options, [&](const LabelTile&) { labelled = true; }), Interrupted);
+  EXPECT_EQ(prepare_calls, 3);
+  EXPECT_FALSE(labelled);
+  // A callback's own exception goes through as it is.
+  struct Stop {};
+  prepare_calls = 0;
+  options.progress = [&](double f, const char* stage) -> bool {
     if (std::string(stage) == "prepare" && f > 0 && ++prepare_calls == 3) throw Stop{};
+    return true;
   };
   EXPECT_THROW(label_cells(g.input(), options, [&](const LabelTile&) { labelled = true; }), Stop);
-  EXPECT_EQ(prepare_calls, 3);
   EXPECT_FALSE(labelled);
 }
 

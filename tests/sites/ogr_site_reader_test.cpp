@@ -236,7 +236,7 @@ TEST(OgrSiteReader, ProgressIsReportedAndCanStop) {
   EXPECT_EQ(fractions.front(), 0.0);
   EXPECT_EQ(fractions.back(), 1.0);
   o.progress = [](double f, const char*) { return f < 0.3; };
-  EXPECT_THROW(read_sites(path, o), ReadError);
+  EXPECT_THROW(read_sites(path, o), Interrupted);  // a stop, not a reading error
 }
 
 // --- bad input --------------------------------------------------------------------------------------

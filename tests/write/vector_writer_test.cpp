@@ -348,7 +348,6 @@ struct OneSite {
 TEST_F(VectorTest, OneSiteIsTheWholeEllipsoid) {
   const OneSite one(3);
   const int level = one.level;
-  const label::LabelResult& result = one.result;
   const TempPath out("one_site.gpkg");
   write_vector(out.path, one.labels(), one.table, VectorOptions{});
   auto ds = open_vector(out.path);
@@ -649,7 +648,7 @@ TEST_F(VectorTest, UnknownLayerIsRefusedBeforeCreating) {
   options.layers = {"regions", "rivers"};
   try {
     write_vector(out.path, scene.labels(), scene.table, options);
-    FAIL() << "no WriteError";
+    FAIL() << "no Interrupted";
   } catch (const WriteError& e) {
     const std::string message = e.what();
     EXPECT_NE(message.find("'rivers'"), std::string::npos) << message;
@@ -663,7 +662,7 @@ TEST_F(VectorTest, UnwritablePathAndUnknownDriver) {
   const std::string path = ::testing::TempDir() + "qtmv_no_such_dir/sub/out.gpkg";
   try {
     write_vector(path, scene.labels(), scene.table, VectorOptions{});
-    FAIL() << "no WriteError";
+    FAIL() << "no Interrupted";
   } catch (const WriteError& e) {
     const std::string message = e.what();
     EXPECT_EQ(message.rfind(path, 0), 0u) << message;             // names the destination
@@ -685,7 +684,7 @@ TEST_F(VectorTest, GdalFailureNamesTheLayer) {
   options.layer_options = {"GEOMETRY_NAME=code"};
   try {
     write_vector(out.path, scene.labels(), scene.table, options);
-    FAIL() << "no WriteError";
+    FAIL() << "no Interrupted";
   } catch (const WriteError& e) {
     const std::string message = e.what();
     EXPECT_EQ(message.rfind(out.path + ", layer boundary_cells: ", 0), 0u) << message;
@@ -736,9 +735,9 @@ TEST_F(VectorTest, ProgressAndInterrupt) {
   options.progress = [&](double, const char*) { return ++calls < 5; };
   try {
     write_vector(out.path, scene.labels(), scene.table, options);
-    FAIL() << "no WriteError";
-  } catch (const WriteError& e) {
-    EXPECT_STREQ(e.what(), "interrupted");
+    FAIL() << "no Interrupted";
+  } catch (const Interrupted&) {
+    SUCCEED();  // a stop, not a failure
   }
   EXPECT_EQ(calls, 5);
 }

@@ -25,6 +25,8 @@
 #include <vector>
 
 #include "grid/qtm.hpp"
+#include "common/device_spec.hpp"
+#include "common/host_info.hpp"
 #include "label/synthetic_sites.hpp"
 #include "label/label_cuda.hpp"
 #include "label/labeller.hpp"
@@ -122,10 +124,6 @@ Args parse(int argc, char** argv) {
     }
   }
   return a;
-}
-
-double now_seconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
 double median(std::vector<double> v) {
@@ -352,7 +350,9 @@ Row run_one(const Args& a, const std::string& spec, int level) {
   std::vector<std::int32_t> got(codes.size());
   std::vector<double> prepare, labelling, copying;
 
-  const bool cuda = a.device.rfind("cuda", 0) == 0 || (a.device == "auto" && label::cuda_device_count() > 0);
+  const DeviceSpec device_spec = parse_device_spec(a.device);
+  const bool cuda = device_spec.kind == DeviceSpec::Kind::cuda ||
+                    (device_spec.kind == DeviceSpec::Kind::automatic && label::cuda_device_count() > 0);
   if (!cuda) {
     // The whole labeller as a caller sees it, tile by tile; the sample is gathered in the sink.
     for (int r = 0; r < a.repeat; ++r) {
@@ -378,7 +378,7 @@ Row run_one(const Args& a, const std::string& spec, int level) {
     row.memory_bytes = need.output_bytes + row.tree_nodes * sizeof(label::TreeNode);
   } else {
     // The GPU directly, so that the labels can stay on the device between repetitions.
-    const int device = a.device.size() > 5 ? std::stoi(a.device.substr(5)) : 0;
+    const int device = device_spec.index;
     if (label::cuda_device_count() <= device) throw std::runtime_error("no CUDA device " + std::to_string(device));
     const label::cuda::DeviceInfo info = label::cuda::device_info(device);
     row.device = "cuda:" + std::to_string(device) + " " + info.name;

@@ -1,3 +1,4 @@
+#include "common/device_spec.hpp"
 #include "qtmvoronoi_core.hpp"
 
 #include <cpl_conv.h>
@@ -98,12 +99,6 @@ std::vector<std::string> split_list(const std::string& text) {
   return items;
 }
 
-bool valid_device(const std::string& device) {
-  if (device == "auto" || device == "cpu" || device == "cuda") return true;
-  if (device.rfind("cuda:", 0) != 0 || device.size() == 5) return false;
-  return std::all_of(device.begin() + 5, device.end(), is_digit);
-}
-
 extern "C" void on_signal(int signal_number) { g_signal = signal_number; }
 
 }  // namespace
@@ -170,7 +165,11 @@ Options parse_command_line(const std::vector<std::string>& args) {
       run.read.open_options.push_back(name_value(arg, value()));
     } else if (name == "-device") {
       const std::string v = lower(value());
-      if (!valid_device(v)) throw UsageError("-device: '" + v + "' is not one of auto, cpu, cuda, cuda:N");
+      try {
+        parse_device_spec(v);
+      } catch (const std::invalid_argument&) {
+        throw UsageError("-device: '" + v + "' is not one of " + device_spec_forms());
+      }
       run.label.device = v;
     } else if (name == "-algorithm") {
       const std::string v = lower(value());

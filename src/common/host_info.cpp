@@ -1,0 +1,26 @@
+#include "common/host_info.hpp"
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+
+namespace qtmv {
+
+double now_seconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+std::uint64_t host_ram_bytes() {
+  const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
+  return pages > 0 && page > 0 ? static_cast<std::uint64_t>(pages) * static_cast<std::uint64_t>(page)
+                               : std::uint64_t{8} << 30;
+}
+
+std::string format_gib(double bytes) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%.2f GiB", bytes / double(std::uint64_t{1} << 30));
+  return text;
+}
+
+}  // namespace qtmv

@@ -46,8 +46,8 @@ struct SiteSet {
 /// Reads the sites of `dataset` at options.level. Warnings (a skipped feature, a layer without
 /// CRS, sites left without a cell) and the summary line go to options.messages.
 /// Throws ReadError: unreadable dataset, missing layer (the message lists the layers), bad
-/// -where/-sql/-s_srs (GDAL's message included), a skipped feature under -strict, no usable site,
-/// progress cancelled; std::invalid_argument for a bad level.
+/// -where/-sql/-s_srs (GDAL's message included), a skipped feature under -strict, no usable site;
+/// Interrupted when options.progress returns false; std::invalid_argument for a bad level.
 SiteSet read_sites(const std::string& dataset, const ReadOptions& options);
 
 }  // namespace qtmv::sites

@@ -55,8 +55,8 @@ std::string check_layer_names(const std::vector<std::string>& layers);
 /// Creates `path` with options.driver and writes the layers of options.layers. `labels` must
 /// hold site ids 0 .. table.sites.size() - 1 for every cell (std::invalid_argument otherwise).
 /// Throws WriteError naming the destination, the layer and GDAL's message when GDAL reports
-/// an error (creating, writing or closing), for an unknown layer name or driver, and with
-/// the message "interrupted" when options.progress returns false.
+/// an error (creating, writing or closing), for an unknown layer name or driver; Interrupted
+/// when options.progress returns false.
 void write_vector(const std::string& path, const CellLabels& labels, const sites::SiteTable& table,
                   const VectorOptions& options);
 

@@ -338,6 +338,33 @@ SiteGeometry solid_polygon(int level) {
   return g;
 }
 
+/// The fixed cells as make_fixed_cover (label_cuda.cu) lays them out, built on the host: sorted
+/// by quadtree key, each entry marked (fixed_cover_entry), the run starts summed.
+struct HostFixedCover {
+  std::vector<std::uint64_t> key;
+  std::vector<std::int32_t> site, run;
+  FixedCoverView view{};
+  HostFixedCover(const std::vector<FixedCell>& fixed, int level) {
+    std::vector<std::pair<std::uint64_t, std::int32_t>> sorted;
+    for (const FixedCell& f : fixed) {
+      sorted.push_back({grid::quadtree_key(grid::cell_of(f.code, level), level), f.site});
+    }
+    std::stable_sort(sorted.begin(), sorted.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    const std::uint64_t n = sorted.size();
+    key.resize(n);
+    std::vector<std::int32_t> sorted_site(n);
+    site.resize(n);
+    run.resize(n);
+    for (std::uint64_t i = 0; i < n; ++i) {
+      key[i] = sorted[i].first;
+      sorted_site[i] = sorted[i].second;
+    }
+    for (std::uint64_t i = 0; i < n; ++i) fixed_cover_entry(key.data(), sorted_site.data(), n, i, &site[i], &run[i]);
+    for (std::uint64_t i = 1; i < n; ++i) run[i] += run[i - 1];
+    view = {key.data(), site.data(), run.data(), n, level};
+  }
+};
+
 // The device's fixed-cover look-up (fixed_cover_site over the sorted quadtree keys and their
 // runs, built here as the device builds them) against the definition, on every node of every
 // level: all the node's cells are fixed cells of one site, none claimed twice.
@@ -358,21 +385,8 @@ TEST(LabelTree, FixedCoverSiteMatchesEveryNode) {
     }
   }
   std::shuffle(fixed.begin(), fixed.end(), rng);
-  // As make_fixed_cover (label_cuda.cu): sort by key, mark the entries, sum the run starts.
-  std::vector<std::pair<std::uint64_t, std::int32_t>> sorted;
-  for (const FixedCell& f : fixed) sorted.push_back({grid::quadtree_key(grid::cell_of(f.code, level), level), f.site});
-  std::stable_sort(sorted.begin(), sorted.end(),
-                   [](const auto& a, const auto& b) { return a.first < b.first; });
-  const std::uint64_t n = sorted.size();
-  std::vector<std::uint64_t> key(n);
-  std::vector<std::int32_t> site(n), cover_site(n), run(n);
-  for (std::uint64_t i = 0; i < n; ++i) {
-    key[i] = sorted[i].first;
-    site[i] = sorted[i].second;
-  }
-  for (std::uint64_t i = 0; i < n; ++i) fixed_cover_entry(key.data(), site.data(), n, i, &cover_site[i], &run[i]);
-  for (std::uint64_t i = 1; i < n; ++i) run[i] += run[i - 1];
-  const FixedCoverView view{key.data(), cover_site.data(), run.data(), n, level};
+  const HostFixedCover cover(fixed, level);
+  const FixedCoverView& view = cover.view;
   // The definition: per cell of the level, its claims.
   std::vector<std::vector<std::int32_t>> claims(grid::cell_count(level));
   for (const FixedCell& f : fixed) claims[grid::quadtree_key(grid::cell_of(f.code, level), level)].push_back(f.site);
@@ -407,6 +421,29 @@ TEST(LabelTree, NodeRuleKinds) {
   EXPECT_EQ(decide_node(false, true, false, 1, true, 4, -1).kind, kListLeaf);
   EXPECT_EQ(decide_node(false, true, true, kMaxLeafList, false, 4, -1).kind, kListLeaf);
   EXPECT_EQ(decide_node(false, true, true, kMaxLeafList + 1, false, 4, -1).kind, kInternal);
+}
+
+// The host's FixedCover (build_tree) and the device's look-up agree on the host tree's leaves:
+// with distances, a leaf above the labelling level is uniform iff its cells are covered by one
+// site's fixed cells, that site (overlapping polygons included).
+TEST(LabelTree, HostCoverLeavesAreTheDeviceLookUps) {
+  for (const SiteGeometry& g : {polygons(6), solid_polygon(5), solid_polygon(7)}) {
+    const LabelInput in = g.input();
+    const HostFixedCover cover(g.fixed_cells, g.level);
+    for (const Rule rule : {Rule::exact, Rule::cell}) {
+      const Tree tree = build_tree(make_candidates(in, rule), g.level, true, 2, {}, in.fixed_cells,
+                                   in.fixed_cell_count);
+      std::uint64_t covered = 0;
+      for (const TreeLeaf& leaf : tree.leaves) {
+        if (leaf.level == g.level) continue;
+        const TreeNode node = tree.nodes[leaf.node];
+        const std::int32_t site = fixed_cover_site(cover.view, leaf.cell, leaf.level);
+        EXPECT_EQ(node.count == kUniform ? node.value : -1, site) << "level " << leaf.level;
+        covered += site >= 0;
+      }
+      if (g.level == 7) EXPECT_GT(covered, 0u);
+    }
+  }
 }
 
 struct RunCase {

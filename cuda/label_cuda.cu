@@ -901,7 +901,7 @@ DeviceFixedCover make_fixed_cover(const FixedCell* fixed, std::uint64_t count, i
     const DeviceScratch<unsigned char> temp(device_alloc<unsigned char>(temp_bytes ? temp_bytes : 1, &scratch));
     QTMV_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(temp.get(), temp_bytes, unsorted_key.get(), cover.key.get(),
                                                     unsorted_site.get(), sorted_site.get(), count, 0, end_bit));
-    QTMV_CUDA_CHECK(cudaDeviceSynchronize());  // before the temp goes (cudaFree does not wait for it)
+    QTMV_CUDA_CHECK(cudaDeviceSynchronize());  // the sort's errors surface here, named
   }
   // The unsorted sites' array takes the run starts.
   std::int32_t* run_starts = unsorted_site.get();

@@ -20,6 +20,7 @@
 #include "label/label_cuda.hpp"
 #include "label/label_tree.hpp"
 #include "label/labeller.hpp"
+#include "label/tree_node_rule.hpp"
 
 namespace qtmv::label::cuda {
 
@@ -460,7 +461,8 @@ __global__ void brute_codes_kernel(const Piece* pieces, int piece_count, int lev
 // level at a time, every (node, parent-list entry) pair is one work item; per node the nearest
 // candidate's squared chord (an atomicMin on the float64 bits: the chords are >= 0, so their bit
 // patterns order as the values), then the kept entries (d2 <= prune_threshold) are compacted in
-// list order by a scan, and the nodes' kinds, offsets and children follow from scans in node
+// list order by a scan, and the nodes' kinds (decide_node, as on the host; a node covered by one
+// site's fixed cells from fixed_cover_site) and offsets and children follow from scans in node
 // order, as the host's parts do.
 
 /// A node of the level being built (see labeller.cpp's Pending).
@@ -483,8 +485,6 @@ struct LevelSums {
 struct AddSums {
   __host__ __device__ LevelSums operator()(const LevelSums& a, const LevelSums& b) const { return a + b; }
 };
-
-constexpr int kNodeKindList = 1;
 
 __global__ void level_init_kernel(const DevPending* pending, std::int32_t n, int level, bool last, Vec3* centre,
                                   double* radius, unsigned long long* start_in, unsigned long long* min_bits,
@@ -626,35 +626,32 @@ __global__ void level_settle_kernel(const DevPending* pending, std::int32_t n, c
   key[q] = (static_cast<unsigned long long>(best.site) << 32) | static_cast<std::uint32_t>(winner);
 }
 
-/// Per node: its kind and counts (kind: kUniform, kInternal or kNodeKindList; value: the site).
-__global__ void level_decide_kernel(std::int32_t n, bool last, bool with_distance, bool list_level_reached,
-                                    const unsigned long long* start, const unsigned int* keep_pos,
-                                    const std::int32_t* site_min, const std::int32_t* site_max,
-                                    const unsigned long long* key, std::int32_t* kind, std::int32_t* count,
-                                    std::int32_t* value, LevelSums* sums_in) {
+/// Per node: its kind and counts (decide_node, as build_tree; value: the uniform leaf's site).
+__global__ void level_decide_kernel(const DevPending* pending, std::int32_t n, int l, bool last, bool with_distance,
+                                    bool list_level_reached, FixedCoverView cover, const unsigned long long* start,
+                                    const unsigned int* keep_pos, const std::int32_t* site_min,
+                                    const std::int32_t* site_max, const unsigned long long* key, std::int32_t* kind,
+                                    std::int32_t* count, std::int32_t* value, LevelSums* sums_in) {
   const std::int32_t q = blockIdx.x * blockDim.x + threadIdx.x;
   if (q >= n) return;
-  std::int32_t k, c, v;
+  NodeDecision d;
+  std::int32_t c;
   if (last) {
-    v = static_cast<std::int32_t>(key[q] >> 32);
-    k = with_distance ? kNodeKindList : kUniform;
     c = with_distance ? 1 : 0;
+    d = decide_node(true, with_distance, list_level_reached, static_cast<std::uint32_t>(c), true,
+                    static_cast<std::int32_t>(key[q] >> 32), -1);
   } else {
     c = static_cast<std::int32_t>(keep_pos[start[q + 1]] - keep_pos[start[q]]);
-    const bool uniform = c == 0 || site_min[q] == site_max[q];
-    v = c == 0 ? -1 : site_min[q];
-    if (uniform && !with_distance) {
-      k = kUniform;
-    } else if ((uniform && c == 1) || (list_level_reached && static_cast<std::uint32_t>(c) <= kMaxLeafList)) {
-      k = kNodeKindList;
-    } else {
-      k = kInternal;
-    }
+    const bool one_site = c == 0 || site_min[q] == site_max[q];
+    const std::int32_t covered = cover.count ? fixed_cover_site(cover, pending[q].cell, l) : -1;
+    d = decide_node(false, with_distance, list_level_reached, static_cast<std::uint32_t>(c), one_site,
+                    c == 0 ? -1 : site_min[q], covered);
   }
+  const std::int32_t k = d.kind;
   kind[q] = k;
   count[q] = c;
-  value[q] = v;
-  sums_in[q] = {k == kNodeKindList ? static_cast<unsigned long long>(c) : 0ull,
+  value[q] = d.site;
+  sums_in[q] = {k == kListLeaf ? static_cast<unsigned long long>(c) : 0ull,
                 k == kInternal ? static_cast<unsigned long long>(c) : 0ull, k == kInternal ? 1ull : 0ull};
   if (q == 0) sums_in[n] = {0, 0, 0};
 }
@@ -671,7 +668,7 @@ __global__ void level_write_nodes_kernel(const DevPending* pending, std::int32_t
   const LevelSums at = offsets[q];
   if (kind[q] == kUniform) {
     nodes[p.node] = {kUniform, value[q]};
-  } else if (kind[q] == kNodeKindList) {
+  } else if (kind[q] == kListLeaf) {
     nodes[p.node] = {count[q], static_cast<std::int32_t>(lists_base + at.leaf_entries)};
     if (last) lists[lists_base + at.leaf_entries] = static_cast<std::int32_t>(key[q] & 0xffffffffu);
   } else {
@@ -716,7 +713,7 @@ __global__ void level_write_lists_kernel(const DevPending* pending, const std::i
     const std::int32_t k = kind[node];
     if (kept == 0 || k == kUniform) continue;
     const unsigned long long local = keep_pos[e] - keep_pos[start[node]];
-    std::int32_t* out = k == kNodeKindList ? lists + lists_base + offsets[node].leaf_entries + local
+    std::int32_t* out = k == kListLeaf ? lists + lists_base + offsets[node].leaf_entries + local
                                            : next_lists + offsets[node].internal_entries + local;
     if (kept == 1) {
       *out = id;
@@ -779,6 +776,23 @@ __global__ void gather_fixed_kernel(const FixedCell* fixed, const std::uint32_t*
                                     FixedCell* out) {
   const std::uint64_t k = static_cast<std::uint64_t>(blockIdx.x) * blockDim.x + threadIdx.x;
   if (k < count) out[k] = fixed[index[k]];
+}
+
+/// make_fixed_cover: each fixed cell's quadtree key and site.
+__global__ void fixed_cover_keys_kernel(const FixedCell* fixed, std::uint64_t count, int level, std::uint64_t* key,
+                                        std::int32_t* site) {
+  const std::uint64_t k = static_cast<std::uint64_t>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (k >= count) return;
+  const FixedCell f = fixed[k];
+  key[k] = grid::quadtree_key(grid::cell_of(f.code, level), level);
+  site[k] = f.site;
+}
+
+/// make_fixed_cover: per entry of the sorted keys, fixed_cover_entry.
+__global__ void fixed_cover_runs_kernel(const std::uint64_t* key, const std::int32_t* site, std::uint64_t count,
+                                        std::int32_t* cover_site, std::int32_t* run_starts) {
+  const std::uint64_t k = static_cast<std::uint64_t>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (k < count) fixed_cover_entry(key, site, count, k, cover_site + k, run_starts + k);
 }
 
 __global__ void jump_kernel(const TreeNode* nodes, int jump_level, std::uint64_t count, JumpEntry* jump) {
@@ -857,6 +871,56 @@ struct Buffer {
 
 unsigned int blocks_of(std::uint64_t count) { return static_cast<unsigned int>((count + kBlock - 1) / kBlock); }
 
+/// The fixed cells as the device build looks them up (FixedCoverView), in arrays of their own.
+struct DeviceFixedCover {
+  DeviceScratch<std::uint64_t> key;
+  DeviceScratch<std::int32_t> site, run;
+  std::uint64_t count = 0;
+  int level = 0;
+  FixedCoverView view() const { return {key.get(), site.get(), run.get(), count, level}; }
+};
+
+/// The fixed cells `fixed` (device array, any order) sorted by quadtree key, with their runs.
+DeviceFixedCover make_fixed_cover(const FixedCell* fixed, std::uint64_t count, int level) {
+  DeviceFixedCover cover;
+  cover.level = level;
+  if (count == 0) return cover;
+  std::size_t scratch = 0;
+  const DeviceScratch<std::uint64_t> unsorted_key(device_alloc<std::uint64_t>(count, &scratch));
+  DeviceScratch<std::int32_t> unsorted_site(device_alloc<std::int32_t>(count, &scratch));
+  cover.key.reset(device_alloc<std::uint64_t>(count, &scratch));
+  DeviceScratch<std::int32_t> sorted_site(device_alloc<std::int32_t>(count, &scratch));
+  fixed_cover_keys_kernel<<<blocks_for(count), kBlock>>>(fixed, count, level, unsorted_key.get(),
+                                                         unsorted_site.get());
+  QTMV_CUDA_CHECK_LAUNCH("fixed_cover_keys_kernel");
+  const int end_bit = 3 + 2 * level;
+  std::size_t temp_bytes = 0;
+  QTMV_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(nullptr, temp_bytes, unsorted_key.get(), cover.key.get(),
+                                                  unsorted_site.get(), sorted_site.get(), count, 0, end_bit));
+  {
+    const DeviceScratch<unsigned char> temp(device_alloc<unsigned char>(temp_bytes ? temp_bytes : 1, &scratch));
+    QTMV_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(temp.get(), temp_bytes, unsorted_key.get(), cover.key.get(),
+                                                    unsorted_site.get(), sorted_site.get(), count, 0, end_bit));
+    QTMV_CUDA_CHECK(cudaDeviceSynchronize());  // the sort's errors surface here, named
+  }
+  // The unsorted sites' array takes the run starts.
+  std::int32_t* run_starts = unsorted_site.get();
+  cover.site.reset(device_alloc<std::int32_t>(count, &scratch));
+  cover.run.reset(device_alloc<std::int32_t>(count, &scratch));
+  fixed_cover_runs_kernel<<<blocks_for(count), kBlock>>>(cover.key.get(), sorted_site.get(), count, cover.site.get(),
+                                                         run_starts);
+  QTMV_CUDA_CHECK_LAUNCH("fixed_cover_runs_kernel");
+  temp_bytes = 0;
+  QTMV_CUDA_CHECK(cub::DeviceScan::InclusiveSum(nullptr, temp_bytes, run_starts, cover.run.get(), count));
+  {
+    const DeviceScratch<unsigned char> temp(device_alloc<unsigned char>(temp_bytes ? temp_bytes : 1, &scratch));
+    QTMV_CUDA_CHECK(cub::DeviceScan::InclusiveSum(temp.get(), temp_bytes, run_starts, cover.run.get(), count));
+    QTMV_CUDA_CHECK(cudaDeviceSynchronize());
+  }
+  cover.count = count;
+  return cover;
+}
+
 /// What build_on_device made: the tree's arrays (device pointers, owned by the caller).
 struct DeviceTree {
   TreeNode* nodes = nullptr;
@@ -867,9 +931,11 @@ struct DeviceTree {
   double mean_candidates = 0;
 };
 
-/// The tree of build_tree (labeller.cpp), built on the current device.
+/// The tree of build_tree (labeller.cpp), built on the current device; `cover`: its fixed cells
+/// (make_fixed_cover; count 0: none).
 DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* runs,
-                           const std::vector<std::int32_t>& top_items, int level, bool with_distance) {
+                           const std::vector<std::int32_t>& top_items, int level, bool with_distance,
+                           const FixedCoverView& cover) {
   injected_fault("build");
   const int list_level = tree_list_level(level);
   // The scratch comes from the device's default pool and stays there (pool_idle_bytes).
@@ -1002,9 +1068,9 @@ DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* ru
       scan_temp(bytes);
       QTMV_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(temp.p, bytes, keep.p, keep_pos.p, entries + 1));
     }
-    level_decide_kernel<<<blocks_of(n), kBlock>>>(nn, last, with_distance, l >= list_level, start.p, keep_pos.p,
-                                                  site_min.p, site_max.p, key.p, kind.p, count.p, value.p,
-                                                  sums_in.p);
+    level_decide_kernel<<<blocks_of(n), kBlock>>>(pending.p, nn, l, last, with_distance, l >= list_level, cover,
+                                                  start.p, keep_pos.p, site_min.p, site_max.p, key.p, kind.p,
+                                                  count.p, value.p, sums_in.p);
     QTMV_CUDA_CHECK_LAUNCH("level_decide_kernel");
     bytes = 0;
     const LevelSums zero{0, 0, 0};
@@ -1135,8 +1201,9 @@ struct Labeller::Impl {
     QTMV_CUDA_CHECK(cudaEventCreate(&stop));
   }
 
-  /// The groups of `plan` over the pieces already here, then the tree built here.
-  void build_tree(const GroupPlan& plan, bool with_distance, Trace& trace) {
+  /// The groups of `plan` over the pieces already here, then the tree built here (`cover`: the
+  /// fixed cells behind the pieces' fixed points, as build_tree's `fixed`).
+  void build_tree(const GroupPlan& plan, bool with_distance, const FixedCoverView& cover, Trace& trace) {
     trace("groups planned", plan.spans.size(), plan.top_items.size());
     if (!plan.spans.empty()) {
       std::size_t span_bytes = 0;
@@ -1148,7 +1215,7 @@ struct Labeller::Impl {
       QTMV_CUDA_CHECK_LAUNCH("make_groups_kernel");
     }
     trace("groups made");
-    const DeviceTree t = build_on_device(device, pieces, groups, plan.top_items, level, with_distance);
+    const DeviceTree t = build_on_device(device, pieces, groups, plan.top_items, level, with_distance, cover);
     nodes = t.nodes;
     lists = t.lists;
     jump = t.jump;
@@ -1214,7 +1281,7 @@ Labeller::Labeller(int device, const std::vector<Piece>& candidates, const Tree*
 }
 
 Labeller::Labeller(int device, const std::vector<Piece>& candidates, int level, bool with_distance,
-                   int threads)
+                   int threads, const FixedCell* fixed, std::size_t fixed_count)
     : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
   m.open(device, level, true);
@@ -1224,7 +1291,16 @@ Labeller::Labeller(int device, const std::vector<Piece>& candidates, int level, 
   Trace trace;
   m.pieces = device_copy(candidates, &m.bytes);
   trace("pieces to the device", candidates.size());
-  m.build_tree(plan_groups(candidates, host_threads(threads)), with_distance, trace);
+  DeviceFixedCover cover;
+  cover.level = level;
+  if (fixed_count > 0) {
+    std::size_t scratch = 0;
+    const DeviceScratch<FixedCell> fixed_here(device_alloc<FixedCell>(fixed_count, &scratch));
+    QTMV_CUDA_CHECK(cudaMemcpy(fixed_here.get(), fixed, fixed_count * sizeof(FixedCell), cudaMemcpyHostToDevice));
+    cover = make_fixed_cover(fixed_here.get(), fixed_count, level);
+    trace("fixed cells sorted for the cover", fixed_count);
+  }
+  m.build_tree(plan_groups(candidates, host_threads(threads)), with_distance, cover.view(), trace);
 }
 
 Labeller::Labeller(int device, const LabelInput& input, bool with_distance, int threads)
@@ -1240,6 +1316,8 @@ Labeller::Labeller(int device, const LabelInput& input, bool with_distance, int 
   // kMaxDeviceOrderLevel).
   Trace trace;
   std::vector<FixedCell> host_ordered;
+  DeviceFixedCover cover;
+  cover.level = input.level;
   const FixedCell* fixed_input = input.fixed_cells;
   const bool order_here = input.level <= kMaxDeviceOrderLevel;
   if (!order_here) fixed_input = fixed_cells_in_quadtree_order(input, threads, &host_ordered);
@@ -1274,6 +1352,8 @@ Labeller::Labeller(int device, const LabelInput& input, bool with_distance, int 
       fixed = std::move(sorted);
       trace("fixed cells in quadtree order", n);
     }
+    cover = make_fixed_cover(fixed.get(), n, input.level);
+    trace("fixed cells sorted for the cover", n);
     m.pieces = device_alloc<Piece>(count, &m.bytes);
     make_pieces_kernel<<<blocks_for(count), kBlock>>>(site_pieces.get(), input.piece_count, fixed.get(),
                                                      input.fixed_cell_count, input.level, m.pieces);
@@ -1294,7 +1374,7 @@ Labeller::Labeller(int device, const LabelInput& input, bool with_distance, int 
                                          fixed_before.begin() - 1);
       },
       host_threads(threads));
-  m.build_tree(plan, with_distance, trace);
+  m.build_tree(plan, with_distance, cover.view(), trace);
 }
 
 Labeller::~Labeller() = default;

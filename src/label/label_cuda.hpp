@@ -17,6 +17,7 @@
 namespace qtmv::label {
 struct Tree;
 struct LabelInput;
+struct FixedCell;
 }
 
 namespace qtmv::label::cuda {
@@ -65,8 +66,10 @@ class Labeller {
   Labeller(int device, const std::vector<Piece>& candidates, const Tree* tree, int level);
   /// `hier` with the tree built on the device, level by level: the tree of build_tree
   /// (labeller.cpp), node for node and entry for entry. host_threads: CPU threads for the host's
-  /// share (the line runs' plan), as LabelOptions::threads (0: all).
-  Labeller(int device, const std::vector<Piece>& candidates, int level, bool with_distance, int host_threads = 0);
+  /// share (the line runs' plan), as LabelOptions::threads (0: all). `fixed` (host array, may be
+  /// null): the fixed cells behind the candidates' fixed points, as build_tree's.
+  Labeller(int device, const std::vector<Piece>& candidates, int level, bool with_distance, int host_threads = 0,
+           const FixedCell* fixed = nullptr, std::size_t fixed_count = 0);
   /// The same for the exact rule, with the candidates made on the device from the input (the
   /// pieces of make_candidates(input, Rule::exact), which the host then need not make).
   Labeller(int device, const LabelInput& input, bool with_distance, int host_threads = 0);

@@ -16,7 +16,7 @@ struct Labeller::Impl {};
 Labeller::Labeller(int, const std::vector<Piece>&, const Tree*, int) {
   throw std::runtime_error("qtmvoronoi was built without CUDA");
 }
-Labeller::Labeller(int, const std::vector<Piece>&, int, bool, int) {
+Labeller::Labeller(int, const std::vector<Piece>&, int, bool, int, const FixedCell*, std::size_t) {
   throw std::runtime_error("qtmvoronoi was built without CUDA");
 }
 Labeller::Labeller(int, const LabelInput&, bool, int) { throw std::runtime_error("qtmvoronoi was built without CUDA"); }

@@ -16,6 +16,7 @@
 #include "grid/qtm_checks.hpp"
 #include "label/label_cuda.hpp"
 #include "label/piece_groups.hpp"
+#include "label/tree_node_rule.hpp"
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -482,68 +483,56 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
         const Vec3 c = grid::cell_centre_vector(grid::code_of(p.cell, l), l);
         const std::int32_t* list = parent_lists.data() + p.parent_offset;
         Decision dec{0, -1, out.size(), 0};
+        bool one_site = true;  // the kept candidates all have site dec.site
+        std::int32_t covered = -1;
         if (l == level) {
           // The node is one cell of the level: its label is the best candidate at its centre,
           // settled here once rather than by every look-up.
           std::int32_t winner = -1;
           dec.site = best_of_items(c, list, static_cast<std::int32_t>(p.parent_count), candidates.data(), groups,
                                    &winner).site;
-          if (with_distance) {
-            out.push_back(winner);
-            dec.count = 1;
-            dec.kind = 1;
-            ++leaf_entries;
-          } else {
-            dec.kind = kUniform;
+          if (with_distance) out.push_back(winner);
+        } else {
+          // A node all of whose cells are one site's fixed cells needs no filtering (decide_node).
+          covered = cover.empty() ? -1 : cover.site_covering(p.cell, l);
+        }
+        if (l < level && covered < 0) {
+          bounds.resize(p.parent_count);
+          double min_ub2 = 1e300;
+          for (std::uint32_t k = 0; k < p.parent_count; ++k) {
+            double ub2;
+            item_bounds(c, list[k], candidates.data(), groups, &bounds[k].lb2, &ub2, &bounds[k].site);
+            min_ub2 = std::min(min_ub2, ub2);
           }
-          ++leaves;
-          decisions[q] = dec;
-          continue;
-        }
-        // A node all of whose cells are one site's fixed cells is a uniform leaf, with or without
-        // distances (theirs are 0).
-        const std::int32_t covered = cover.empty() ? -1 : cover.site_covering(p.cell, l);
-        if (covered >= 0) {
-          dec.kind = kUniform;
-          dec.site = covered;
-          ++leaves;
-          decisions[q] = dec;
-          continue;
-        }
-        bounds.resize(p.parent_count);
-        double min_ub2 = 1e300;
-        for (std::uint32_t k = 0; k < p.parent_count; ++k) {
-          double ub2;
-          item_bounds(c, list[k], candidates.data(), groups, &bounds[k].lb2, &ub2, &bounds[k].site);
-          min_ub2 = std::min(min_ub2, ub2);
-        }
-        const double radius = node_radius(l, p.cell);
-        const double threshold = prune_threshold(min_ub2, radius);
-        bool uniform = true;
-        for (std::uint32_t k = 0; k < p.parent_count; ++k) {
-          if (bounds[k].lb2 <= threshold) {
-            const std::int32_t site = bounds[k].site;
-            if (dec.site < 0) dec.site = site;
-            uniform = uniform && site == dec.site;
-            const std::int32_t items = kept_items(groups, list[k], radius);
-            if (items == 1) {
-              out.push_back(list[k]);
-            } else {
-              for (std::int32_t i = 0; i < items; ++i) out.push_back(split_item(groups, item_group(list[k]), i));
+          const double radius = node_radius(l, p.cell);
+          const double threshold = prune_threshold(min_ub2, radius);
+          for (std::uint32_t k = 0; k < p.parent_count; ++k) {
+            if (bounds[k].lb2 <= threshold) {
+              const std::int32_t site = bounds[k].site;
+              if (dec.site < 0) dec.site = site;
+              one_site = one_site && site == dec.site;
+              const std::int32_t items = kept_items(groups, list[k], radius);
+              if (items == 1) {
+                out.push_back(list[k]);
+              } else {
+                for (std::int32_t i = 0; i < items; ++i) out.push_back(split_item(groups, item_group(list[k]), i));
+              }
             }
           }
         }
         dec.count = static_cast<std::uint32_t>(out.size() - dec.offset);
-        if (uniform && !with_distance) {
-          dec.kind = kUniform;
+        const NodeDecision rule =
+            decide_node(l == level, with_distance, l >= list_level, dec.count, one_site, dec.site, covered);
+        dec.kind = rule.kind;
+        dec.site = rule.site;
+        if (dec.kind == kUniform) {
           out.resize(dec.offset);
+          dec.count = 0;
           ++leaves;
-        } else if ((uniform && dec.count == 1) || (l >= list_level && dec.count <= kMaxLeafList)) {
-          dec.kind = 1;
+        } else if (dec.kind == kListLeaf) {
           leaf_entries += dec.count;
           ++leaves;
         } else {
-          dec.kind = kInternal;
           internal_entries += dec.count;
           ++internals;
         }
@@ -588,7 +577,7 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
           if (dec.kind != kInternal) tree.leaves[leaf_rank++] = {p.cell, l, p.node};
           if (dec.kind == kUniform) {
             node = {kUniform, dec.site};
-          } else if (dec.kind == 1) {
+          } else if (dec.kind == kListLeaf) {
             node = {static_cast<std::int32_t>(dec.count), static_cast<std::int32_t>(leaf_at)};
             std::copy(out.begin() + dec.offset, out.begin() + dec.offset + dec.count, tree.lists.begin() + leaf_at);
             leaf_at += dec.count;
@@ -794,7 +783,8 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
       gpu_built = options.rule == Rule::exact
                       ? std::make_unique<cuda::Labeller>(device.index, input, options.want_distance, threads)
                       : std::make_unique<cuda::Labeller>(device.index, host_candidates(), input.level,
-                                                         options.want_distance, threads);
+                                                         options.want_distance, threads, input.fixed_cells,
+                                                         input.fixed_cell_count);
     } catch (const std::length_error&) {
       // Too large for the device build's 32-bit work counts: the host builds it (below).
       gpu_built.reset();

@@ -155,8 +155,8 @@ struct Tree {
 /// levels done, outside any parallel region, so that it may throw to stop the build.
 /// `fixed` (may be null): the fixed cells behind the candidates' fixed points; a node all of whose
 /// cells are fixed cells of one site then becomes a uniform leaf even with distances (they are 0),
-/// instead of the tree going on down inside polygons. (The device build does not do this: the
-/// trees then differ, the labels not.)
+/// instead of the tree going on down inside polygons. The device build (cuda::Labeller, given the
+/// same fixed cells) makes the same tree node for node: both apply decide_node (tree_node_rule.hpp).
 Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_distance, int threads = 0,
                 const std::function<void(double fraction)>& level_done = {}, const FixedCell* fixed = nullptr,
                 std::size_t fixed_count = 0);

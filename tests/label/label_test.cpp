@@ -22,6 +22,7 @@
 #include "label/label_math.hpp"
 #include "label/label_tree.hpp"
 #include "label/labeller.hpp"
+#include "label/tree_node_rule.hpp"
 #include "wiggly_sites.hpp"
 
 namespace qtmv::label {
@@ -338,6 +339,114 @@ SiteGeometry solid_polygon(int level) {
   return g;
 }
 
+/// The fixed cells as make_fixed_cover (label_cuda.cu) lays them out, built on the host: sorted
+/// by quadtree key, each entry marked (fixed_cover_entry), the run starts summed.
+struct HostFixedCover {
+  std::vector<std::uint64_t> key;
+  std::vector<std::int32_t> site, run;
+  FixedCoverView view{};
+  HostFixedCover(const std::vector<FixedCell>& fixed, int level) {
+    std::vector<std::pair<std::uint64_t, std::int32_t>> sorted;
+    for (const FixedCell& f : fixed) {
+      sorted.push_back({grid::quadtree_key(grid::cell_of(f.code, level), level), f.site});
+    }
+    std::stable_sort(sorted.begin(), sorted.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    const std::uint64_t n = sorted.size();
+    key.resize(n);
+    std::vector<std::int32_t> sorted_site(n);
+    site.resize(n);
+    run.resize(n);
+    for (std::uint64_t i = 0; i < n; ++i) {
+      key[i] = sorted[i].first;
+      sorted_site[i] = sorted[i].second;
+    }
+    for (std::uint64_t i = 0; i < n; ++i) fixed_cover_entry(key.data(), sorted_site.data(), n, i, &site[i], &run[i]);
+    for (std::uint64_t i = 1; i < n; ++i) run[i] += run[i - 1];
+    view = {key.data(), site.data(), run.data(), n, level};
+  }
+};
+
+// The device's fixed-cover look-up (fixed_cover_site over the sorted quadtree keys and their
+// runs, built here as the device builds them) against the definition, on every node of every
+// level: all the node's cells are fixed cells of one site, none claimed twice.
+TEST(LabelTree, FixedCoverSiteMatchesEveryNode) {
+  const int level = 5;
+  std::vector<FixedCell> fixed = solid_polygon(level).fixed_cells;
+  for (const FixedCell& f : polygons(level).fixed_cells) fixed.push_back(f);  // overlaps some
+  // A second solid node, one of its cells claimed twice by its own site; and scattered cells.
+  const Cell other = grid::cell_of(5, 2);
+  std::mt19937_64 rng(13);
+  for (Code code = 0; code < grid::cell_count(level); ++code) {
+    const Cell a = grid::ancestor(grid::cell_of(code, level), level, 2);
+    if (a.octant == other.octant && a.row == other.row && a.col == other.col) {
+      fixed.push_back({code, 4});
+      if (code % 61 == 0) fixed.push_back({code, 4});
+    } else if (rng() % 7 == 0) {
+      fixed.push_back({code, static_cast<std::int32_t>(rng() % 3)});
+    }
+  }
+  std::shuffle(fixed.begin(), fixed.end(), rng);
+  const HostFixedCover cover(fixed, level);
+  const FixedCoverView& view = cover.view;
+  // The definition: per cell of the level, its claims.
+  std::vector<std::vector<std::int32_t>> claims(grid::cell_count(level));
+  for (const FixedCell& f : fixed) claims[grid::quadtree_key(grid::cell_of(f.code, level), level)].push_back(f.site);
+  std::uint64_t covered_nodes = 0;
+  for (int l = 0; l <= level; ++l) {
+    const int k = level - l;
+    for (Code code = 0; code < grid::cell_count(l); ++code) {
+      const Cell c = grid::cell_of(code, l);
+      const std::uint64_t first = grid::quadtree_key(c, l) << (2 * k);
+      std::int32_t want = claims[first].size() == 1 ? claims[first][0] : -1;
+      for (std::uint64_t q = first; q < first + (std::uint64_t{1} << (2 * k)) && want >= 0; ++q) {
+        if (claims[q].size() != 1 || claims[q][0] != want) want = -1;
+      }
+      ASSERT_EQ(fixed_cover_site(view, c, l), want) << "level " << l << " code " << code;
+      covered_nodes += want >= 0 && l < level;
+    }
+  }
+  EXPECT_GT(covered_nodes, 4u);
+}
+
+// The rule both builds apply to a node.
+TEST(LabelTree, NodeRuleKinds) {
+  // At the labelling level: the winner, as a list with distances.
+  EXPECT_EQ(decide_node(true, false, true, 0, true, 7, -1).kind, kUniform);
+  EXPECT_EQ(decide_node(true, true, true, 1, true, 7, -1).kind, kListLeaf);
+  // Covered by one site's fixed cells: uniform even with distances.
+  const NodeDecision covered = decide_node(false, true, false, 200, false, 3, 9);
+  EXPECT_EQ(covered.kind, kUniform);
+  EXPECT_EQ(covered.site, 9);
+  EXPECT_EQ(decide_node(false, false, false, 5, true, 4, -1).kind, kUniform);
+  EXPECT_EQ(decide_node(false, true, false, 5, true, 4, -1).kind, kInternal);
+  EXPECT_EQ(decide_node(false, true, false, 1, true, 4, -1).kind, kListLeaf);
+  EXPECT_EQ(decide_node(false, true, true, kMaxLeafList, false, 4, -1).kind, kListLeaf);
+  EXPECT_EQ(decide_node(false, true, true, kMaxLeafList + 1, false, 4, -1).kind, kInternal);
+}
+
+// The host's FixedCover (build_tree) and the device's look-up agree on the host tree's leaves:
+// with distances, a leaf above the labelling level is uniform iff its cells are covered by one
+// site's fixed cells, that site (overlapping polygons included).
+TEST(LabelTree, HostCoverLeavesAreTheDeviceLookUps) {
+  for (const SiteGeometry& g : {polygons(6), solid_polygon(5), solid_polygon(7)}) {
+    const LabelInput in = g.input();
+    const HostFixedCover cover(g.fixed_cells, g.level);
+    for (const Rule rule : {Rule::exact, Rule::cell}) {
+      const Tree tree = build_tree(make_candidates(in, rule), g.level, true, 2, {}, in.fixed_cells,
+                                   in.fixed_cell_count);
+      std::uint64_t covered = 0;
+      for (const TreeLeaf& leaf : tree.leaves) {
+        if (leaf.level == g.level) continue;
+        const TreeNode node = tree.nodes[leaf.node];
+        const std::int32_t site = fixed_cover_site(cover.view, leaf.cell, leaf.level);
+        EXPECT_EQ(node.count == kUniform ? node.value : -1, site) << "level " << leaf.level;
+        covered += site >= 0;
+      }
+      if (g.level == 7) EXPECT_GT(covered, 0u);
+    }
+  }
+}
+
 struct RunCase {
   Algorithm algorithm;
   Rule rule;
@@ -639,6 +748,9 @@ TEST(LabelDeviceTree, MatchesTheHostTree) {
   cases.push_back({"wiggly lines", test::wiggly_sites(7, 77)});
   cases.push_back({"wiggly lines", test::wiggly_sites(10, 710)});
   cases.push_back({"polygons", polygons(6)});
+  // Fixed cells that fill nodes: uniform leaves above the labelling level in both builds.
+  cases.push_back({"solid polygon", solid_polygon(5)});
+  cases.push_back({"solid polygon", solid_polygon(7)});
   for (const Case& c : cases) {
     for (const Rule rule : {Rule::exact, Rule::cell}) {
       // The input's fixed cells come in code order; make_candidates and the device build each
@@ -650,14 +762,16 @@ TEST(LabelDeviceTree, MatchesTheHostTree) {
       for (const bool with_distance : {false, true}) {
         SCOPED_TRACE(c.name + " level " + std::to_string(c.g.level) + (rule == Rule::exact ? " exact" : " cell") +
                      (with_distance ? " with distances" : ""));
-        const Tree host = build_tree(candidates, c.g.level, with_distance, 2);
+        // With the fixed cells, as label_cells builds them: nodes inside polygons are uniform.
+        const Tree host = build_tree(candidates, c.g.level, with_distance, 2, {}, in.fixed_cells, in.fixed_cell_count);
         // From the host's candidates, and (exact rule) from the input, the pieces made there.
         for (const bool from_input : {false, true}) {
           if (from_input && rule != Rule::exact) continue;
           SCOPED_TRACE(from_input ? "device candidates" : "host candidates");
           std::unique_ptr<cuda::Labeller> built =
               from_input ? std::make_unique<cuda::Labeller>(0, in, with_distance)
-                         : std::make_unique<cuda::Labeller>(0, candidates, c.g.level, with_distance);
+                         : std::make_unique<cuda::Labeller>(0, candidates, c.g.level, with_distance, 0,
+                                                            in.fixed_cells, in.fixed_cell_count);
           const cuda::Labeller& gpu = *built;
           std::vector<TreeNode> nodes;
           std::vector<std::int32_t> lists;

@@ -442,7 +442,9 @@ TEST(LabelTree, HostCoverLeavesAreTheDeviceLookUps) {
         EXPECT_EQ(node.count == kUniform ? node.value : -1, site) << "level " << leaf.level;
         covered += site >= 0;
       }
-      if (g.level == 7) EXPECT_GT(covered, 0u);
+      if (g.level == 7) {
+        EXPECT_GT(covered, 0u);
+      }
     }
   }
 }

@@ -1,3 +1,4 @@
+#include "common/device_spec.hpp"
 #include "common/host_info.hpp"
 #include "voronoi.hpp"
 
@@ -55,7 +56,9 @@ std::string seconds(double s) {
 constexpr std::uint64_t kCpuTileBytes = std::uint64_t{64} << 20;
 
 bool labels_on_cpu(const label::LabelOptions& options) {
-  return options.device == "cpu" || (options.device == "auto" && label::cuda_device_count() == 0);
+  const DeviceSpec device = parse_device_spec(options.device);
+  return device.kind == DeviceSpec::Kind::cpu ||
+         (device.kind == DeviceSpec::Kind::automatic && label::cuda_device_count() == 0);
 }
 
 // The tile limit the pipeline passes to the labeller (0: the labeller's own, a quarter of RAM).
@@ -336,7 +339,7 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   auto say = [&](Severity severity, const std::string& message) {
     if (options.messages) options.messages(severity, message);
   };
-  const int level = options.read.level;
+  const int level = options.level;
   try {
     grid::require_level(level);
   } catch (const std::invalid_argument& e) {
@@ -345,8 +348,10 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
 
   // --- options, format, destination and memory, before any work ---------------------------------
   const OutputFormat format = choose_output_format(destination, options.format, options.kind);
-  write::VectorOptions vector_options = options.vector;
-  write::RasterOptions raster_options = options.raster;
+  write::VectorOptions vector_options;
+  static_cast<write::VectorLayers&>(vector_options) = options.vector;
+  write::RasterOptions raster_options;
+  static_cast<write::RasterGrid&>(raster_options) = options.raster;
   vector_options.driver = raster_options.driver = format.driver;
   if (format.raster) {
     if (!options.vector.dataset_options.empty() || !options.vector.layer_options.empty()) {
@@ -380,8 +385,17 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
                                              [](const std::string& o) { return lower(o).rfind("geometry=", 0) == 0; });
     if (format.driver == "CSV" && !geometry_option) vector_options.layer_options.push_back("GEOMETRY=AS_WKT");
   }
-  label::LabelOptions label_options = options.label;
-  label_options.rule = options.read.distance == sites::DistanceRule::cell ? label::Rule::cell : label::Rule::exact;
+  DeviceSpec device;
+  try {
+    device = parse_device_spec(options.device);
+  } catch (const std::invalid_argument& e) {
+    throw VoronoiError(std::string("-device: ") + e.what());
+  }
+  label::LabelOptions label_options;
+  label_options.rule = options.rule;
+  label_options.device = options.device;
+  label_options.algorithm = options.algorithm;
+  label_options.threads = options.threads;
   const bool wants_cells_layer =
       std::find(vector_options.layers.begin(), vector_options.layers.end(), "cells") != vector_options.layers.end();
   label_options.want_distance = format.raster || wants_cells_layer;
@@ -400,10 +414,9 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   }
 
   // A GPU asked for and missing fails now, not after the read.
-  if (starts_with(label_options.device, "cuda")) {
+  if (device.kind == DeviceSpec::Kind::cuda) {
     const int gpus = label::cuda_device_count();
-    const int index = label_options.device.size() > 5 ? std::atoi(label_options.device.c_str() + 5) : 0;
-    if (index >= gpus) {
+    if (device.index >= gpus) {
       throw VoronoiError("-device " + label_options.device + ": " +
                          (gpus == 0 ? std::string("no usable CUDA GPU found")
                                     : "this host has " + std::to_string(gpus) + " CUDA device(s)") +
@@ -435,7 +448,10 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
 
   // --- read ----------------------------------------------------------------------------------------
   double t0 = now_seconds();
-  sites::ReadOptions read_options = options.read;
+  sites::ReadOptions read_options;
+  static_cast<sites::SourceOptions&>(read_options) = options.read;
+  read_options.level = level;
+  read_options.distance = options.rule;
   read_options.progress = [&](double f, const char* stage) { return progress.report(0.0, ends.read, f, stage); };
   // The reader's count of sites without a cell comes before labelling; the pipeline reports the
   // final one (below) instead.

@@ -23,32 +23,31 @@ namespace qtmv {
 /// Vector or raster output; automatic lets the driver decide (vector when it writes both).
 enum class OutputKind { automatic, vector, raster };
 
+/// The options of a run, each given once: every part's options are built from these, and
+/// nothing a caller sets is overwritten.
 struct VoronoiOptions {
-  VoronoiOptions() {
-    read.level = 9;                                 // the seed paper's finest level
-    label.algorithm = label::Algorithm::automatic;  // brute force where the tree would not pay
-  }
-
-  /// Reader options; read.level is the level of the whole run (0..24), read.distance the rule
-  /// (it sets label.rule too). Its progress and messages are replaced by the ones below.
-  sites::ReadOptions read;
-  /// Labeller options (device, algorithm, threads); rule and want_* are set from the output.
-  label::LabelOptions label;
+  int level = label::kDefaultLevel;  ///< QTM level of the whole run (0..24)
+  label::Rule rule = label::Rule::exact;  ///< -distance: the distance rule, reading and labelling
+  sites::SourceOptions read;  ///< what to read and how (-l, -where, -sql, -s_srs, -oo, -edges, ...)
+  std::string device = "auto";  ///< -device auto|cpu|cuda|cuda:N
+  label::Algorithm algorithm = label::Algorithm::automatic;  ///< -algorithm
+  int threads = 0;              ///< -threads: CPU threads; 0: all
   /// GDAL driver short name (-of); empty: guessed from the destination's extension.
   std::string format;
   /// -layers forces vector output, -raster raster output.
   OutputKind kind = OutputKind::automatic;
-  write::VectorOptions vector;  ///< layers, -dsco, -lco (driver set from format)
-  write::RasterOptions raster;  ///< layout, -tr (degrees), -ts (pixels), -co (driver set from format)
-  bool overwrite = false;       ///< replace an existing destination
+  write::VectorLayers vector;  ///< -layers, -dsco, -lco
+  write::RasterGrid raster;    ///< -raster, -tr (degrees), -ts (pixels), -co
+  bool overwrite = false;      ///< replace an existing destination
   /// Refuse, before any work, an output larger than the free space of its directory
   /// (write/output_size.hpp); the GDAL configuration option CHECK_DISK_FREE_SPACE=NO also
   /// turns this off.
   bool check_disk_space = true;
-  ProgressFunc progress;        ///< may be empty
-  MessageSink messages;         ///< warnings, informative lines and the closing summary; may be empty
-  /// Host memory (bytes) the run may use for its per-cell arrays; 0: 80% of physical RAM.
+  /// Host memory (bytes) the run may use for its per-cell arrays (the labels it keeps and the
+  /// labeller's tiles); 0: 80% of physical RAM.
   std::uint64_t memory_limit_bytes = 0;
+  ProgressFunc progress;   ///< may be empty
+  MessageSink messages;    ///< warnings, informative lines and the closing summary; may be empty
 };
 
 /// What a run did: counts and wall-clock seconds per stage.

@@ -24,7 +24,6 @@
 
 namespace qtmv::label {
 
-enum class Rule { exact, cell };
 /// hier: the pruned tree; brute: every cell against every candidate (the seed paper's kernel);
 /// automatic: brute on a GPU when cells x candidates is at most kBruteWorkLimit (the tree's
 /// build then costs more than it saves), hier otherwise and on the CPU.
@@ -36,7 +35,7 @@ constexpr double kBruteWorkLimit = 536870912.0;  // 2^29
 
 struct LabelOptions {
   Rule rule = Rule::exact;
-  Algorithm algorithm = Algorithm::hier;
+  Algorithm algorithm = Algorithm::automatic;
   std::string device = "auto";  ///< auto | cpu | cuda | cuda:N (common/device_spec.hpp)
   bool want_distance = true;    ///< fill LabelTile::distance_m
   bool want_boundary = true;    ///< fill LabelTile::boundary
@@ -65,7 +64,7 @@ struct LabelTile {
 
 struct LabelStats {
   std::string device;          ///< "cpu (N threads)" or "cuda:N (name)"
-  Algorithm algorithm = Algorithm::hier;  ///< the one used (never automatic)
+  Algorithm algorithm = Algorithm::automatic;  ///< the one used (never automatic)
   double prepare_seconds = 0;  ///< pieces, tree (host wall time)
   double label_seconds = 0;    ///< the per-cell work: CUDA event time on a GPU, wall time on the CPU
   double copy_seconds = 0;     ///< device-to-host copies of the outputs

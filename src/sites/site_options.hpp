@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "common/run_context.hpp"
+#include "label/label_input.hpp"
 
 namespace qtmv::sites {
 
@@ -23,11 +24,8 @@ enum class WrapMode {
   none,       ///< coordinates are flat lon/lat
 };
 
-/// Who gets a site cell that two sites pass through.
-enum class DistanceRule {
-  exact,  ///< both keep it; the labeller decides by distance to the pieces
-  cell,   ///< the paper's rule: the lower site id
-};
+/// The distance rule (label_input.hpp): one enum from reading to labelling.
+using DistanceRule = label::Rule;
 
 // The run's plumbing (common/run_context.hpp): a progress callback returning false stops the
 // reading with Interrupted.
@@ -36,8 +34,8 @@ using qtmv::MessageSink;
 using qtmv::ProgressFunc;
 using qtmv::Severity;
 
-struct ReadOptions {
-  int level = 8;                 ///< QTM level (0..24)
+/// What to read and how to read it: the reader options a caller of the pipeline gives.
+struct SourceOptions {
   std::string layer;             ///< -l: layer name; empty: the first layer
   std::string where;             ///< -where: attribute filter (OGR SQL expression)
   std::string sql;               ///< -sql: statement whose result set is read instead of a layer
@@ -46,9 +44,14 @@ struct ReadOptions {
   std::vector<std::string> open_options;  ///< -oo NAME=VALUE: the driver's open options
   EdgeShape edges = EdgeShape::lonlat;       ///< -edges lonlat|geodesic
   WrapMode wrap = WrapMode::automatic;       ///< -wrap auto|none
-  DistanceRule distance = DistanceRule::exact;  ///< -distance exact|cell
   bool strict = false;           ///< -strict: a skipped feature or an invalid polygon is an error
   bool make_valid = false;       ///< -makevalid: invalid polygons repaired by OGR's MakeValid
+};
+
+/// The reader's options: the source's, and those of the run it is part of.
+struct ReadOptions : SourceOptions {
+  int level = label::kDefaultLevel;             ///< QTM level (0..24)
+  DistanceRule distance = DistanceRule::exact;  ///< -distance exact|cell
   /// Warn about sites left with no cell of their own by the claims. A caller that labels the
   /// grid afterwards turns this off and reports the final count itself.
   bool warn_sites_without_cell = true;

@@ -41,28 +41,36 @@ class WriteError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-/// Vector output (any OGR driver), all in EPSG:4326.
-struct VectorOptions {
-  std::string driver = "GPKG";  ///< OGR driver short name
+/// What a vector output holds: the options a caller of the pipeline gives.
+struct VectorLayers {
   /// Layers to write, from regions, boundary_cells, voronoi_edges, cells.
   std::vector<std::string> layers{"regions", "boundary_cells", "voronoi_edges"};
   std::vector<std::string> dataset_options;  ///< -dsco NAME=VALUE
   std::vector<std::string> layer_options;    ///< -lco NAME=VALUE
-  ProgressFunc progress;                     ///< may be empty
 };
 
-/// Raster output (any GDAL raster driver with Create or CreateCopy).
-struct RasterOptions {
+/// Vector output (any OGR driver), all in EPSG:4326.
+struct VectorOptions : VectorLayers {
+  std::string driver = "GPKG";  ///< OGR driver short name
+  ProgressFunc progress;        ///< may be empty
+};
+
+/// What a raster output holds: the options a caller of the pipeline gives.
+struct RasterGrid {
   enum class Layout {
     qtm,     ///< the QTM-coded raster: column j, row octant * 2^L + i
     lonlat,  ///< a georeferenced EPSG:4326 grid over the globe
   };
-  std::string driver = "GTiff";  ///< GDAL driver short name
   Layout layout = Layout::qtm;
   double x_resolution = 0, y_resolution = 0;  ///< -tr (degrees); 0: from -ts or the default
   int width = 0, height = 0;                  ///< -ts (pixels); 0: from -tr or the default
   std::vector<std::string> creation_options;  ///< -co NAME=VALUE
-  ProgressFunc progress;                      ///< may be empty
+};
+
+/// Raster output (any GDAL raster driver with Create or CreateCopy).
+struct RasterOptions : RasterGrid {
+  std::string driver = "GTiff";  ///< GDAL driver short name
+  ProgressFunc progress;         ///< may be empty
 };
 
 }  // namespace qtmv::write

@@ -122,7 +122,7 @@ TEST(QtmvoronoiCore, ParsesOptions) {
                                      "-distance", "cell", "-device", "CPU", "-algorithm", "brute", "-f", "GPKG",
                                      "-lco", "X=1", "-dsco", "Y=2", "-layers", "regions, cells", "-overwrite", "-q",
                                      "src.shp", "dst.gpkg"});
-  EXPECT_EQ(o.run.read.level, 7);
+  EXPECT_EQ(o.run.level, 7);
   EXPECT_EQ(o.run.read.layer, "layer");
   EXPECT_EQ(o.run.read.where, "a > 1");
   EXPECT_EQ(o.run.read.source_srs, "EPSG:3857");
@@ -133,15 +133,15 @@ TEST(QtmvoronoiCore, ParsesOptions) {
   EXPECT_FALSE(o.run.read.make_valid);
   EXPECT_TRUE(parse_command_line({"-makevalid", "src.shp", "dst.gpkg"}).run.read.make_valid);
   EXPECT_TRUE(parse_command_line({"--MakeValid", "src.shp", "dst.gpkg"}).run.read.make_valid);
-  EXPECT_EQ(o.run.read.distance, qtmv::sites::DistanceRule::cell);
-  EXPECT_EQ(o.run.label.device, "cpu");
-  EXPECT_EQ(o.run.label.algorithm, qtmv::label::Algorithm::brute);
+  EXPECT_EQ(o.run.rule, qtmv::label::Rule::cell);
+  EXPECT_EQ(o.run.device, "cpu");
+  EXPECT_EQ(o.run.algorithm, qtmv::label::Algorithm::brute);
   EXPECT_EQ(o.run.format, "GPKG");
   // The tool's default, as the library's options struct has it; and -algorithm auto.
-  EXPECT_EQ(parse_command_line({"src.shp", "dst.gpkg"}).run.label.algorithm, qtmv::label::Algorithm::automatic);
-  EXPECT_EQ(parse_command_line({"-algorithm", "AUTO", "src.shp", "dst.gpkg"}).run.label.algorithm,
+  EXPECT_EQ(parse_command_line({"src.shp", "dst.gpkg"}).run.algorithm, qtmv::label::Algorithm::automatic);
+  EXPECT_EQ(parse_command_line({"-algorithm", "AUTO", "src.shp", "dst.gpkg"}).run.algorithm,
             qtmv::label::Algorithm::automatic);
-  EXPECT_EQ(qtmv::VoronoiOptions().label.algorithm, qtmv::label::Algorithm::automatic);
+  EXPECT_EQ(qtmv::VoronoiOptions().algorithm, qtmv::label::Algorithm::automatic);
   EXPECT_EQ(o.run.vector.layers, (std::vector<std::string>{"regions", "cells"}));
   EXPECT_EQ(o.run.kind, qtmv::OutputKind::vector);
   EXPECT_TRUE(o.run.overwrite);
@@ -150,7 +150,7 @@ TEST(QtmvoronoiCore, ParsesOptions) {
   EXPECT_EQ(o.destination, "dst.gpkg");
 
   const auto d = parse_command_line({"in.csv", "out.tif"});
-  EXPECT_EQ(d.run.read.level, 9);  // the default
+  EXPECT_EQ(d.run.level, 9);  // the default
   EXPECT_EQ(d.run.kind, qtmv::OutputKind::automatic);
   EXPECT_FALSE(d.run.overwrite);
 
@@ -503,9 +503,9 @@ TEST(QtmvoronoiCli, SigtermWhileWritingLeavesNothing) {
 
 TEST(QtmvoronoiLibrary, RunsIntoVsimemWithProgressAndMessages) {
   qtmv::VoronoiOptions options;
-  options.read.level = 4;
+  options.level = 4;
   options.read.open_options = {"X_POSSIBLE_NAMES=lon", "Y_POSSIBLE_NAMES=lat"};
-  options.label.device = "cpu";
+  options.device = "cpu";
   options.vector.layers = {"regions"};
   double last = -1;
   bool monotonic = true;

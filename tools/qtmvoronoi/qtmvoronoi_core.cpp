@@ -137,7 +137,7 @@ Options parse_command_line(const std::vector<std::string>& args) {
     };
     // Reader, labeller and writer options.
     if (name == "-level") {
-      run.read.level = parse_int(arg, value(), 0, 24, "a level from 0 to 24");
+      run.level = parse_int(arg, value(), 0, 24, "a level from 0 to 24");
     } else if (name == "-l") {
       run.read.layer = value();
     } else if (name == "-where") {
@@ -153,7 +153,7 @@ Options parse_command_line(const std::vector<std::string>& args) {
       try {
         if (name == "-edges") run.read.edges = sites::parse_edge_shape(v);
         if (name == "-wrap") run.read.wrap = sites::parse_wrap_mode(v);
-        if (name == "-distance") run.read.distance = sites::parse_distance_rule(v);
+        if (name == "-distance") run.rule = sites::parse_distance_rule(v);
       } catch (const std::exception& e) {
         throw UsageError(e.what());
       }
@@ -170,20 +170,20 @@ Options parse_command_line(const std::vector<std::string>& args) {
       } catch (const std::invalid_argument&) {
         throw UsageError("-device: '" + v + "' is not one of " + device_spec_forms());
       }
-      run.label.device = v;
+      run.device = v;
     } else if (name == "-algorithm") {
       const std::string v = lower(value());
       if (v == "auto") {
-        run.label.algorithm = label::Algorithm::automatic;
+        run.algorithm = label::Algorithm::automatic;
       } else if (v == "hier") {
-        run.label.algorithm = label::Algorithm::hier;
+        run.algorithm = label::Algorithm::hier;
       } else if (v == "brute") {
-        run.label.algorithm = label::Algorithm::brute;
+        run.algorithm = label::Algorithm::brute;
       } else {
         throw UsageError("-algorithm: '" + v + "' is not one of auto, hier, brute");
       }
     } else if (name == "-threads") {
-      run.label.threads = parse_int(arg, value(), 1, 4096, "a number of threads");
+      run.threads = parse_int(arg, value(), 1, 4096, "a number of threads");
     } else if (name == "-of" || name == "-f") {
       run.format = value();
     } else if (name == "-lco") {

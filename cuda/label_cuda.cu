@@ -17,6 +17,7 @@
 #include <string>
 #include <thread>
 
+#include "label/label_engine.hpp"
 #include "label/label_cuda.hpp"
 #include "label/label_tree.hpp"
 #include "label/labeller.hpp"

@@ -78,4 +78,32 @@ QTMV_HD inline Cell descendant(const Cell& a, int k, std::uint32_t m) {
   return {a.octant, (a.row << k) + r, up ? base + cc : base + 2 * r + 1 + cc};
 }
 
+/// Row r (0 .. 2^k - 1, from the apex) of the cells k levels below `cell`, at `level`: the codes
+/// [first, last] it holds (consecutive in code order), and the code of that row's column 0 (for a
+/// cell's parity: up cells are an even distance from it).
+struct RowCodes {
+  Code first, last, row_start;
+};
+QTMV_HD inline RowCodes row_codes_below(const Cell& cell, int k, std::uint64_t r, int level) {
+  const std::uint64_t row = (std::uint64_t{cell.row} << k) + r, rows = std::uint64_t{1} << k;
+  const std::uint64_t base = std::uint64_t{cell.col / 2} << (k + 1);
+  const Code start = static_cast<std::uint64_t>(cell.octant) * cells_per_octant(level) + row * row;
+  return is_up(cell) ? RowCodes{start + base, start + base + 2 * r, start}
+                     : RowCodes{start + base + 2 * r + 1, start + base + 2 * rows - 1, start};
+}
+
+/// Steps cell c of `level` to the next cell in code order (column, then row, then octant).
+QTMV_HD inline void next_in_code_order(Cell& c, int level) {
+  if (c.col < 2 * c.row) {
+    ++c.col;
+  } else if (c.row + 1 < rows_per_octant(level)) {
+    ++c.row;
+    c.col = 0;
+  } else {
+    ++c.octant;
+    c.row = 0;
+    c.col = 0;
+  }
+}
+
 }  // namespace qtmv::grid

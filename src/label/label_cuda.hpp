@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "grid/qtm.hpp"
+#include "label/label_engine.hpp"
 #include "label/label_math.hpp"
 #include "label/label_tree.hpp"
 

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "grid/qtm.hpp"
+#include "label/label_engine.hpp"
 #include "label/synthetic_sites.hpp"
 #include "label/label_cuda.hpp"
 #include "label/label_math.hpp"

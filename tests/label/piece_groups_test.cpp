@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "grid/qtm.hpp"
+#include "label/label_engine.hpp"
 #include "label/synthetic_sites.hpp"
 #include "label/labeller.hpp"
 #include "label/piece_groups.hpp"

@@ -27,6 +27,7 @@
 #include "grid/qtm.hpp"
 #include "common/device_spec.hpp"
 #include "common/host_info.hpp"
+#include "label/label_engine.hpp"
 #include "label/synthetic_sites.hpp"
 #include "label/label_cuda.hpp"
 #include "label/labeller.hpp"

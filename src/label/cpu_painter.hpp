@@ -1,0 +1,23 @@
+// The CPU's labelling of a range of cells (OpenMP): the tree's leaves painted row run by row run,
+// or every cell against every candidate; then the boundary flags from the labels. Internal to
+// the labeller (label_cells calls it per tile).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "label/label_engine.hpp"
+
+namespace qtmv::label {
+
+/// The hier pass over the cells [first, first + count) of tree.level: every leaf paints its
+/// cells (a uniform leaf writes its site; a list leaf tests its few candidates per cell), then the
+/// boundary flags come from the labels. `metres` and `boundary` may be null (not asked for).
+void cpu_tree_range(const Tree& tree, const TreeView& tv, grid::Code first, std::uint64_t count,
+                    std::int32_t* site, float* metres, std::uint8_t* boundary, int threads);
+
+/// The brute-force pass over [first, first + count): each cell against every candidate.
+void cpu_brute_range(const std::vector<Piece>& candidates, int level, grid::Code first, std::uint64_t count,
+                     std::int32_t* site, float* metres, std::uint8_t* boundary, int threads);
+
+}  // namespace qtmv::label

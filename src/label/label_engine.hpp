@@ -1,0 +1,78 @@
+// The labeller's stages below label_cells, for its own files, the CUDA back end, the tests and
+// the benchmark: candidates, the float64 reference, and the host's tree. A caller labelling a
+// grid needs labeller.hpp only.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "grid/qtm.hpp"
+#include "label/label_input.hpp"
+#include "label/label_math.hpp"
+#include "label/label_tree.hpp"
+#include "label/labeller.hpp"
+
+namespace qtmv::label {
+
+/// The input's fixed cells ordered by site, then in quadtree order (quadtree_key): into *storage,
+/// unless they are in that order already (then the input's own array). make_candidates and the
+/// device build take them in this order (the groups of a site's fixed cells are then compact
+/// patches); labels and distances do not depend on it. `threads`: as LabelOptions::threads.
+const FixedCell* fixed_cells_in_quadtree_order(const LabelInput& input, int threads, std::vector<FixedCell>* storage);
+
+/// The exact rule's candidate of a site piece, and of a fixed cell (a fixed point piece at its
+/// centre), on the host and on the device alike.
+QTMV_HD inline Piece candidate_of(const SitePiece& p) {
+  return p.a.x == p.b.x && p.a.y == p.b.y && p.a.z == p.b.z ? make_point_piece(p.a, p.site)
+                                                             : make_arc_piece(p.a, p.b, p.site);
+}
+QTMV_HD inline Piece candidate_of(const FixedCell& f, int level) {
+  return make_point_piece(grid::cell_centre_vector(f.code, level), f.site, kPieceFixed);
+}
+
+/// The candidates of a rule as kernel pieces (fixed cells become fixed point pieces at their
+/// centres in both rules, after the other pieces, in fixed_cells_in_quadtree_order's order).
+/// `threads`: as LabelOptions::threads.
+std::vector<Piece> make_candidates(const LabelInput& input, Rule rule, int threads = 0);
+
+/// The float64 brute-force label of one cell (the reference): best over all candidates.
+Best reference_best(const std::vector<Piece>& candidates, grid::Code code, int level);
+
+/// A leaf of the tree: its cell, level and node index (for painting its cells on the CPU).
+struct TreeLeaf {
+  grid::Cell cell;
+  std::int32_t level;
+  std::int32_t node;
+};
+
+/// The hierarchy, on the host. Leaves are kUniform (one site: no distances asked for, or all
+/// cells fixed cells of the site) or list leaves (at the labelling level: the winner).
+struct Tree {
+  int level = 0;
+  int jump_level = 0;
+  std::vector<TreeNode> nodes;
+  std::vector<std::int32_t> lists;
+  std::vector<JumpEntry> jump;
+  std::vector<TreeLeaf> leaves;
+  std::vector<PieceGroup> groups;  ///< the line runs' groups that the lists' items refer to
+  double mean_candidates = 0;  ///< candidates a cell of the level tests, on average
+  TreeView view(const Piece* pieces) const {
+    return {nodes.data(), lists.data(), pieces, groups.empty() ? nullptr : groups.data(), jump.data(), jump_level,
+            level};
+  }
+};
+/// Builds the pruned tree over `candidates` for `level`; with_distance keeps candidate lists
+/// where all candidates share one site, so that distances can be computed.
+/// `level_done` (may be empty) is called after each level of the tree with the fraction of the
+/// levels done, outside any parallel region, so that it may throw to stop the build.
+/// `fixed` (may be null): the fixed cells behind the candidates' fixed points; a node all of whose
+/// cells are fixed cells of one site then becomes a uniform leaf even with distances (they are 0),
+/// instead of the tree going on down inside polygons. The device build (cuda::Labeller, given the
+/// same fixed cells) makes the same tree node for node: both apply decide_node (tree_node_rule.hpp).
+Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_distance, int threads = 0,
+                const std::function<void(double fraction)>& level_done = {}, const FixedCell* fixed = nullptr,
+                std::size_t fixed_count = 0);
+
+}  // namespace qtmv::label

@@ -1,0 +1,302 @@
+// The host's build of the pruned tree (label_tree.hpp), level by level on all cores; the device
+// build (cuda/label_cuda.cu) makes the same tree with the same node rule (tree_node_rule.hpp).
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <stdexcept>
+#include <vector>
+
+#include "common/host_info.hpp"
+#include "grid/qtm_checks.hpp"
+#include "label/label_engine.hpp"
+#include "label/openmp_threads.hpp"
+#include "label/piece_groups.hpp"
+#include "label/tree_node_rule.hpp"
+
+namespace qtmv::label {
+
+namespace {
+
+/// A node of the level being built, with the list its parent kept (the node filters it).
+struct Pending {
+  grid::Cell cell;
+  std::int32_t node;
+  std::uint64_t parent_offset;
+  std::uint32_t parent_count;
+};
+
+/// The fixed cells in code order, for telling a node whose every cell is a fixed cell of one site
+/// (each such cell's own fixed point wins it at distance 0, so the node needs no candidates).
+class FixedCover {
+ public:
+  FixedCover(const FixedCell* fixed, std::size_t count, int level) : level_(level) {
+    cells_.assign(fixed, fixed + count);
+    auto before = [](const FixedCell& a, const FixedCell& b) {
+      return a.code != b.code ? a.code < b.code : a.site < b.site;
+    };
+    // The readers give them in code order already (resolve_claims).
+    if (!std::is_sorted(cells_.begin(), cells_.end(), before)) std::sort(cells_.begin(), cells_.end(), before);
+    // run_end_[i]: the last code of the run of consecutive codes, one site, from cells_[i] on; a
+    // code claimed twice (two polygons) ends every run before it.
+    const std::size_t n = cells_.size();
+    run_end_.assign(n, 0);
+    for (std::size_t i = n; i-- > 0;) {
+      const bool twice = (i > 0 && cells_[i - 1].code == cells_[i].code) ||
+                         (i + 1 < n && cells_[i + 1].code == cells_[i].code);
+      if (twice) {
+        run_end_[i] = kNone;
+      } else if (i + 1 < n && run_end_[i + 1] != kNone && cells_[i + 1].code == cells_[i].code + 1 &&
+                 cells_[i + 1].site == cells_[i].site) {
+        run_end_[i] = run_end_[i + 1];
+      } else {
+        run_end_[i] = cells_[i].code;
+      }
+    }
+  }
+  bool empty() const { return cells_.empty(); }
+
+  /// The site whose fixed cells are all the cells below `cell` (of level l), or -1.
+  std::int32_t site_covering(const grid::Cell& cell, int l) const {
+    const int k = level_ - l;
+    std::int32_t site = -1;
+    for (std::uint64_t r = 0; r < (std::uint64_t{1} << k); ++r) {
+      const grid::RowCodes codes = grid::row_codes_below(cell, k, r, level_);
+      const auto at = std::lower_bound(cells_.begin(), cells_.end(), codes.first,
+                                       [](const FixedCell& f, grid::Code c) { return f.code < c; });
+      if (at == cells_.end() || at->code != codes.first) return -1;
+      const std::size_t i = static_cast<std::size_t>(at - cells_.begin());
+      if (run_end_[i] == kNone || run_end_[i] < codes.last || (site >= 0 && at->site != site)) return -1;
+      site = at->site;
+    }
+    return site;
+  }
+
+ private:
+  static constexpr grid::Code kNone = ~grid::Code{0};
+  int level_;
+  std::vector<FixedCell> cells_;
+  std::vector<grid::Code> run_end_;
+};
+
+/// What the filter decided for one node.
+struct Decision {
+  std::int32_t kind;        // kUniform, kInternal, or 1 for a list leaf
+  std::int32_t site;        // for kUniform
+  std::uint64_t offset;     // of its kept list in its thread's buffer
+  std::uint32_t count;      // kept candidates
+};
+
+
+}  // namespace
+
+Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_distance, int threads_requested,
+                const std::function<void(double fraction)>& level_done, const FixedCell* fixed,
+                std::size_t fixed_count) {
+  grid::require_level(level);
+  if (candidates.empty()) throw std::invalid_argument("build_tree: no candidates");
+  if (candidates.size() > 0x7fffffffu) throw std::invalid_argument("build_tree: more than 2^31 candidates");
+  const int threads = thread_count(threads_requested);
+  Tree tree;
+  tree.level = level;
+  // Nodes still mixed at this level become list leaves: their cells test the few candidates
+  // left rather than the tree going on down (the last levels hold most of the nodes).
+  const int list_level = tree_list_level(level);
+  tree.jump_level = tree_jump_level(level);
+  tree.nodes.resize(grid::kOctants);
+
+  // QTMV_LABEL_TRACE set: each step's time and size on stderr (for tuning).
+  const bool trace = std::getenv("QTMV_LABEL_TRACE") != nullptr;
+  const FixedCover cover(fixed, fixed_count, level);
+  double t_level = now_seconds();
+  // Line runs become groups; the octants start with the runs' top items.
+  GroupPlan plan = plan_groups(candidates, threads);
+  tree.groups = make_groups(candidates, plan.spans, threads);
+  if (trace) {
+    std::fprintf(stderr, "trace: host groups %9.3f ms  %zu groups, %zu runs\n", (now_seconds() - t_level) * 1e3,
+                 tree.groups.size(), plan.top_items.size());
+    t_level = now_seconds();
+  }
+  const PieceGroup* groups = tree.groups.empty() ? nullptr : tree.groups.data();
+  std::vector<std::int32_t> parent_lists = std::move(plan.top_items);
+  std::vector<Pending> pending;
+  for (int o = 0; o < grid::kOctants; ++o) {
+    pending.push_back({grid::Cell{o, 0, 0}, o, 0, static_cast<std::uint32_t>(parent_lists.size())});
+  }
+  // Candidate evaluations: in the build, and by the cells of list leaves afterwards.
+  double weighted_candidates = 0;
+
+  // Each level's nodes are cut into parts, several per thread for balance; a part's kept lists
+  // go to its own buffer and are concatenated in order afterwards.
+  std::vector<std::vector<std::int32_t>> kept;
+  struct Bounds {
+    double lb2;
+    std::int32_t site;
+  };
+  std::vector<std::vector<Bounds>> scratch(threads);
+  for (int l = 0; l <= level && !pending.empty(); ++l) {
+    const std::int64_t n = static_cast<std::int64_t>(pending.size());
+    std::vector<Decision> decisions(pending.size());
+    const int parts = static_cast<int>(std::min<std::int64_t>(n, std::int64_t{threads} * 16));
+    if (static_cast<int>(kept.size()) < parts) kept.resize(parts);
+    std::vector<std::uint64_t> leaf_total(parts + 1, 0), internal_total(parts + 1, 0), internal_count(parts + 1, 0),
+        leaf_count(parts + 1, 0);
+    std::vector<std::pair<std::int64_t, std::int64_t>> chunk(parts);
+    const double cells_below = std::ldexp(1.0, 2 * (level - l));
+    double evaluations = 0;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads) reduction(+ : evaluations)
+    for (int t = 0; t < parts; ++t) {
+      const std::int64_t begin = n * t / parts, end = n * (t + 1) / parts;
+      chunk[t] = {begin, end};
+      std::vector<std::int32_t>& out = kept[t];
+#ifdef _OPENMP
+      std::vector<Bounds>& bounds = scratch[omp_get_thread_num()];
+#else
+      std::vector<Bounds>& bounds = scratch[0];
+#endif
+      out.clear();
+      std::uint64_t leaf_entries = 0, internal_entries = 0, internals = 0, leaves = 0;
+      for (std::int64_t q = begin; q < end; ++q) {
+        const Pending& p = pending[q];
+        evaluations += p.parent_count;
+        const Vec3 c = grid::cell_centre_vector(grid::code_of(p.cell, l), l);
+        const std::int32_t* list = parent_lists.data() + p.parent_offset;
+        Decision dec{0, -1, out.size(), 0};
+        bool one_site = true;  // the kept candidates all have site dec.site
+        std::int32_t covered = -1;
+        if (l == level) {
+          // The node is one cell of the level: its label is the best candidate at its centre,
+          // settled here once rather than by every look-up.
+          std::int32_t winner = -1;
+          dec.site = best_of_items(c, list, static_cast<std::int32_t>(p.parent_count), candidates.data(), groups,
+                                   &winner).site;
+          if (with_distance) out.push_back(winner);
+        } else {
+          // A node all of whose cells are one site's fixed cells needs no filtering (decide_node).
+          covered = cover.empty() ? -1 : cover.site_covering(p.cell, l);
+        }
+        if (l < level && covered < 0) {
+          bounds.resize(p.parent_count);
+          double min_ub2 = 1e300;
+          for (std::uint32_t k = 0; k < p.parent_count; ++k) {
+            double ub2;
+            item_bounds(c, list[k], candidates.data(), groups, &bounds[k].lb2, &ub2, &bounds[k].site);
+            min_ub2 = std::min(min_ub2, ub2);
+          }
+          const double radius = node_radius(l, p.cell);
+          const double threshold = prune_threshold(min_ub2, radius);
+          for (std::uint32_t k = 0; k < p.parent_count; ++k) {
+            if (bounds[k].lb2 <= threshold) {
+              const std::int32_t site = bounds[k].site;
+              if (dec.site < 0) dec.site = site;
+              one_site = one_site && site == dec.site;
+              const std::int32_t items = kept_items(groups, list[k], radius);
+              if (items == 1) {
+                out.push_back(list[k]);
+              } else {
+                for (std::int32_t i = 0; i < items; ++i) out.push_back(split_item(groups, item_group(list[k]), i));
+              }
+            }
+          }
+        }
+        dec.count = static_cast<std::uint32_t>(out.size() - dec.offset);
+        const NodeDecision rule =
+            decide_node(l == level, with_distance, l >= list_level, dec.count, one_site, dec.site, covered);
+        dec.kind = rule.kind;
+        dec.site = rule.site;
+        if (dec.kind == kUniform) {
+          out.resize(dec.offset);
+          dec.count = 0;
+          ++leaves;
+        } else if (dec.kind == kListLeaf) {
+          leaf_entries += dec.count;
+          ++leaves;
+        } else {
+          internal_entries += dec.count;
+          ++internals;
+        }
+        decisions[q] = dec;
+      }
+      leaf_total[t + 1] = leaf_entries;
+      internal_total[t + 1] = internal_entries;
+      internal_count[t + 1] = internals;
+      leaf_count[t + 1] = leaves;
+    }
+    for (int t = 0; t < parts; ++t) {
+      leaf_total[t + 1] += leaf_total[t];
+      internal_total[t + 1] += internal_total[t];
+      internal_count[t + 1] += internal_count[t];
+      leaf_count[t + 1] += leaf_count[t];
+    }
+    // Allocate the next level's nodes, lists and pending entries; then fill them in parallel.
+    const std::uint64_t lists_base = tree.lists.size();
+    const std::size_t nodes_base = tree.nodes.size();
+    const std::uint64_t n_internal = internal_count[parts];
+    if (nodes_base + 4 * n_internal > 0x7fffffffu || lists_base + leaf_total[parts] > 0x7fffffffu) {
+      throw std::runtime_error("the labeller's tree outgrew 2^31 nodes or list entries");
+    }
+    tree.lists.resize(lists_base + leaf_total[parts]);
+    tree.nodes.resize(nodes_base + 4 * n_internal);
+    const std::size_t leaves_base = tree.leaves.size();
+    tree.leaves.resize(leaves_base + leaf_count[parts]);
+    std::vector<std::int32_t> next_lists(internal_total[parts]);
+    std::vector<Pending> next(4 * n_internal);
+    double weighted = 0;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads) reduction(+ : weighted)
+    for (int t = 0; t < parts; ++t) {
+      {
+        std::uint64_t leaf_at = lists_base + leaf_total[t], internal_at = internal_total[t];
+        std::uint64_t rank = internal_count[t];
+        std::size_t leaf_rank = leaves_base + leaf_count[t];
+        const std::vector<std::int32_t>& out = kept[t];
+        for (std::int64_t q = chunk[t].first; q < chunk[t].second; ++q) {
+          const Pending& p = pending[q];
+          const Decision& dec = decisions[q];
+          TreeNode& node = tree.nodes[p.node];
+          if (dec.kind != kInternal) tree.leaves[leaf_rank++] = {p.cell, l, p.node};
+          if (dec.kind == kUniform) {
+            node = {kUniform, dec.site};
+          } else if (dec.kind == kListLeaf) {
+            node = {static_cast<std::int32_t>(dec.count), static_cast<std::int32_t>(leaf_at)};
+            std::copy(out.begin() + dec.offset, out.begin() + dec.offset + dec.count, tree.lists.begin() + leaf_at);
+            leaf_at += dec.count;
+            weighted += dec.count * cells_below;
+          } else {
+            const std::int32_t first_child = static_cast<std::int32_t>(nodes_base + 4 * rank);
+            node = {kInternal, first_child};
+            std::copy(out.begin() + dec.offset, out.begin() + dec.offset + dec.count, next_lists.begin() + internal_at);
+            grid::Cell kids[4];
+            grid::children(p.cell, kids);
+            for (int k = 0; k < 4; ++k) next[4 * rank + k] = {kids[k], first_child + k, internal_at, dec.count};
+            internal_at += dec.count;
+            ++rank;
+          }
+        }
+      }
+    }
+    weighted_candidates += weighted + evaluations;
+    parent_lists.swap(next_lists);
+    pending.swap(next);
+    if (trace) {
+      std::fprintf(stderr, "trace: host level %2d %9.3f ms  nodes %lld entries %llu\n", l,
+                   (now_seconds() - t_level) * 1e3, static_cast<long long>(n),
+                   static_cast<unsigned long long>(evaluations));
+      t_level = now_seconds();
+    }
+    if (level_done) level_done(static_cast<double>(l + 1) / static_cast<double>(level + 1));
+  }
+  tree.mean_candidates = weighted_candidates / static_cast<double>(grid::cell_count(level));
+
+  // The jump table: where each cell of jump_level starts its walk.
+  const std::uint64_t jump_cells = grid::cell_count(tree.jump_level);
+  tree.jump.resize(jump_cells);
+  const std::int64_t jn = static_cast<std::int64_t>(jump_cells);
+#pragma omp parallel for schedule(static) num_threads(threads)
+  for (std::int64_t k = 0; k < jn; ++k) {
+    tree.jump[k] = walk_to_jump_level(tree.nodes.data(), grid::cell_of(static_cast<grid::Code>(k), tree.jump_level),
+                                      tree.jump_level);
+  }
+  return tree;
+}
+
+}  // namespace qtmv::label

@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "gdal/error_capture.hpp"
+#include "pipeline/staged_output.hpp"
 #include "grid/qtm_checks.hpp"
 #include "sites/ogr_site_reader.hpp"
 #include "write/output_size.hpp"
@@ -37,12 +38,6 @@ namespace {
 std::string lower(std::string s) {
   for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return s;
-}
-
-bool starts_with(const std::string& s, const char* prefix) { return s.rfind(prefix, 0) == 0; }
-
-bool ends_with(const std::string& s, const std::string& suffix) {
-  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
 std::string seconds(double s) {
@@ -66,155 +61,6 @@ std::uint64_t tile_limit(const label::LabelOptions& options) {
   if (options.memory_limit_bytes != 0) return options.memory_limit_bytes;
   return labels_on_cpu(options) ? kCpuTileBytes : 0;
 }
-
-void replace_all(std::string& text, const std::string& from, const std::string& to) {
-  if (from.empty()) return;
-  for (std::size_t at = text.find(from); at != std::string::npos; at = text.find(from, at + to.size())) {
-    text.replace(at, from.size(), to);
-  }
-}
-
-/// While it lives, GDAL's messages that name `from` (the temporary file) name `to` (the
-/// destination) instead; they then go on to the handler below. The writers keep their failures
-/// themselves (gdal::ErrorCapture), so this sees their warnings.
-class RenameInMessages {
- public:
-  RenameInMessages(std::string from, std::string to) : from_(std::move(from)), to_(std::move(to)) {
-    gdal::push_handler(&RenameInMessages::handle, this);
-  }
-  ~RenameInMessages() { CPLPopErrorHandler(); }
-  RenameInMessages(const RenameInMessages&) = delete;
-  RenameInMessages& operator=(const RenameInMessages&) = delete;
-
- private:
-  static void CPL_STDCALL handle(CPLErr type, CPLErrorNum number, const char* message) {
-    auto* self = static_cast<RenameInMessages*>(CPLGetErrorHandlerUserData());
-    std::string text = message ? message : "";
-    replace_all(text, self->from_, self->to_);
-    gdal::raise_below(&RenameInMessages::handle, self, type, number, text);
-  }
-  std::string from_, to_;
-};
-
-// --- the destination, written all or nothing ---------------------------------------------------
-
-// The writer writes into a fresh directory beside the destination, under the destination's own
-// name (so drivers see the extension they expect, and sidecar files such as a shapefile's .dbf
-// or a PNG's .aux.xml land beside it); commit() renames everything into place, the named file
-// last. Same directory, so the renames stay on one file system and each is atomic.
-class StagedOutput {
- public:
-  StagedOutput(std::string destination, bool overwrite) : destination_(std::move(destination)) {
-    if (starts_with(destination_, "/vsi")) {
-      // No rename in most virtual file systems: written directly.
-      direct_ = true;
-      write_path_ = destination_;
-      VSIStatBufL stat;
-      exists_ = !starts_with(destination_, "/vsistdout") && VSIStatL(destination_.c_str(), &stat) == 0;
-      if (exists_ && !overwrite) throw VoronoiError("'" + destination_ + "' exists: use -overwrite to replace it");
-      return;
-    }
-    const fs::path dest(destination_);
-    if (dest.filename().empty()) throw VoronoiError("'" + destination_ + "' names no file");
-    dir_ = dest.parent_path().empty() ? fs::path(".") : dest.parent_path();
-    std::error_code ec;
-    if (fs::exists(fs::symlink_status(dest, ec)) && !overwrite) {
-      throw VoronoiError("'" + destination_ + "' exists: use -overwrite to replace it");
-    }
-    if (!fs::is_directory(dir_, ec)) {
-      throw VoronoiError("cannot write '" + destination_ + "': no directory '" + dir_.string() + "'");
-    }
-    std::string pattern = (dir_ / ("." + dest.filename().string() + ".tmpXXXXXX")).string();
-    if (!mkdtemp(pattern.data())) {
-      throw VoronoiError("cannot write '" + destination_ + "': cannot create a file in '" + dir_.string() +
-                         "': " + std::strerror(errno));
-    }
-    temp_dir_ = pattern;
-    write_path_ = (temp_dir_ / dest.filename()).string();
-  }
-
-  StagedOutput(const StagedOutput&) = delete;
-  StagedOutput& operator=(const StagedOutput&) = delete;
-
-  ~StagedOutput() {
-    std::error_code ec;
-    if (!temp_dir_.empty()) fs::remove_all(temp_dir_, ec);
-    // A direct write that failed leaves what the driver made: remove it (best effort).
-    if (direct_ && !committed_ && began_ && !starts_with(destination_, "/vsistdout")) {
-      VSIUnlink(destination_.c_str());
-    }
-  }
-
-  /// The path the writer is to create; for a direct write, clears the way with -overwrite.
-  const std::string& begin() {
-    if (direct_ && exists_) {
-      if (GDALDriverH driver = GDALIdentifyDriver(destination_.c_str(), nullptr)) {
-        GDALDeleteDataset(driver, destination_.c_str());
-      } else {
-        VSIUnlink(destination_.c_str());
-      }
-    }
-    began_ = true;
-    return write_path_;
-  }
-  const std::string& write_path() const { return write_path_; }
-
-  /// Renames what the writer made into place.
-  void commit() {
-    if (direct_) {
-      committed_ = true;
-      return;
-    }
-    const fs::path main_name = fs::path(destination_).filename();
-    std::vector<fs::path> entries;
-    std::error_code ec;
-    for (const fs::directory_entry& entry : fs::directory_iterator(temp_dir_, ec)) entries.push_back(entry.path());
-    if (ec) throw VoronoiError("cannot write '" + destination_ + "': " + ec.message());
-    if (std::find_if(entries.begin(), entries.end(), [&](const fs::path& p) { return p.filename() == main_name; }) ==
-        entries.end()) {
-      throw VoronoiError("cannot write '" + destination_ + "': the driver made no file of that name");
-    }
-    // Only the destination and its sidecars (same stem: out.shx, out.png.aux.xml) move; anything
-    // else the driver made (a layer per file) would land on files nobody asked to replace.
-    const std::string stem = main_name.stem().string() + ".";
-    std::string strays;
-    for (const fs::path& p : entries) {
-      const std::string name = p.filename().string();
-      if (p.filename() != main_name && name.rfind(stem, 0) != 0) strays += (strays.empty() ? "" : ", ") + name;
-    }
-    if (!strays.empty()) {
-      throw VoronoiError("cannot write '" + destination_ + "': the driver made other files beside it (" + strays +
-                         "); a single-file format holds one layer: use -layers with one layer, or a directory");
-    }
-    // Sidecars first, the named file last: it appears only when all is in place.
-    std::stable_partition(entries.begin(), entries.end(), [&](const fs::path& p) { return p.filename() != main_name; });
-    for (const fs::path& from : entries) {
-      const fs::path to = dir_ / from.filename();
-      if (fs::is_directory(from) && fs::exists(to)) {
-        // A dataset that is a directory (-overwrite): the old one goes aside, then away.
-        const fs::path old = temp_dir_ / (".old." + from.filename().string());
-        fs::rename(to, old, ec);
-        if (!ec) {
-          fs::rename(from, to, ec);
-          // The temporary directory is removed on the way out: bring the old dataset back first.
-          std::error_code ignored;
-          if (ec) fs::rename(old, to, ignored);
-        }
-      } else {
-        fs::rename(from, to, ec);
-      }
-      if (ec) {
-        throw VoronoiError("cannot write '" + destination_ + "': renaming into '" + to.string() + "': " + ec.message());
-      }
-    }
-    committed_ = true;
-  }
-
- private:
-  std::string destination_, write_path_;
-  fs::path dir_, temp_dir_;
-  bool direct_ = false, exists_ = false, began_ = false, committed_ = false;
-};
 
 // Maps each part's progress onto a slice of the whole run and remembers a request to stop.
 class Progress {
@@ -263,64 +109,6 @@ std::string VoronoiSummary::line() const {
     << " (prepare " << seconds(prepare_seconds) << "), write " << seconds(write_seconds) << "; total "
     << seconds(total_seconds);
   return s.str();
-}
-
-OutputFormat choose_output_format(const std::string& destination, const std::string& format, OutputKind kind) {
-  GDALAllRegister();
-  auto can_vector = [](GDALDriver* d) {
-    return d->GetMetadataItem(GDAL_DCAP_VECTOR) && d->GetMetadataItem(GDAL_DCAP_CREATE);
-  };
-  auto can_raster = [](GDALDriver* d) {
-    return d->GetMetadataItem(GDAL_DCAP_RASTER) &&
-           (d->GetMetadataItem(GDAL_DCAP_CREATE) || d->GetMetadataItem(GDAL_DCAP_CREATECOPY));
-  };
-  auto pick = [&](GDALDriver* d) -> OutputFormat {
-    const std::string name = d->GetDescription();
-    const bool vector = can_vector(d), raster = can_raster(d);
-    if (kind == OutputKind::raster) {
-      if (!raster) throw VoronoiError("the " + name + " driver cannot write rasters (-raster, -tr, -ts, -co)");
-      return {name, true};
-    }
-    if (kind == OutputKind::vector && !vector) {
-      throw VoronoiError("the " + name + " driver cannot write vectors (-layers, -lco, -dsco)");
-    }
-    if (!vector && !raster) throw VoronoiError("the " + name + " driver cannot create datasets");
-    return {name, !vector};
-  };
-
-  if (!format.empty()) {
-    GDALDriver* driver = GetGDALDriverManager()->GetDriverByName(format.c_str());
-    if (!driver) throw VoronoiError("-of " + format + ": no such GDAL driver (--formats lists them)");
-    return pick(driver);
-  }
-  // As GDAL's utilities do: the drivers whose extensions match, in registration order (GTiff
-  // before COG); a driver that writes both (GPKG) writes vectors unless told otherwise.
-  const std::string name = lower(CPLGetFilename(destination.c_str()));
-  GDALDriver* first_vector = nullptr;
-  GDALDriver* first_raster = nullptr;
-  GDALDriverManager* manager = GetGDALDriverManager();
-  for (int k = 0; k < manager->GetDriverCount(); ++k) {
-    GDALDriver* d = manager->GetDriver(k);
-    const char* list = d->GetMetadataItem(GDAL_DMD_EXTENSIONS);
-    if (!list) list = d->GetMetadataItem(GDAL_DMD_EXTENSION);
-    if (!list) continue;
-    std::istringstream extensions{lower(list)};
-    bool match = false;
-    for (std::string ext; extensions >> ext && !match;) match = ends_with(name, "." + ext);
-    if (!match) continue;
-    if (!first_vector && can_vector(d)) first_vector = d;
-    if (!first_raster && can_raster(d)) first_raster = d;
-  }
-  GDALDriver* chosen = kind == OutputKind::raster   ? first_raster
-                       : kind == OutputKind::vector ? first_vector
-                       : first_vector               ? first_vector
-                                                    : first_raster;
-  if (!chosen) {
-    const std::string what = kind == OutputKind::raster ? "raster " : kind == OutputKind::vector ? "vector " : "";
-    throw VoronoiError("cannot tell the output format from '" + destination + "': no GDAL " + what +
-                       "driver writes files of that extension; use -of FORMAT (--formats lists them)");
-  }
-  return pick(chosen);
 }
 
 std::uint64_t estimate_run_memory(int level, const label::LabelOptions& label_options) {
@@ -437,7 +225,7 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
     }
   }
 
-  StagedOutput output(destination, options.overwrite);
+  pipeline::StagedOutput output(destination, options.overwrite);
   Progress progress(options.progress);
   const StageEnds ends = stage_ends(format.raster, wants_cells_layer, labels_on_cpu(label_options));
   VoronoiSummary summary;
@@ -532,7 +320,7 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
     return progress.report(ends.label, 1.0, f, stage);
   };
   try {
-    const RenameInMessages name_the_destination(path, destination);
+    const pipeline::RenameInMessages name_the_destination(path, destination);
     if (!progress.report(ends.label, 1.0, 0.0, "write")) throw Interrupted();
     if (format.raster) {
       raster_options.progress = write_progress;
@@ -557,7 +345,7 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   } catch (const std::exception& e) {
     if (progress.cancelled()) throw Interrupted();
     std::string message = e.what();
-    replace_all(message, path, destination);  // name the destination, not the temporary file
+    pipeline::replace_all(message, path, destination);  // name the destination, not the temporary file
     throw VoronoiError(message);
   }
   output.commit();

@@ -11,6 +11,7 @@
 
 #include "common/run_context.hpp"
 #include "label/labeller.hpp"
+#include "pipeline/voronoi_error.hpp"
 #include "sites/site_options.hpp"
 #include "write/cell_labels.hpp"
 
@@ -73,11 +74,6 @@ struct VoronoiSummary {
   std::string line() const;
 };
 
-/// A failed run; what() says why, naming the file. The destination is untouched.
-class VoronoiError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
 
 
 /// The output driver and kind a run would use: options.format (-of), or the first GDAL driver

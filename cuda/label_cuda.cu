@@ -327,10 +327,13 @@ __global__ void __launch_bounds__(kBlock, 4) tree_paint_kernel(TreeView tree, co
   }
 }
 
-/// The pending flags that tree_paint_kernel left, from the labels it wrote: a cell is a boundary
-/// cell when one of its three edge neighbours has another site. A neighbour inside
-/// [first, first + count) reads its label there; one outside is looked up in the tree
-/// tree_flag_kernel's work for one warp: the pending flags of outputs [warp_out, warp_out + 128).
+/// tree_flag_kernel's work for one warp: settles the pending flags (kBoundaryPending) among
+/// outputs [warp_out, warp_out + 128), 4 per lane. The pending cells are queued in q in code order
+/// (ballots) and then taken 32 at a time, so that whole warps do the neighbour look-ups rather
+/// than the few lanes that hold one. A cell's flag is 1 when one of its three edge neighbours has
+/// another site: a neighbour inside [first, first + count) reads the label tree_paint_kernel wrote
+/// there; one outside is labelled from the tree (tree_label), and only when the neighbours inside
+/// did not settle it, those look-ups being the dear ones.
 __device__ inline void settle_flags(const TreeView& tree, grid::Code first, std::uint64_t count,
                                     const std::int32_t* site, std::uint8_t* boundary, std::uint64_t warp_out,
                                     std::uint8_t* q) {

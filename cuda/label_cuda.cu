@@ -258,7 +258,9 @@ struct Buffer {
   /// The first `count` elements in a plain array of their own (of at least one element).
   DeviceArray<T> copy_out(std::size_t count, FaultStep injected) const {
     DeviceArray<T> copy = DeviceArray<T>::plain(count ? count : 1, injected);
-    if (count) QTMV_CUDA_CHECK(cudaMemcpyAsync(copy.get(), array.get(), count * sizeof(T), cudaMemcpyDeviceToDevice, 0));
+    if (count) {
+      QTMV_CUDA_CHECK(cudaMemcpyAsync(copy.get(), array.get(), count * sizeof(T), cudaMemcpyDeviceToDevice, 0));
+    }
     return copy;
   }
 };
@@ -1003,7 +1005,8 @@ DeviceFixedCover make_fixed_cover(const FixedCell* fixed, std::uint64_t count, i
   QTMV_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(nullptr, temp_bytes, unsorted_key.get(), cover.key.get(),
                                                   unsorted_site.get(), sorted_site.get(), count, 0, end_bit));
   {
-    const DeviceArray<unsigned char> temp = device_alloc<unsigned char>(temp_bytes ? temp_bytes : 1, &scratch, injected);
+    const DeviceArray<unsigned char> temp =
+        device_alloc<unsigned char>(temp_bytes ? temp_bytes : 1, &scratch, injected);
     QTMV_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(temp.get(), temp_bytes, unsorted_key.get(), cover.key.get(),
                                                     unsorted_site.get(), sorted_site.get(), count, 0, end_bit));
     QTMV_CUDA_CHECK(cudaDeviceSynchronize());  // the sort's errors surface here, named
@@ -1018,7 +1021,8 @@ DeviceFixedCover make_fixed_cover(const FixedCell* fixed, std::uint64_t count, i
   temp_bytes = 0;
   QTMV_CUDA_CHECK(cub::DeviceScan::InclusiveSum(nullptr, temp_bytes, run_starts, cover.run.get(), count));
   {
-    const DeviceArray<unsigned char> temp = device_alloc<unsigned char>(temp_bytes ? temp_bytes : 1, &scratch, injected);
+    const DeviceArray<unsigned char> temp =
+        device_alloc<unsigned char>(temp_bytes ? temp_bytes : 1, &scratch, injected);
     QTMV_CUDA_CHECK(cub::DeviceScan::InclusiveSum(temp.get(), temp_bytes, run_starts, cover.run.get(), count));
     QTMV_CUDA_CHECK(cudaDeviceSynchronize());
   }
@@ -1087,8 +1091,8 @@ DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* ru
     pending.need(n);
     QTMV_CUDA_CHECK(cudaMemcpy(pending.get(), roots, sizeof roots, cudaMemcpyHostToDevice));
     parent_lists.need(top_count);
-    QTMV_CUDA_CHECK(cudaMemcpy(parent_lists.get(), top_items.data(), top_count * sizeof(std::int32_t),
-                               cudaMemcpyHostToDevice));
+    QTMV_CUDA_CHECK(
+        cudaMemcpy(parent_lists.get(), top_items.data(), top_count * sizeof(std::int32_t), cudaMemcpyHostToDevice));
   }
   std::uint64_t node_count = grid::kOctants, list_count = 0;
   nodes.grow_keep(node_count, 0);
@@ -1119,8 +1123,8 @@ DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* ru
     offsets.need(n + 1);
     keep.need(entries + 1);
     keep_pos.need(entries + 1);
-    level_init_kernel<<<blocks_of(n), kBlock>>>(pending.get(), nn, l, last, centre.get(), radius.get(), start_in.get(), min_bits.get(),
-                                                site_min.get(), site_max.get(), key.get());
+    level_init_kernel<<<blocks_of(n), kBlock>>>(pending.get(), nn, l, last, centre.get(), radius.get(), start_in.get(),
+                                                min_bits.get(), site_min.get(), site_max.get(), key.get());
     QTMV_CUDA_CHECK_LAUNCH("level_init_kernel");
     std::size_t bytes = 0;
     QTMV_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(nullptr, bytes, start_in.get(), start.get(), n + 1));
@@ -1131,7 +1135,8 @@ DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* ru
       const std::int32_t groups = nn / 4;
       const std::uint64_t items = entries / 4;
       if (last) {
-        level_settle_kernel<<<blocks_of(n), kBlock>>>(pending.get(), nn, parent_lists.get(), pieces, runs, centre.get(), key.get());
+        level_settle_kernel<<<blocks_of(n), kBlock>>>(pending.get(), nn, parent_lists.get(), pieces, runs, centre.get(),
+                                                      key.get());
         QTMV_CUDA_CHECK_LAUNCH("level_settle_kernel");
       } else {
         owner_heads.need(items);
@@ -1140,17 +1145,19 @@ DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* ru
         level_owner_kernel<<<blocks_of(groups), kBlock>>>(start.get(), groups, owner_heads.get());
         QTMV_CUDA_CHECK_LAUNCH("level_owner_kernel");
         std::size_t owner_bytes = 0;
-        QTMV_CUDA_CHECK(cub::DeviceScan::InclusiveScan(nullptr, owner_bytes, owner_heads.get(), owner.get(), MaxI32{}, items));
+        QTMV_CUDA_CHECK(
+            cub::DeviceScan::InclusiveScan(nullptr, owner_bytes, owner_heads.get(), owner.get(), MaxI32{}, items));
         scan_temp(owner_bytes);
-        QTMV_CUDA_CHECK(cub::DeviceScan::InclusiveScan(temp.get(), owner_bytes, owner_heads.get(), owner.get(), MaxI32{}, items));
-        level_min_kernel<<<blocks_of(items), kBlock>>>(pending.get(), owner.get(), start.get(), items, parent_lists.get(), pieces,
-                                                       runs, centre.get(), min_bits.get());
+        QTMV_CUDA_CHECK(
+            cub::DeviceScan::InclusiveScan(temp.get(), owner_bytes, owner_heads.get(), owner.get(), MaxI32{}, items));
+        level_min_kernel<<<blocks_of(items), kBlock>>>(pending.get(), owner.get(), start.get(), items,
+                                                       parent_lists.get(), pieces, runs, centre.get(), min_bits.get());
         QTMV_CUDA_CHECK_LAUNCH("level_min_kernel");
         level_threshold_kernel<<<blocks_of(n), kBlock>>>(nn, min_bits.get(), radius.get(), threshold.get());
         QTMV_CUDA_CHECK_LAUNCH("level_threshold_kernel");
-        level_keep_kernel<<<blocks_of(items), kBlock>>>(pending.get(), owner.get(), start.get(), items, parent_lists.get(), pieces,
-                                                        runs, centre.get(), radius.get(), threshold.get(), keep.get(), site_min.get(),
-                                                        site_max.get());
+        level_keep_kernel<<<blocks_of(items), kBlock>>>(pending.get(), owner.get(), start.get(), items,
+                                                        parent_lists.get(), pieces, runs, centre.get(), radius.get(),
+                                                        threshold.get(), keep.get(), site_min.get(), site_max.get());
         QTMV_CUDA_CHECK_LAUNCH("level_keep_kernel");
       }
     }
@@ -1162,14 +1169,16 @@ DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* ru
       QTMV_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(temp.get(), bytes, keep.get(), keep_pos.get(), entries + 1));
     }
     level_decide_kernel<<<blocks_of(n), kBlock>>>(pending.get(), nn, l, last, with_distance, l >= list_level, cover,
-                                                  start.get(), keep_pos.get(), site_min.get(), site_max.get(), key.get(), kind.get(),
-                                                  count.get(), value.get(), sums_in.get());
+                                                  start.get(), keep_pos.get(), site_min.get(), site_max.get(),
+                                                  key.get(), kind.get(), count.get(), value.get(), sums_in.get());
     QTMV_CUDA_CHECK_LAUNCH("level_decide_kernel");
     bytes = 0;
     const LevelSums zero{0, 0, 0};
-    QTMV_CUDA_CHECK(cub::DeviceScan::ExclusiveScan(nullptr, bytes, sums_in.get(), offsets.get(), AddSums{}, zero, n + 1));
+    QTMV_CUDA_CHECK(
+        cub::DeviceScan::ExclusiveScan(nullptr, bytes, sums_in.get(), offsets.get(), AddSums{}, zero, n + 1));
     scan_temp(bytes);
-    QTMV_CUDA_CHECK(cub::DeviceScan::ExclusiveScan(temp.get(), bytes, sums_in.get(), offsets.get(), AddSums{}, zero, n + 1));
+    QTMV_CUDA_CHECK(
+        cub::DeviceScan::ExclusiveScan(temp.get(), bytes, sums_in.get(), offsets.get(), AddSums{}, zero, n + 1));
     LevelSums total{};
     QTMV_CUDA_CHECK(cudaMemcpy(&total, offsets.get() + n, sizeof total, cudaMemcpyDeviceToHost));
     if (node_count + 4 * total.internals > 0x7fffffffull || list_count + total.leaf_entries > 0x7fffffffull) {
@@ -1179,18 +1188,19 @@ DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* ru
     lists.grow_keep(list_count + total.leaf_entries + 1, list_count);
     next.need(4 * total.internals + 1);
     next_lists.need(total.internal_entries + 1);
-    level_write_nodes_kernel<<<blocks_of(n), kBlock>>>(pending.get(), nn, last, kind.get(), count.get(), value.get(), key.get(),
-                                                       offsets.get(), list_count, node_count, nodes.get(), lists.get());
+    level_write_nodes_kernel<<<blocks_of(n), kBlock>>>(pending.get(), nn, last, kind.get(), count.get(), value.get(),
+                                                       key.get(), offsets.get(), list_count, node_count, nodes.get(),
+                                                       lists.get());
     QTMV_CUDA_CHECK_LAUNCH("level_write_nodes_kernel");
     if (total.internals > 0) {
-      level_write_children_kernel<<<blocks_of(4 * n), kBlock>>>(pending.get(), nn, kind.get(), count.get(), offsets.get(), node_count,
-                                                                next.get());
+      level_write_children_kernel<<<blocks_of(4 * n), kBlock>>>(pending.get(), nn, kind.get(), count.get(),
+                                                                offsets.get(), node_count, next.get());
       QTMV_CUDA_CHECK_LAUNCH("level_write_children_kernel");
     }
     if (!last && entries > 0) {
-      level_write_lists_kernel<<<blocks_of(entries / 4), kBlock>>>(pending.get(), owner.get(), start.get(), entries / 4,
-                                                                   parent_lists.get(), runs, keep_pos.get(), kind.get(),
-                                                                   offsets.get(), list_count, lists.get(), next_lists.get());
+      level_write_lists_kernel<<<blocks_of(entries / 4), kBlock>>>(
+          pending.get(), owner.get(), start.get(), entries / 4, parent_lists.get(), runs, keep_pos.get(), kind.get(),
+          offsets.get(), list_count, lists.get(), next_lists.get());
       QTMV_CUDA_CHECK_LAUNCH("level_write_lists_kernel");
     }
     weighted += static_cast<double>(entries) +
@@ -1310,9 +1320,8 @@ struct Labeller::Impl {
       QTMV_CUDA_CHECK_LAUNCH("make_groups_kernel");
     }
     trace("groups made");
-    DeviceTree t =
-        build_on_device(device, pieces.get(), groups.get(), plan.top_items, level, with_distance, cover, injected_fault,
-                        trace);
+    DeviceTree t = build_on_device(device, pieces.get(), groups.get(), plan.top_items, level, with_distance, cover,
+                                   injected_fault, trace);
     nodes = std::move(t.nodes);
     lists = std::move(t.lists);
     jump = std::move(t.jump);
@@ -1515,7 +1524,7 @@ void Labeller::reserve(std::uint64_t max_cells, bool want_distance, bool want_bo
 float Labeller::run(grid::Code first, std::uint64_t count, bool want_distance, bool want_boundary) {
   Impl& m = *impl_;
   if (count > m.capacity) throw std::invalid_argument("Labeller::run: more cells than reserved");
-  if ((want_distance && !m.metres.get()) || (want_boundary && !m.boundary.get())) {
+  if ((want_distance && !m.metres) || (want_boundary && !m.boundary)) {
     throw std::invalid_argument("Labeller::run: outputs asked for that reserve() did not make room for");
   }
   QTMV_CUDA_CHECK(cudaSetDevice(m.device));
@@ -1541,8 +1550,8 @@ float Labeller::run(grid::Code first, std::uint64_t count, bool want_distance, b
       QTMV_CUDA_CHECK(cudaMemsetAsync(m.counters.get(), 0, 2 * sizeof(unsigned int)));
       const std::uint64_t blocks = (spans + kPaintWarps - 1) / kPaintWarps;
       tree_paint_kernel<<<static_cast<unsigned int>(blocks < m.paint_blocks ? blocks : m.paint_blocks), kBlock>>>(
-          view, m.jump_clean.get(), first, count, m.site.get(), boundary, boundary ? m.pending_spans.get() : nullptr, m.counters.get(),
-          m.counters.get() + 1);
+          view, m.jump_clean.get(), first, count, m.site.get(), boundary, boundary ? m.pending_spans.get() : nullptr,
+          m.counters.get(), m.counters.get() + 1);
       QTMV_CUDA_CHECK_LAUNCH("tree_paint_kernel");
       if (boundary) {
         // Enough blocks to fill the device; each takes listed spans in turn.
@@ -1552,11 +1561,12 @@ float Labeller::run(grid::Code first, std::uint64_t count, bool want_distance, b
       }
     }
   } else {
-    brute_label_kernel<<<blocks_for(count), kBlock>>>(m.pieces.get(), m.piece_count, m.level, first, count, m.site.get(), metres);
+    brute_label_kernel<<<blocks_for(count), kBlock>>>(m.pieces.get(), m.piece_count, m.level, first, count,
+                                                      m.site.get(), metres);
     QTMV_CUDA_CHECK_LAUNCH("brute_label_kernel");
     if (boundary) {
-      brute_boundary_kernel<<<blocks_for(count), kBlock>>>(m.pieces.get(), m.piece_count, m.level, first, count, m.site.get(),
-                                                            boundary);
+      brute_boundary_kernel<<<blocks_for(count), kBlock>>>(m.pieces.get(), m.piece_count, m.level, first, count,
+                                                           m.site.get(), boundary);
       QTMV_CUDA_CHECK_LAUNCH("brute_boundary_kernel");
     }
   }
@@ -1573,11 +1583,13 @@ float Labeller::download(std::uint64_t offset, std::uint64_t count, std::int32_t
   if (offset + count > m.capacity) throw std::invalid_argument("Labeller::download: outside the reserved cells");
   QTMV_CUDA_CHECK(cudaSetDevice(m.device));
   QTMV_CUDA_CHECK(cudaEventRecord(m.start));
-  if (site) QTMV_CUDA_CHECK(cudaMemcpy(site, m.site.get() + offset, count * sizeof(std::int32_t), cudaMemcpyDeviceToHost));
-  if (distance_m && m.metres.get()) {
+  if (site) {
+    QTMV_CUDA_CHECK(cudaMemcpy(site, m.site.get() + offset, count * sizeof(std::int32_t), cudaMemcpyDeviceToHost));
+  }
+  if (distance_m && m.metres) {
     QTMV_CUDA_CHECK(cudaMemcpy(distance_m, m.metres.get() + offset, count * sizeof(float), cudaMemcpyDeviceToHost));
   }
-  if (boundary && m.boundary.get()) {
+  if (boundary && m.boundary) {
     QTMV_CUDA_CHECK(cudaMemcpy(boundary, m.boundary.get() + offset, count, cudaMemcpyDeviceToHost));
   }
   QTMV_CUDA_CHECK(cudaEventRecord(m.stop));
@@ -1595,11 +1607,11 @@ std::vector<std::int32_t> Labeller::brute_sites(const std::vector<grid::Code>& c
   DeviceArray<std::int32_t> device_sites = device_alloc<std::int32_t>(codes.size(), &scratch, m.injected_fault);
   std::vector<std::int32_t> sites(codes.size());
   if (!codes.empty()) {
-    brute_codes_kernel<<<blocks_for(codes.size()), kBlock>>>(m.pieces.get(), m.piece_count, m.level,
-                                                             device_codes.get(), codes.size(), device_sites.get());
+    brute_codes_kernel<<<blocks_for(codes.size()), kBlock>>>(m.pieces.get(), m.piece_count, m.level, device_codes.get(),
+                                                             codes.size(), device_sites.get());
     QTMV_CUDA_CHECK_LAUNCH("brute_codes_kernel");
-    QTMV_CUDA_CHECK(cudaMemcpy(sites.data(), device_sites.get(), codes.size() * sizeof(std::int32_t),
-                               cudaMemcpyDeviceToHost));
+    QTMV_CUDA_CHECK(
+        cudaMemcpy(sites.data(), device_sites.get(), codes.size() * sizeof(std::int32_t), cudaMemcpyDeviceToHost));
   }
   device_codes.free_checked();
   device_sites.free_checked();

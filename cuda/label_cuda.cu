@@ -73,7 +73,7 @@ FaultStep fault_step_from_environment() {
 
 /// Throws OutOfMemory when `injected` (the fault QTMV_FAULT_CUDA_OOM names) is `step`.
 void fail_if_injected(FaultStep injected, FaultStep step) {
-  if (injected != FaultStep::none && injected == step) {
+  if (injected == step) {
     throw OutOfMemory(std::string("CUDA error cudaErrorMemoryAllocation (injected by QTMV_FAULT_CUDA_OOM=") +
                       fault_step_name(step) + ")");
   }

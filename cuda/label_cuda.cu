@@ -40,16 +40,43 @@ void check(cudaError_t status, const char* call, const char* file, int line) {
   throw std::runtime_error(what);
 }
 
-/// Fault injection (OutOfMemory's comment): true when QTMV_FAULT_CUDA_OOM names `step`.
-bool fault_injected(const char* step) {
-  const char* fault = std::getenv("QTMV_FAULT_CUDA_OOM");
-  return fault && std::string(fault) == step;
+/// Fault injection, for the tests: the environment variable QTMV_FAULT_CUDA_OOM names a step
+/// that then fails as a device out of memory would (OutOfMemory, "injected by ..."):
+///   build     the device tree build (the caller labels on the CPU instead);
+///   reserve   reserve() of outputs for more than 65536 cells (the caller tries smaller tiles);
+///   run       run() of any tile but the first (a failure mid-run: the rest goes to the CPU);
+///   allocate  a device allocation's first try, while the memory pool holds idle memory (which
+///             is then given back, and the allocation tried again).
+/// The variable is read when a Labeller is made and again at each reserve() (the start of a run's
+/// tiles; the tests set it between construction and reserve), not at every allocation and tile.
+enum class FaultStep { none, build, reserve, run, allocate };
+
+const char* fault_step_name(FaultStep step) {
+  switch (step) {
+    case FaultStep::build: return "build";
+    case FaultStep::reserve: return "reserve";
+    case FaultStep::run: return "run";
+    case FaultStep::allocate: return "allocate";
+    case FaultStep::none: break;
+  }
+  return "";
 }
-/// Throws OutOfMemory when QTMV_FAULT_CUDA_OOM names `step`.
-void injected_fault(const char* step) {
-  if (fault_injected(step)) {
-    throw OutOfMemory(std::string("CUDA error cudaErrorMemoryAllocation (injected by QTMV_FAULT_CUDA_OOM=") + step +
-                      ")");
+
+/// The step QTMV_FAULT_CUDA_OOM names (none when unset or naming no step).
+FaultStep fault_step_from_environment() {
+  const char* fault = std::getenv("QTMV_FAULT_CUDA_OOM");
+  if (!fault) return FaultStep::none;
+  for (const FaultStep step : {FaultStep::build, FaultStep::reserve, FaultStep::run, FaultStep::allocate}) {
+    if (std::string(fault) == fault_step_name(step)) return step;
+  }
+  return FaultStep::none;
+}
+
+/// Throws OutOfMemory when `injected` (the fault QTMV_FAULT_CUDA_OOM names) is `step`.
+void fail_if_injected(FaultStep injected, FaultStep step) {
+  if (injected == step) {
+    throw OutOfMemory(std::string("CUDA error cudaErrorMemoryAllocation (injected by QTMV_FAULT_CUDA_OOM=") +
+                      fault_step_name(step) + ")");
   }
 }
 #define QTMV_CUDA_CHECK(call) check((call), #call, __FILE__, __LINE__)
@@ -83,15 +110,14 @@ cudaError_t release_pool(int device) {
   return status;
 }
 
-/// cudaMalloc, once more after the pool's idle memory went back to the system.
-#define QTMV_CUDA_ALLOCATE(pointer, bytes) check(allocate(reinterpret_cast<void**>(pointer), (bytes)), \
-                                                 "cudaMalloc(" #pointer ", " #bytes ")", __FILE__, __LINE__)
-/// (QTMV_FAULT_CUDA_OOM=allocate: the first try fails whenever the pool holds idle memory.)
-cudaError_t allocate(void** pointer, std::size_t bytes) {
+/// cudaMalloc, once more after the pool's idle memory went back to the system: the one way
+/// plain device memory is allocated (DeviceArray::plain).
+/// (injected FaultStep::allocate: the first try fails whenever the pool holds idle memory.)
+cudaError_t allocate(void** pointer, std::size_t bytes, FaultStep injected_fault) {
   int device = 0;
   const cudaError_t current = cudaGetDevice(&device);
   if (current != cudaSuccess) return current;
-  const bool injected = fault_injected("allocate") && pool_idle_bytes(device) > 0;
+  const bool injected = injected_fault == FaultStep::allocate && pool_idle_bytes(device) > 0;
   const cudaError_t status = injected ? cudaErrorMemoryAllocation : cudaMalloc(pointer, bytes);
   if (status != cudaErrorMemoryAllocation) return status;
   (void)cudaGetLastError();
@@ -100,10 +126,151 @@ cudaError_t allocate(void** pointer, std::size_t bytes) {
   return released == cudaSuccess ? cudaMalloc(pointer, bytes) : released;
 }
 
+// --- device memory ------------------------------------------------------------------------
+//
+// Every device array is a DeviceArray, allocated one of two ways, and freed the same way:
+//  - plain: cudaMalloc through allocate() (out of memory: the pool's idle memory goes back to the
+//    system and the allocation is tried once more). The arrays a Labeller keeps (candidates,
+//    tree, outputs) and the constructors' scratch.
+//  - pool: cudaMallocAsync from the device's default pool, on the default stream. The tree
+//    build's scratch (Buffer), which grows level by level: the pool keeps that memory mapped for
+//    the next build, where cudaMalloc and cudaFree would map and unmap it each time.
+
+/// A device array of size() elements that frees itself as it was allocated. Move-only.
+template <typename T>
+class DeviceArray {
+ public:
+  DeviceArray() = default;
+  DeviceArray(const DeviceArray&) = delete;
+  DeviceArray& operator=(const DeviceArray&) = delete;
+  DeviceArray(DeviceArray&& other) noexcept : data_(other.data_), size_(other.size_), from_pool_(other.from_pool_) {
+    other.data_ = nullptr;
+    other.size_ = 0;
+  }
+  DeviceArray& operator=(DeviceArray&& other) noexcept {
+    if (this != &other) {
+      reset();
+      data_ = other.data_;
+      size_ = other.size_;
+      from_pool_ = other.from_pool_;
+      other.data_ = nullptr;
+      other.size_ = 0;
+    }
+    return *this;
+  }
+  /// Destructors must not throw; errors here are left to the next call's check.
+  ~DeviceArray() { reset(); }
+
+  /// `count` elements by cudaMalloc (allocate(): `injected` FaultStep::allocate fails the first
+  /// try); an empty array for count 0.
+  static DeviceArray plain(std::size_t count, FaultStep injected) {
+    DeviceArray array;
+    if (count == 0) return array;
+    T* p = nullptr;
+    check(allocate(reinterpret_cast<void**>(&p), count * sizeof(T), injected), "cudaMalloc(&p, count * sizeof(T))",
+          __FILE__, __LINE__);
+    array.data_ = p;
+    array.size_ = count;
+    return array;
+  }
+  /// `count` elements from the current device's default pool (the tree build's scratch).
+  static DeviceArray from_pool(std::size_t count) {
+    DeviceArray array;
+    T* p = nullptr;
+    QTMV_CUDA_CHECK(cudaMallocAsync(&p, count * sizeof(T), 0));
+    array.data_ = p;
+    array.size_ = count;
+    array.from_pool_ = true;
+    return array;
+  }
+
+  T* get() const { return data_; }
+  std::size_t size() const { return size_; }
+  explicit operator bool() const { return data_ != nullptr; }
+
+  /// Frees the array now, unchecked (as the destructor).
+  void reset() noexcept {
+    if (data_) {
+      if (from_pool_) {
+        (void)cudaFreeAsync(data_, 0);
+      } else {
+        (void)cudaFree(data_);
+      }
+    }
+    data_ = nullptr;
+    size_ = 0;
+  }
+  /// Frees the array now, checked: OutOfMemory or std::runtime_error as any CUDA call.
+  void free_checked() {
+    T* p = data_;
+    const bool pooled = from_pool_;
+    data_ = nullptr;
+    size_ = 0;
+    if (!p) return;
+    if (pooled) {
+      QTMV_CUDA_CHECK(cudaFreeAsync(p, 0));
+    } else {
+      QTMV_CUDA_CHECK(cudaFree(p));
+    }
+  }
+
+ private:
+  T* data_ = nullptr;
+  std::size_t size_ = 0;
+  bool from_pool_ = false;
+};
+
+/// A plain array of `count` elements, its bytes added to *total.
+template <typename T>
+DeviceArray<T> device_alloc(std::size_t count, std::size_t* total, FaultStep injected) {
+  DeviceArray<T> array = DeviceArray<T>::plain(count, injected);
+  *total += count * sizeof(T);
+  return array;
+}
+
+/// A plain array holding a copy of `host`, its bytes added to *total.
+template <typename T>
+DeviceArray<T> device_copy(const std::vector<T>& host, std::size_t* total, FaultStep injected) {
+  DeviceArray<T> array = device_alloc<T>(host.size(), total, injected);
+  if (array) QTMV_CUDA_CHECK(cudaMemcpy(array.get(), host.data(), host.size() * sizeof(T), cudaMemcpyHostToDevice));
+  return array;
+}
+
+/// The tree build's scratch: a pool array that grows on demand, to twice what is asked and more,
+/// so that the levels seldom allocate (contents dropped by need, kept by grow_keep).
+template <typename T>
+struct Buffer {
+  DeviceArray<T> array;
+  T* get() const { return array.get(); }
+  void need(std::size_t n) {
+    if (n <= array.size()) return;
+    array.free_checked();
+    array = DeviceArray<T>::from_pool(2 * n + 256);
+  }
+  void grow_keep(std::size_t n, std::size_t used) {
+    if (n <= array.size()) return;
+    DeviceArray<T> grown = DeviceArray<T>::from_pool(2 * n + 256);
+    if (used) {
+      QTMV_CUDA_CHECK(cudaMemcpyAsync(grown.get(), array.get(), used * sizeof(T), cudaMemcpyDeviceToDevice, 0));
+    }
+    array.free_checked();
+    array = std::move(grown);
+  }
+  /// The first `count` elements in a plain array of their own (of at least one element).
+  DeviceArray<T> copy_out(std::size_t count, FaultStep injected) const {
+    DeviceArray<T> copy = DeviceArray<T>::plain(count ? count : 1, injected);
+    if (count) {
+      QTMV_CUDA_CHECK(cudaMemcpyAsync(copy.get(), array.get(), count * sizeof(T), cudaMemcpyDeviceToDevice, 0));
+    }
+    return copy;
+  }
+};
+
 constexpr int kBlock = 256;
 
 /// QTMV_LABEL_TRACE set: the device build reports each step's time and size on stderr (for
-/// tuning; the device is synchronised at each report).
+/// tuning; the device is synchronised at each report). A Labeller constructor makes one, which
+/// reads the variable, and passes it on to the build.
 struct Trace {
   bool on = std::getenv("QTMV_LABEL_TRACE") != nullptr;
   std::chrono::steady_clock::time_point last = std::chrono::steady_clock::now();
@@ -328,10 +495,13 @@ __global__ void __launch_bounds__(kBlock, 4) tree_paint_kernel(TreeView tree, co
   }
 }
 
-/// The pending flags that tree_paint_kernel left, from the labels it wrote: a cell is a boundary
-/// cell when one of its three edge neighbours has another site. A neighbour inside
-/// [first, first + count) reads its label there; one outside is looked up in the tree
-/// tree_flag_kernel's work for one warp: the pending flags of outputs [warp_out, warp_out + 128).
+/// tree_flag_kernel's work for one warp: settles the pending flags (kBoundaryPending) among
+/// outputs [warp_out, warp_out + 128), 4 per lane. The pending cells are queued in q in code order
+/// (ballots) and then taken 32 at a time, so that whole warps do the neighbour look-ups rather
+/// than the few lanes that hold one. A cell's flag is 1 when one of its three edge neighbours has
+/// another site: a neighbour inside [first, first + count) reads the label tree_paint_kernel wrote
+/// there; one outside is labelled from the tree (tree_label), and only when the neighbours inside
+/// did not settle it, those look-ups being the dear ones.
 __device__ inline void settle_flags(const TreeView& tree, grid::Code first, std::uint64_t count,
                                     const std::int32_t* site, std::uint8_t* boundary, std::uint64_t warp_out,
                                     std::uint8_t* q) {
@@ -807,90 +977,27 @@ __global__ void jump_clean_kernel(TreeView tree, std::uint64_t count, std::uint8
   if (k < count) clean[k] = jump_cell_clean(tree, k);
 }
 
-template <typename T>
-T* device_alloc(std::size_t count, std::size_t* total) {
-  T* p = nullptr;
-  if (count == 0) return p;
-  QTMV_CUDA_ALLOCATE(&p, count * sizeof(T));
-  *total += count * sizeof(T);
-  return p;
-}
-
-/// A device array freed when it goes out of scope (a constructor's scratch, on every path).
-struct DeviceFree {
-  void operator()(void* p) const { cudaFree(p); }
-};
-template <typename T>
-using DeviceScratch = std::unique_ptr<T, DeviceFree>;
-
-template <typename T>
-T* device_copy(const std::vector<T>& host, std::size_t* total) {
-  T* p = device_alloc<T>(host.size(), total);
-  if (p) QTMV_CUDA_CHECK(cudaMemcpy(p, host.data(), host.size() * sizeof(T), cudaMemcpyHostToDevice));
-  return p;
-}
-
-/// A device array from the stream-ordered pool that grows on demand (contents dropped, or kept
-/// with grow_keep). The build's scratch: the pool keeps it for the next build.
-template <typename T>
-struct Buffer {
-  T* p = nullptr;
-  std::size_t capacity = 0;
-  Buffer() = default;
-  Buffer(const Buffer&) = delete;
-  Buffer& operator=(const Buffer&) = delete;
-  ~Buffer() {
-    if (p) cudaFreeAsync(p, 0);
-  }
-  void need(std::size_t n) {
-    if (n <= capacity) return;
-    if (p) QTMV_CUDA_CHECK(cudaFreeAsync(p, 0));
-    p = nullptr;
-    capacity = 0;
-    const std::size_t want = 2 * n + 256;
-    QTMV_CUDA_CHECK(cudaMallocAsync(&p, want * sizeof(T), 0));
-    capacity = want;
-  }
-  void grow_keep(std::size_t n, std::size_t used) {
-    if (n <= capacity) return;
-    const std::size_t want = 2 * n + 256;
-    T* q = nullptr;
-    QTMV_CUDA_CHECK(cudaMallocAsync(&q, want * sizeof(T), 0));
-    if (used) QTMV_CUDA_CHECK(cudaMemcpyAsync(q, p, used * sizeof(T), cudaMemcpyDeviceToDevice, 0));
-    if (p) QTMV_CUDA_CHECK(cudaFreeAsync(p, 0));
-    p = q;
-    capacity = want;
-  }
-  /// The first `count` elements in a plain (cudaMalloc) array of their own.
-  T* copy_out(std::size_t count) const {
-    T* q = nullptr;
-    QTMV_CUDA_ALLOCATE(&q, (count ? count : 1) * sizeof(T));
-    if (count) QTMV_CUDA_CHECK(cudaMemcpyAsync(q, p, count * sizeof(T), cudaMemcpyDeviceToDevice, 0));
-    return q;
-  }
-};
-
 unsigned int blocks_of(std::uint64_t count) { return static_cast<unsigned int>((count + kBlock - 1) / kBlock); }
 
 /// The fixed cells as the device build looks them up (FixedCoverView), in arrays of their own.
 struct DeviceFixedCover {
-  DeviceScratch<std::uint64_t> key;
-  DeviceScratch<std::int32_t> site, run;
+  DeviceArray<std::uint64_t> key;
+  DeviceArray<std::int32_t> site, run;
   std::uint64_t count = 0;
   int level = 0;
   FixedCoverView view() const { return {key.get(), site.get(), run.get(), count, level}; }
 };
 
 /// The fixed cells `fixed` (device array, any order) sorted by quadtree key, with their runs.
-DeviceFixedCover make_fixed_cover(const FixedCell* fixed, std::uint64_t count, int level) {
+DeviceFixedCover make_fixed_cover(const FixedCell* fixed, std::uint64_t count, int level, FaultStep injected) {
   DeviceFixedCover cover;
   cover.level = level;
   if (count == 0) return cover;
   std::size_t scratch = 0;
-  const DeviceScratch<std::uint64_t> unsorted_key(device_alloc<std::uint64_t>(count, &scratch));
-  DeviceScratch<std::int32_t> unsorted_site(device_alloc<std::int32_t>(count, &scratch));
-  cover.key.reset(device_alloc<std::uint64_t>(count, &scratch));
-  DeviceScratch<std::int32_t> sorted_site(device_alloc<std::int32_t>(count, &scratch));
+  const DeviceArray<std::uint64_t> unsorted_key = device_alloc<std::uint64_t>(count, &scratch, injected);
+  DeviceArray<std::int32_t> unsorted_site = device_alloc<std::int32_t>(count, &scratch, injected);
+  cover.key = device_alloc<std::uint64_t>(count, &scratch, injected);
+  DeviceArray<std::int32_t> sorted_site = device_alloc<std::int32_t>(count, &scratch, injected);
   fixed_cover_keys_kernel<<<blocks_for(count), kBlock>>>(fixed, count, level, unsorted_key.get(),
                                                          unsorted_site.get());
   QTMV_CUDA_CHECK_LAUNCH("fixed_cover_keys_kernel");
@@ -899,22 +1006,24 @@ DeviceFixedCover make_fixed_cover(const FixedCell* fixed, std::uint64_t count, i
   QTMV_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(nullptr, temp_bytes, unsorted_key.get(), cover.key.get(),
                                                   unsorted_site.get(), sorted_site.get(), count, 0, end_bit));
   {
-    const DeviceScratch<unsigned char> temp(device_alloc<unsigned char>(temp_bytes ? temp_bytes : 1, &scratch));
+    const DeviceArray<unsigned char> temp =
+        device_alloc<unsigned char>(temp_bytes ? temp_bytes : 1, &scratch, injected);
     QTMV_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(temp.get(), temp_bytes, unsorted_key.get(), cover.key.get(),
                                                     unsorted_site.get(), sorted_site.get(), count, 0, end_bit));
     QTMV_CUDA_CHECK(cudaDeviceSynchronize());  // the sort's errors surface here, named
   }
   // The unsorted sites' array takes the run starts.
   std::int32_t* run_starts = unsorted_site.get();
-  cover.site.reset(device_alloc<std::int32_t>(count, &scratch));
-  cover.run.reset(device_alloc<std::int32_t>(count, &scratch));
+  cover.site = device_alloc<std::int32_t>(count, &scratch, injected);
+  cover.run = device_alloc<std::int32_t>(count, &scratch, injected);
   fixed_cover_runs_kernel<<<blocks_for(count), kBlock>>>(cover.key.get(), sorted_site.get(), count, cover.site.get(),
                                                          run_starts);
   QTMV_CUDA_CHECK_LAUNCH("fixed_cover_runs_kernel");
   temp_bytes = 0;
   QTMV_CUDA_CHECK(cub::DeviceScan::InclusiveSum(nullptr, temp_bytes, run_starts, cover.run.get(), count));
   {
-    const DeviceScratch<unsigned char> temp(device_alloc<unsigned char>(temp_bytes ? temp_bytes : 1, &scratch));
+    const DeviceArray<unsigned char> temp =
+        device_alloc<unsigned char>(temp_bytes ? temp_bytes : 1, &scratch, injected);
     QTMV_CUDA_CHECK(cub::DeviceScan::InclusiveSum(temp.get(), temp_bytes, run_starts, cover.run.get(), count));
     QTMV_CUDA_CHECK(cudaDeviceSynchronize());
   }
@@ -922,22 +1031,22 @@ DeviceFixedCover make_fixed_cover(const FixedCell* fixed, std::uint64_t count, i
   return cover;
 }
 
-/// What build_on_device made: the tree's arrays (device pointers, owned by the caller).
+/// What build_on_device made: the tree's arrays.
 struct DeviceTree {
-  TreeNode* nodes = nullptr;
-  std::int32_t* lists = nullptr;
-  JumpEntry* jump = nullptr;
+  DeviceArray<TreeNode> nodes;
+  DeviceArray<std::int32_t> lists;
+  DeviceArray<JumpEntry> jump;
   std::uint64_t node_count = 0, list_count = 0, jump_count = 0;
   int jump_level = 0;
   double mean_candidates = 0;
 };
 
 /// The tree of build_tree (labeller.cpp), built on the current device; `cover`: its fixed cells
-/// (make_fixed_cover; count 0: none).
+/// (make_fixed_cover; count 0: none). `injected`: QTMV_FAULT_CUDA_OOM as the Labeller read it.
 DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* runs,
                            const std::vector<std::int32_t>& top_items, int level, bool with_distance,
-                           const FixedCoverView& cover) {
-  injected_fault("build");
+                           const FixedCoverView& cover, FaultStep injected, Trace& trace) {
+  fail_if_injected(injected, FaultStep::build);
   const int list_level = tree_list_level(level);
   // The scratch comes from the device's default pool and stays there (pool_idle_bytes).
   cudaMemPool_t pool;
@@ -957,18 +1066,7 @@ DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* ru
       cudaMemPoolTrimTo(pool, std::size_t{256} << 20);
     }
   } trim_on_throw{pool};
-  DeviceTree t;
-  // The tree's own arrays are the caller's only once the build returns.
-  struct FreeOnThrow {
-    DeviceTree& t;
-    bool done = false;
-    ~FreeOnThrow() {
-      if (done) return;
-      cudaFree(t.jump);
-      cudaFree(t.nodes);
-      cudaFree(t.lists);
-    }
-  } free_on_throw{t};
+  DeviceTree t;  // a build that throws frees the tree's arrays with it
   {
   Buffer<DevPending> pending, next;
   Buffer<std::int32_t> parent_lists, next_lists;
@@ -992,15 +1090,14 @@ DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* ru
     DevPending roots[grid::kOctants];
     for (int o = 0; o < grid::kOctants; ++o) roots[o] = {grid::Cell{o, 0, 0}, o, top_count, 0};
     pending.need(n);
-    QTMV_CUDA_CHECK(cudaMemcpy(pending.p, roots, sizeof roots, cudaMemcpyHostToDevice));
+    QTMV_CUDA_CHECK(cudaMemcpy(pending.get(), roots, sizeof roots, cudaMemcpyHostToDevice));
     parent_lists.need(top_count);
-    QTMV_CUDA_CHECK(cudaMemcpy(parent_lists.p, top_items.data(), top_count * sizeof(std::int32_t),
-                               cudaMemcpyHostToDevice));
+    QTMV_CUDA_CHECK(
+        cudaMemcpy(parent_lists.get(), top_items.data(), top_count * sizeof(std::int32_t), cudaMemcpyHostToDevice));
   }
   std::uint64_t node_count = grid::kOctants, list_count = 0;
   nodes.grow_keep(node_count, 0);
   double weighted = 0;
-  Trace trace;
   for (int l = 0; l <= level && n > 0; ++l) {
     const bool last = l == level;
     // keep_pos counts up to kGroupLeafPieces items per entry in 32 bits.
@@ -1027,59 +1124,64 @@ DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* ru
     offsets.need(n + 1);
     keep.need(entries + 1);
     keep_pos.need(entries + 1);
-    level_init_kernel<<<blocks_of(n), kBlock>>>(pending.p, nn, l, last, centre.p, radius.p, start_in.p, min_bits.p,
-                                                site_min.p, site_max.p, key.p);
+    level_init_kernel<<<blocks_of(n), kBlock>>>(pending.get(), nn, l, last, centre.get(), radius.get(), start_in.get(),
+                                                min_bits.get(), site_min.get(), site_max.get(), key.get());
     QTMV_CUDA_CHECK_LAUNCH("level_init_kernel");
     std::size_t bytes = 0;
-    QTMV_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(nullptr, bytes, start_in.p, start.p, n + 1));
+    QTMV_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(nullptr, bytes, start_in.get(), start.get(), n + 1));
     scan_temp(bytes);
-    QTMV_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(temp.p, bytes, start_in.p, start.p, n + 1));
+    QTMV_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(temp.get(), bytes, start_in.get(), start.get(), n + 1));
     if (entries > 0) {
       // Groups of four nodes share a list (n and entries are multiples of 4).
       const std::int32_t groups = nn / 4;
       const std::uint64_t items = entries / 4;
       if (last) {
-        level_settle_kernel<<<blocks_of(n), kBlock>>>(pending.p, nn, parent_lists.p, pieces, runs, centre.p, key.p);
+        level_settle_kernel<<<blocks_of(n), kBlock>>>(pending.get(), nn, parent_lists.get(), pieces, runs, centre.get(),
+                                                      key.get());
         QTMV_CUDA_CHECK_LAUNCH("level_settle_kernel");
       } else {
         owner_heads.need(items);
         owner.need(items);
-        QTMV_CUDA_CHECK(cudaMemsetAsync(owner_heads.p, 0, items * sizeof(std::int32_t)));
-        level_owner_kernel<<<blocks_of(groups), kBlock>>>(start.p, groups, owner_heads.p);
+        QTMV_CUDA_CHECK(cudaMemsetAsync(owner_heads.get(), 0, items * sizeof(std::int32_t)));
+        level_owner_kernel<<<blocks_of(groups), kBlock>>>(start.get(), groups, owner_heads.get());
         QTMV_CUDA_CHECK_LAUNCH("level_owner_kernel");
         std::size_t owner_bytes = 0;
-        QTMV_CUDA_CHECK(cub::DeviceScan::InclusiveScan(nullptr, owner_bytes, owner_heads.p, owner.p, MaxI32{}, items));
+        QTMV_CUDA_CHECK(
+            cub::DeviceScan::InclusiveScan(nullptr, owner_bytes, owner_heads.get(), owner.get(), MaxI32{}, items));
         scan_temp(owner_bytes);
-        QTMV_CUDA_CHECK(cub::DeviceScan::InclusiveScan(temp.p, owner_bytes, owner_heads.p, owner.p, MaxI32{}, items));
-        level_min_kernel<<<blocks_of(items), kBlock>>>(pending.p, owner.p, start.p, items, parent_lists.p, pieces,
-                                                       runs, centre.p, min_bits.p);
+        QTMV_CUDA_CHECK(
+            cub::DeviceScan::InclusiveScan(temp.get(), owner_bytes, owner_heads.get(), owner.get(), MaxI32{}, items));
+        level_min_kernel<<<blocks_of(items), kBlock>>>(pending.get(), owner.get(), start.get(), items,
+                                                       parent_lists.get(), pieces, runs, centre.get(), min_bits.get());
         QTMV_CUDA_CHECK_LAUNCH("level_min_kernel");
-        level_threshold_kernel<<<blocks_of(n), kBlock>>>(nn, min_bits.p, radius.p, threshold.p);
+        level_threshold_kernel<<<blocks_of(n), kBlock>>>(nn, min_bits.get(), radius.get(), threshold.get());
         QTMV_CUDA_CHECK_LAUNCH("level_threshold_kernel");
-        level_keep_kernel<<<blocks_of(items), kBlock>>>(pending.p, owner.p, start.p, items, parent_lists.p, pieces,
-                                                        runs, centre.p, radius.p, threshold.p, keep.p, site_min.p,
-                                                        site_max.p);
+        level_keep_kernel<<<blocks_of(items), kBlock>>>(pending.get(), owner.get(), start.get(), items,
+                                                        parent_lists.get(), pieces, runs, centre.get(), radius.get(),
+                                                        threshold.get(), keep.get(), site_min.get(), site_max.get());
         QTMV_CUDA_CHECK_LAUNCH("level_keep_kernel");
       }
     }
     if (!last) {
-      QTMV_CUDA_CHECK(cudaMemset(keep.p + entries, 0, sizeof(unsigned int)));
+      QTMV_CUDA_CHECK(cudaMemset(keep.get() + entries, 0, sizeof(unsigned int)));
       bytes = 0;
-      QTMV_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(nullptr, bytes, keep.p, keep_pos.p, entries + 1));
+      QTMV_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(nullptr, bytes, keep.get(), keep_pos.get(), entries + 1));
       scan_temp(bytes);
-      QTMV_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(temp.p, bytes, keep.p, keep_pos.p, entries + 1));
+      QTMV_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(temp.get(), bytes, keep.get(), keep_pos.get(), entries + 1));
     }
-    level_decide_kernel<<<blocks_of(n), kBlock>>>(pending.p, nn, l, last, with_distance, l >= list_level, cover,
-                                                  start.p, keep_pos.p, site_min.p, site_max.p, key.p, kind.p,
-                                                  count.p, value.p, sums_in.p);
+    level_decide_kernel<<<blocks_of(n), kBlock>>>(pending.get(), nn, l, last, with_distance, l >= list_level, cover,
+                                                  start.get(), keep_pos.get(), site_min.get(), site_max.get(),
+                                                  key.get(), kind.get(), count.get(), value.get(), sums_in.get());
     QTMV_CUDA_CHECK_LAUNCH("level_decide_kernel");
     bytes = 0;
     const LevelSums zero{0, 0, 0};
-    QTMV_CUDA_CHECK(cub::DeviceScan::ExclusiveScan(nullptr, bytes, sums_in.p, offsets.p, AddSums{}, zero, n + 1));
+    QTMV_CUDA_CHECK(
+        cub::DeviceScan::ExclusiveScan(nullptr, bytes, sums_in.get(), offsets.get(), AddSums{}, zero, n + 1));
     scan_temp(bytes);
-    QTMV_CUDA_CHECK(cub::DeviceScan::ExclusiveScan(temp.p, bytes, sums_in.p, offsets.p, AddSums{}, zero, n + 1));
+    QTMV_CUDA_CHECK(
+        cub::DeviceScan::ExclusiveScan(temp.get(), bytes, sums_in.get(), offsets.get(), AddSums{}, zero, n + 1));
     LevelSums total{};
-    QTMV_CUDA_CHECK(cudaMemcpy(&total, offsets.p + n, sizeof total, cudaMemcpyDeviceToHost));
+    QTMV_CUDA_CHECK(cudaMemcpy(&total, offsets.get() + n, sizeof total, cudaMemcpyDeviceToHost));
     if (node_count + 4 * total.internals > 0x7fffffffull || list_count + total.leaf_entries > 0x7fffffffull) {
       throw std::length_error("the labeller's tree outgrew 2^31 nodes or list entries");
     }
@@ -1087,18 +1189,19 @@ DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* ru
     lists.grow_keep(list_count + total.leaf_entries + 1, list_count);
     next.need(4 * total.internals + 1);
     next_lists.need(total.internal_entries + 1);
-    level_write_nodes_kernel<<<blocks_of(n), kBlock>>>(pending.p, nn, last, kind.p, count.p, value.p, key.p,
-                                                       offsets.p, list_count, node_count, nodes.p, lists.p);
+    level_write_nodes_kernel<<<blocks_of(n), kBlock>>>(pending.get(), nn, last, kind.get(), count.get(), value.get(),
+                                                       key.get(), offsets.get(), list_count, node_count, nodes.get(),
+                                                       lists.get());
     QTMV_CUDA_CHECK_LAUNCH("level_write_nodes_kernel");
     if (total.internals > 0) {
-      level_write_children_kernel<<<blocks_of(4 * n), kBlock>>>(pending.p, nn, kind.p, count.p, offsets.p, node_count,
-                                                                next.p);
+      level_write_children_kernel<<<blocks_of(4 * n), kBlock>>>(pending.get(), nn, kind.get(), count.get(),
+                                                                offsets.get(), node_count, next.get());
       QTMV_CUDA_CHECK_LAUNCH("level_write_children_kernel");
     }
     if (!last && entries > 0) {
-      level_write_lists_kernel<<<blocks_of(entries / 4), kBlock>>>(pending.p, owner.p, start.p, entries / 4,
-                                                                   parent_lists.p, runs, keep_pos.p, kind.p,
-                                                                   offsets.p, list_count, lists.p, next_lists.p);
+      level_write_lists_kernel<<<blocks_of(entries / 4), kBlock>>>(
+          pending.get(), owner.get(), start.get(), entries / 4, parent_lists.get(), runs, keep_pos.get(), kind.get(),
+          offsets.get(), list_count, lists.get(), next_lists.get());
       QTMV_CUDA_CHECK_LAUNCH("level_write_lists_kernel");
     }
     weighted += static_cast<double>(entries) +
@@ -1108,26 +1211,23 @@ DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* ru
     list_count += total.leaf_entries;
     n = 4 * total.internals;
     entries = 4 * total.internal_entries;
-    std::swap(pending.p, next.p);
-    std::swap(pending.capacity, next.capacity);
-    std::swap(parent_lists.p, next_lists.p);
-    std::swap(parent_lists.capacity, next_lists.capacity);
+    std::swap(pending, next);
+    std::swap(parent_lists, next_lists);
   }
   t.jump_level = tree_jump_level(level);
   t.jump_count = grid::cell_count(t.jump_level);
-  QTMV_CUDA_ALLOCATE(&t.jump, t.jump_count * sizeof(JumpEntry));
-  jump_kernel<<<blocks_of(t.jump_count), kBlock>>>(nodes.p, t.jump_level, t.jump_count, t.jump);
+  t.jump = DeviceArray<JumpEntry>::plain(t.jump_count, injected);
+  jump_kernel<<<blocks_of(t.jump_count), kBlock>>>(nodes.get(), t.jump_level, t.jump_count, t.jump.get());
   QTMV_CUDA_CHECK_LAUNCH("jump_kernel");
   t.node_count = node_count;
   t.list_count = list_count;
   t.mean_candidates = weighted / static_cast<double>(grid::cell_count(level));
-  t.nodes = nodes.copy_out(node_count);
-  t.lists = lists.copy_out(list_count);
+  t.nodes = nodes.copy_out(node_count, injected);
+  t.lists = lists.copy_out(list_count, injected);
   trace("jump table, copies", t.jump_count, list_count);
   }  // the scratch goes back to the pool here
   QTMV_CUDA_CHECK(cudaDeviceSynchronize());
   trim_on_throw.done = true;
-  free_on_throw.done = true;
   return t;
 }
 
@@ -1164,30 +1264,35 @@ struct Labeller::Impl {
   int level = 0;
   bool hier = false;
   int piece_count = 0;
-  Piece* pieces = nullptr;
-  PieceGroup* groups = nullptr;  ///< the line runs' groups (null: none)
-  TreeNode* nodes = nullptr;
-  std::int32_t* lists = nullptr;
-  JumpEntry* jump = nullptr;
+  DeviceArray<Piece> pieces;
+  DeviceArray<PieceGroup> groups;  ///< the line runs' groups (empty: none)
+  DeviceArray<TreeNode> nodes;
+  DeviceArray<std::int32_t> lists;
+  DeviceArray<JumpEntry> jump;
   int jump_level = 0;
-  std::uint8_t* jump_clean = nullptr;  ///< per jump cell: jump_cell_clean
+  DeviceArray<std::uint8_t> jump_clean;  ///< per jump cell: jump_cell_clean
   TreeInfo tree_info;
-  std::int32_t* site = nullptr;
-  float* metres = nullptr;
-  std::uint8_t* boundary = nullptr;
-  std::uint32_t* pending_spans = nullptr;  ///< the paint spans with pending flags, and their count
-  unsigned int* counters = nullptr;  ///< [0]: pending spans listed, [1]: the paint kernel's next span
+  DeviceArray<std::int32_t> site;
+  DeviceArray<float> metres;
+  DeviceArray<std::uint8_t> boundary;
+  DeviceArray<std::uint32_t> pending_spans;  ///< the paint spans with pending flags, and their count
+  DeviceArray<unsigned int> counters;  ///< [0]: pending spans listed, [1]: the paint kernel's next span
   unsigned int flag_blocks = 0;   ///< tree_flag_kernel's grid: enough resident blocks to fill the device
   unsigned int paint_blocks = 0;  ///< tree_paint_kernel's grid: its resident blocks
   std::uint64_t capacity = 0;
   std::size_t bytes = 0;
   std::size_t output_bytes = 0;
   cudaEvent_t start = nullptr, stop = nullptr;
+  /// QTMV_FAULT_CUDA_OOM, read by open() and again by reserve() (FaultStep).
+  FaultStep injected_fault = FaultStep::none;
 
-  TreeView view() const { return {nodes, lists, pieces, groups, jump, jump_level, level}; }
+  TreeView view() const {
+    return {nodes.get(), lists.get(), pieces.get(), groups.get(), jump.get(), jump_level, level};
+  }
 
   /// The constructors' common start: the device, its events, the level.
   void open(int device_index, int level_index, bool with_tree) {
+    injected_fault = fault_step_from_environment();
     device = device_index;
     level = level_index;
     hier = with_tree;
@@ -1208,18 +1313,19 @@ struct Labeller::Impl {
     trace("groups planned", plan.spans.size(), plan.top_items.size());
     if (!plan.spans.empty()) {
       std::size_t span_bytes = 0;
-      const DeviceScratch<GroupSpan> spans(device_copy(plan.spans, &span_bytes));
+      const DeviceArray<GroupSpan> spans = device_copy(plan.spans, &span_bytes, injected_fault);
       const auto count = static_cast<std::int32_t>(plan.spans.size());
-      groups = device_alloc<PieceGroup>(plan.spans.size(), &bytes);
-      make_groups_kernel<<<blocks_for(std::uint64_t{32} * plan.spans.size()), kBlock>>>(pieces, spans.get(), count,
-                                                                                         groups);
+      groups = device_alloc<PieceGroup>(plan.spans.size(), &bytes, injected_fault);
+      make_groups_kernel<<<blocks_for(std::uint64_t{32} * plan.spans.size()), kBlock>>>(pieces.get(), spans.get(),
+                                                                                         count, groups.get());
       QTMV_CUDA_CHECK_LAUNCH("make_groups_kernel");
     }
     trace("groups made");
-    const DeviceTree t = build_on_device(device, pieces, groups, plan.top_items, level, with_distance, cover);
-    nodes = t.nodes;
-    lists = t.lists;
-    jump = t.jump;
+    DeviceTree t = build_on_device(device, pieces.get(), groups.get(), plan.top_items, level, with_distance, cover,
+                                   injected_fault, trace);
+    nodes = std::move(t.nodes);
+    lists = std::move(t.lists);
+    jump = std::move(t.jump);
     jump_level = t.jump_level;
     mark_clean_jump_cells();
     trace("jump cells marked");
@@ -1229,23 +1335,18 @@ struct Labeller::Impl {
   /// jump_clean for the tree now on the device.
   void mark_clean_jump_cells() {
     const std::uint64_t count = grid::cell_count(jump_level);
-    jump_clean = device_alloc<std::uint8_t>(count, &bytes);
-    jump_clean_kernel<<<blocks_for(count), kBlock>>>(view(), count, jump_clean);
+    jump_clean = device_alloc<std::uint8_t>(count, &bytes, injected_fault);
+    jump_clean_kernel<<<blocks_for(count), kBlock>>>(view(), count, jump_clean.get());
     QTMV_CUDA_CHECK_LAUNCH("jump_clean_kernel");
     QTMV_CUDA_CHECK(cudaDeviceSynchronize());  // part of the preparation, and its errors surface here
   }
 
   void free_outputs() {
-    cudaFree(site);
-    cudaFree(metres);
-    cudaFree(boundary);
-    cudaFree(pending_spans);
-    cudaFree(counters);
-    pending_spans = nullptr;
-    counters = nullptr;
-    site = nullptr;
-    metres = nullptr;
-    boundary = nullptr;
+    site.reset();
+    metres.reset();
+    boundary.reset();
+    pending_spans.reset();
+    counters.reset();
     bytes -= output_bytes;
     output_bytes = 0;
     capacity = 0;
@@ -1253,12 +1354,12 @@ struct Labeller::Impl {
   ~Impl() {
     // Destructors must not throw; errors here are left to the next call's check.
     free_outputs();
-    cudaFree(pieces);
-    cudaFree(groups);
-    cudaFree(nodes);
-    cudaFree(lists);
-    cudaFree(jump);
-    cudaFree(jump_clean);
+    pieces.reset();
+    groups.reset();
+    nodes.reset();
+    lists.reset();
+    jump.reset();
+    jump_clean.reset();
     if (start) cudaEventDestroy(start);
     if (stop) cudaEventDestroy(stop);
   }
@@ -1270,12 +1371,12 @@ Labeller::Labeller(int device, const std::vector<Piece>& candidates, const Tree*
   m.open(device, level, tree != nullptr);
   if (candidates.size() > 0x7fffffffu) throw std::invalid_argument("more than 2^31 candidates");
   m.piece_count = static_cast<int>(candidates.size());
-  m.pieces = device_copy(candidates, &m.bytes);
+  m.pieces = device_copy(candidates, &m.bytes, m.injected_fault);
   if (tree) {
-    m.groups = device_copy(tree->groups, &m.bytes);
-    m.nodes = device_copy(tree->nodes, &m.bytes);
-    m.lists = device_copy(tree->lists, &m.bytes);
-    m.jump = device_copy(tree->jump, &m.bytes);
+    m.groups = device_copy(tree->groups, &m.bytes, m.injected_fault);
+    m.nodes = device_copy(tree->nodes, &m.bytes, m.injected_fault);
+    m.lists = device_copy(tree->lists, &m.bytes, m.injected_fault);
+    m.jump = device_copy(tree->jump, &m.bytes, m.injected_fault);
     m.jump_level = tree->jump_level;
     m.mark_clean_jump_cells();
   }
@@ -1290,15 +1391,15 @@ Labeller::Labeller(int device, const std::vector<Piece>& candidates, int level, 
   if (candidates.size() > 0x7fffffffu) throw std::invalid_argument("more than 2^31 candidates");
   m.piece_count = static_cast<int>(candidates.size());
   Trace trace;
-  m.pieces = device_copy(candidates, &m.bytes);
+  m.pieces = device_copy(candidates, &m.bytes, m.injected_fault);
   trace("pieces to the device", candidates.size());
   DeviceFixedCover cover;
   cover.level = level;
   if (fixed_count > 0) {
     std::size_t scratch = 0;
-    const DeviceScratch<FixedCell> fixed_here(device_alloc<FixedCell>(fixed_count, &scratch));
+    const DeviceArray<FixedCell> fixed_here = device_alloc<FixedCell>(fixed_count, &scratch, m.injected_fault);
     QTMV_CUDA_CHECK(cudaMemcpy(fixed_here.get(), fixed, fixed_count * sizeof(FixedCell), cudaMemcpyHostToDevice));
-    cover = make_fixed_cover(fixed_here.get(), fixed_count, level);
+    cover = make_fixed_cover(fixed_here.get(), fixed_count, level, m.injected_fault);
     trace("fixed cells sorted for the cover", fixed_count);
   }
   m.build_tree(plan_groups(candidates, host_threads(threads)), with_distance, cover.view(), trace);
@@ -1324,8 +1425,8 @@ Labeller::Labeller(int device, const LabelInput& input, bool with_distance, int 
   if (!order_here) fixed_input = fixed_cells_in_quadtree_order(input, threads, &host_ordered);
   {
     std::size_t scratch = 0;
-    const DeviceScratch<SitePiece> site_pieces(device_alloc<SitePiece>(input.piece_count, &scratch));
-    DeviceScratch<FixedCell> fixed(device_alloc<FixedCell>(input.fixed_cell_count, &scratch));
+    const DeviceArray<SitePiece> site_pieces = device_alloc<SitePiece>(input.piece_count, &scratch, m.injected_fault);
+    DeviceArray<FixedCell> fixed = device_alloc<FixedCell>(input.fixed_cell_count, &scratch, m.injected_fault);
     if (input.piece_count) {
       QTMV_CUDA_CHECK(cudaMemcpy(site_pieces.get(), input.pieces, input.piece_count * sizeof(SitePiece),
                                  cudaMemcpyHostToDevice));
@@ -1335,29 +1436,29 @@ Labeller::Labeller(int device, const LabelInput& input, bool with_distance, int 
       QTMV_CUDA_CHECK(cudaMemcpy(fixed.get(), fixed_input, n * sizeof(FixedCell), cudaMemcpyHostToDevice));
     }
     if (order_here && n > 1) {
-      const DeviceScratch<unsigned long long> keys(device_alloc<unsigned long long>(2 * n, &scratch));
-      const DeviceScratch<std::uint32_t> index(device_alloc<std::uint32_t>(2 * n, &scratch));
+      const DeviceArray<unsigned long long> keys = device_alloc<unsigned long long>(2 * n, &scratch, m.injected_fault);
+      const DeviceArray<std::uint32_t> index = device_alloc<std::uint32_t>(2 * n, &scratch, m.injected_fault);
       fixed_keys_kernel<<<blocks_for(n), kBlock>>>(fixed.get(), n, input.level, keys.get(), index.get());
       QTMV_CUDA_CHECK_LAUNCH("fixed_keys_kernel");
       std::size_t temp_bytes = 0;
       const int end_bit = 3 + 2 * input.level + 31;
       QTMV_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(nullptr, temp_bytes, keys.get(), keys.get() + n, index.get(),
                                                       index.get() + n, n, 0, end_bit));
-      const DeviceScratch<unsigned char> temp(device_alloc<unsigned char>(temp_bytes, &scratch));
+      const DeviceArray<unsigned char> temp = device_alloc<unsigned char>(temp_bytes, &scratch, m.injected_fault);
       QTMV_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(temp.get(), temp_bytes, keys.get(), keys.get() + n, index.get(),
                                                       index.get() + n, n, 0, end_bit));
-      DeviceScratch<FixedCell> sorted(device_alloc<FixedCell>(n, &scratch));
+      DeviceArray<FixedCell> sorted = device_alloc<FixedCell>(n, &scratch, m.injected_fault);
       gather_fixed_kernel<<<blocks_for(n), kBlock>>>(fixed.get(), index.get() + n, n, sorted.get());
       QTMV_CUDA_CHECK_LAUNCH("gather_fixed_kernel");
       QTMV_CUDA_CHECK(cudaDeviceSynchronize());
       fixed = std::move(sorted);
       trace("fixed cells in quadtree order", n);
     }
-    cover = make_fixed_cover(fixed.get(), n, input.level);
+    cover = make_fixed_cover(fixed.get(), n, input.level, m.injected_fault);
     trace("fixed cells sorted for the cover", n);
-    m.pieces = device_alloc<Piece>(count, &m.bytes);
+    m.pieces = device_alloc<Piece>(count, &m.bytes, m.injected_fault);
     make_pieces_kernel<<<blocks_for(count), kBlock>>>(site_pieces.get(), input.piece_count, fixed.get(),
-                                                     input.fixed_cell_count, input.level, m.pieces);
+                                                     input.fixed_cell_count, input.level, m.pieces.get());
     QTMV_CUDA_CHECK_LAUNCH("make_pieces_kernel");
   }  // the input's copies are freed here, before the build
   trace("input to pieces", count);
@@ -1390,14 +1491,14 @@ void Labeller::download_tree(std::vector<TreeNode>* nodes, std::vector<std::int3
   lists->resize(m.tree_info.list_entries);
   jump->resize(m.tree_info.jump_entries);
   if (!nodes->empty()) {
-    QTMV_CUDA_CHECK(cudaMemcpy(nodes->data(), m.nodes, nodes->size() * sizeof(TreeNode), cudaMemcpyDeviceToHost));
+    QTMV_CUDA_CHECK(cudaMemcpy(nodes->data(), m.nodes.get(), nodes->size() * sizeof(TreeNode), cudaMemcpyDeviceToHost));
   }
   if (!lists->empty()) {
     QTMV_CUDA_CHECK(
-        cudaMemcpy(lists->data(), m.lists, lists->size() * sizeof(std::int32_t), cudaMemcpyDeviceToHost));
+        cudaMemcpy(lists->data(), m.lists.get(), lists->size() * sizeof(std::int32_t), cudaMemcpyDeviceToHost));
   }
   if (!jump->empty()) {
-    QTMV_CUDA_CHECK(cudaMemcpy(jump->data(), m.jump, jump->size() * sizeof(JumpEntry), cudaMemcpyDeviceToHost));
+    QTMV_CUDA_CHECK(cudaMemcpy(jump->data(), m.jump.get(), jump->size() * sizeof(JumpEntry), cudaMemcpyDeviceToHost));
   }
 }
 
@@ -1405,16 +1506,18 @@ void Labeller::reserve(std::uint64_t max_cells, bool want_distance, bool want_bo
   Impl& m = *impl_;
   QTMV_CUDA_CHECK(cudaSetDevice(m.device));
   m.free_outputs();
-  if (max_cells > 65536) injected_fault("reserve");  // only large tiles fail: the caller tiles
+  m.injected_fault = fault_step_from_environment();  // for this run's tiles
+  if (max_cells > 65536) fail_if_injected(m.injected_fault, FaultStep::reserve);  // only large tiles: the caller tiles
   const std::size_t before = m.bytes;
-  m.site = device_alloc<std::int32_t>(max_cells, &m.bytes);
+  m.site = device_alloc<std::int32_t>(max_cells, &m.bytes, m.injected_fault);
   // brute needs the labels of a whole tile for its boundary pass; distances on request.
-  if (want_distance) m.metres = device_alloc<float>(max_cells, &m.bytes);
+  if (want_distance) m.metres = device_alloc<float>(max_cells, &m.bytes, m.injected_fault);
   if (want_boundary) {
-    m.boundary = device_alloc<std::uint8_t>(max_cells, &m.bytes);
-    m.pending_spans = device_alloc<std::uint32_t>((max_cells + kPaintSpan - 1) / kPaintSpan, &m.bytes);
+    m.boundary = device_alloc<std::uint8_t>(max_cells, &m.bytes, m.injected_fault);
+    m.pending_spans =
+        device_alloc<std::uint32_t>((max_cells + kPaintSpan - 1) / kPaintSpan, &m.bytes, m.injected_fault);
   }
-  m.counters = device_alloc<unsigned int>(2, &m.bytes);
+  m.counters = device_alloc<unsigned int>(2, &m.bytes, m.injected_fault);
   m.output_bytes = m.bytes - before;
   m.capacity = max_cells;
 }
@@ -1426,9 +1529,9 @@ float Labeller::run(grid::Code first, std::uint64_t count, bool want_distance, b
     throw std::invalid_argument("Labeller::run: outputs asked for that reserve() did not make room for");
   }
   QTMV_CUDA_CHECK(cudaSetDevice(m.device));
-  if (first > 0) injected_fault("run");  // after the first tile: a failure mid-run
-  float* metres = want_distance ? m.metres : nullptr;
-  std::uint8_t* boundary = want_boundary ? m.boundary : nullptr;
+  if (first > 0) fail_if_injected(m.injected_fault, FaultStep::run);  // after the first tile: a failure mid-run
+  float* metres = want_distance ? m.metres.get() : nullptr;
+  std::uint8_t* boundary = want_boundary ? m.boundary.get() : nullptr;
   QTMV_CUDA_CHECK(cudaEventRecord(m.start));
   if (m.hier) {
     const TreeView view = m.view();
@@ -1437,7 +1540,7 @@ float Labeller::run(grid::Code first, std::uint64_t count, bool want_distance, b
     } else if (metres || count < kPaintMinCells) {
       // With distances the tree has no uniform leaves: cell by cell. So too for few cells, which
       // would give the paint kernel too few warps to hide its latency.
-      tree_label_kernel<<<blocks_for(count), kBlock>>>(view, first, count, m.site, metres, boundary);
+      tree_label_kernel<<<blocks_for(count), kBlock>>>(view, first, count, m.site.get(), metres, boundary);
       QTMV_CUDA_CHECK_LAUNCH("tree_label_kernel");
     } else {
       // Labels, flags 0 inside uniform leaves and pending elsewhere; then the pending flags.
@@ -1445,25 +1548,26 @@ float Labeller::run(grid::Code first, std::uint64_t count, bool want_distance, b
       if (spans > 0xffffffffu - m.paint_blocks * kPaintWarps) {
         throw std::invalid_argument("Labeller::run: too many cells for one launch");
       }
-      QTMV_CUDA_CHECK(cudaMemsetAsync(m.counters, 0, 2 * sizeof(unsigned int)));
+      QTMV_CUDA_CHECK(cudaMemsetAsync(m.counters.get(), 0, 2 * sizeof(unsigned int)));
       const std::uint64_t blocks = (spans + kPaintWarps - 1) / kPaintWarps;
       tree_paint_kernel<<<static_cast<unsigned int>(blocks < m.paint_blocks ? blocks : m.paint_blocks), kBlock>>>(
-          view, m.jump_clean, first, count, m.site, boundary, boundary ? m.pending_spans : nullptr, m.counters,
-          m.counters + 1);
+          view, m.jump_clean.get(), first, count, m.site.get(), boundary, boundary ? m.pending_spans.get() : nullptr,
+          m.counters.get(), m.counters.get() + 1);
       QTMV_CUDA_CHECK_LAUNCH("tree_paint_kernel");
       if (boundary) {
         // Enough blocks to fill the device; each takes listed spans in turn.
-        tree_flag_kernel<<<m.flag_blocks, kBlock>>>(view, first, count, m.site, boundary, m.pending_spans,
-                                                    m.counters);
+        tree_flag_kernel<<<m.flag_blocks, kBlock>>>(view, first, count, m.site.get(), boundary, m.pending_spans.get(),
+                                                    m.counters.get());
         QTMV_CUDA_CHECK_LAUNCH("tree_flag_kernel");
       }
     }
   } else {
-    brute_label_kernel<<<blocks_for(count), kBlock>>>(m.pieces, m.piece_count, m.level, first, count, m.site, metres);
+    brute_label_kernel<<<blocks_for(count), kBlock>>>(m.pieces.get(), m.piece_count, m.level, first, count,
+                                                      m.site.get(), metres);
     QTMV_CUDA_CHECK_LAUNCH("brute_label_kernel");
     if (boundary) {
-      brute_boundary_kernel<<<blocks_for(count), kBlock>>>(m.pieces, m.piece_count, m.level, first, count, m.site,
-                                                            boundary);
+      brute_boundary_kernel<<<blocks_for(count), kBlock>>>(m.pieces.get(), m.piece_count, m.level, first, count,
+                                                           m.site.get(), boundary);
       QTMV_CUDA_CHECK_LAUNCH("brute_boundary_kernel");
     }
   }
@@ -1480,12 +1584,14 @@ float Labeller::download(std::uint64_t offset, std::uint64_t count, std::int32_t
   if (offset + count > m.capacity) throw std::invalid_argument("Labeller::download: outside the reserved cells");
   QTMV_CUDA_CHECK(cudaSetDevice(m.device));
   QTMV_CUDA_CHECK(cudaEventRecord(m.start));
-  if (site) QTMV_CUDA_CHECK(cudaMemcpy(site, m.site + offset, count * sizeof(std::int32_t), cudaMemcpyDeviceToHost));
+  if (site) {
+    QTMV_CUDA_CHECK(cudaMemcpy(site, m.site.get() + offset, count * sizeof(std::int32_t), cudaMemcpyDeviceToHost));
+  }
   if (distance_m && m.metres) {
-    QTMV_CUDA_CHECK(cudaMemcpy(distance_m, m.metres + offset, count * sizeof(float), cudaMemcpyDeviceToHost));
+    QTMV_CUDA_CHECK(cudaMemcpy(distance_m, m.metres.get() + offset, count * sizeof(float), cudaMemcpyDeviceToHost));
   }
   if (boundary && m.boundary) {
-    QTMV_CUDA_CHECK(cudaMemcpy(boundary, m.boundary + offset, count, cudaMemcpyDeviceToHost));
+    QTMV_CUDA_CHECK(cudaMemcpy(boundary, m.boundary.get() + offset, count, cudaMemcpyDeviceToHost));
   }
   QTMV_CUDA_CHECK(cudaEventRecord(m.stop));
   QTMV_CUDA_CHECK(cudaEventSynchronize(m.stop));
@@ -1498,22 +1604,23 @@ std::vector<std::int32_t> Labeller::brute_sites(const std::vector<grid::Code>& c
   Impl& m = *impl_;
   QTMV_CUDA_CHECK(cudaSetDevice(m.device));
   std::size_t scratch = 0;
-  grid::Code* d_codes = device_copy(codes, &scratch);
-  std::int32_t* d_sites = device_alloc<std::int32_t>(codes.size(), &scratch);
+  DeviceArray<grid::Code> device_codes = device_copy(codes, &scratch, m.injected_fault);
+  DeviceArray<std::int32_t> device_sites = device_alloc<std::int32_t>(codes.size(), &scratch, m.injected_fault);
   std::vector<std::int32_t> sites(codes.size());
   if (!codes.empty()) {
-    brute_codes_kernel<<<blocks_for(codes.size()), kBlock>>>(m.pieces, m.piece_count, m.level, d_codes, codes.size(),
-                                                             d_sites);
+    brute_codes_kernel<<<blocks_for(codes.size()), kBlock>>>(m.pieces.get(), m.piece_count, m.level, device_codes.get(),
+                                                             codes.size(), device_sites.get());
     QTMV_CUDA_CHECK_LAUNCH("brute_codes_kernel");
-    QTMV_CUDA_CHECK(cudaMemcpy(sites.data(), d_sites, codes.size() * sizeof(std::int32_t), cudaMemcpyDeviceToHost));
+    QTMV_CUDA_CHECK(
+        cudaMemcpy(sites.data(), device_sites.get(), codes.size() * sizeof(std::int32_t), cudaMemcpyDeviceToHost));
   }
-  QTMV_CUDA_CHECK(cudaFree(d_codes));
-  QTMV_CUDA_CHECK(cudaFree(d_sites));
+  device_codes.free_checked();
+  device_sites.free_checked();
   return sites;
 }
 
 std::size_t Labeller::device_bytes() const { return impl_->bytes; }
 
-const std::int32_t* Labeller::device_sites() const { return impl_->site; }
+const std::int32_t* Labeller::device_sites() const { return impl_->site.get(); }
 
 }  // namespace qtmv::label::cuda

@@ -24,11 +24,7 @@ struct FixedCell;
 namespace qtmv::label::cuda {
 
 /// A device allocation failed (cudaErrorMemoryAllocation): the caller may retry with smaller
-/// tiles or go on on the CPU. Fault injection for the tests: the environment variable
-/// QTMV_FAULT_CUDA_OOM set to `build` (the device tree), `reserve` (outputs of more than 65536
-/// cells) or `run` (any tile but the first) makes that step fail this way; set to `allocate`, a
-/// device allocation's first try fails while the memory pool holds idle memory (which is then
-/// given back, and the allocation tried again).
+/// tiles or go on on the CPU. (The tests inject it: QTMV_FAULT_CUDA_OOM, see cuda/label_cuda.cu.)
 class OutOfMemory : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;

@@ -201,9 +201,10 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
   // A GPU that runs out of memory hands the rest of the work to the CPU, with a warning.
   bool on_gpu = device.cuda;
   auto leave_gpu = [&](const cuda::OutOfMemory& e, std::uint64_t from) {
-    say("warning: the GPU ran out of memory (" + std::string(e.what()) + "); labelling " +
-        (from == 0 ? std::string("on the CPU") : "cells " + std::to_string(from) + " onwards on the CPU") +
-        " instead");
+    tell(options.messages, Severity::warning,
+         "the GPU ran out of memory (" + std::string(e.what()) + "); labelling " +
+             (from == 0 ? std::string("on the CPU") : "cells " + std::to_string(from) + " onwards on the CPU") +
+             " instead");
     on_gpu = false;
     gpu_built.reset();
     stats.device += ", then cpu (" + std::to_string(threads) + " threads)";

@@ -889,6 +889,7 @@ TEST(LabelDeviceFaults, OutOfMemoryFallsBackWithTheSameResults) {
   for (const std::string step : {"build", "reserve", "run"}) {
     LabelOptions options;
     options.device = "cuda";
+    options.algorithm = Algorithm::hier;  // the tree is built on the device (the build step)
     if (step == "run") options.memory_limit_bytes = 9 * 50000;  // tiles of 50000 cells: a run after the first fails
     std::string log;
     options.messages = [&](Severity severity, const std::string& message) {

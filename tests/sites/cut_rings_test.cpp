@@ -105,6 +105,11 @@ class ReferenceSite {
     for (std::size_t begin = 0; begin < arcs_.size(); begin += kFan) chunks_.push_back(bound(arcs_, begin));
     for (std::size_t begin = 0; begin < chunks_.size(); begin += kFan) groups_.push_back(bound(chunks_, begin));
   }
+  ~ReferenceSite() {
+    if (prepared_) OGRDestroyPreparedGeometry(prepared_);
+  }
+  ReferenceSite(const ReferenceSite&) = delete;
+  ReferenceSite& operator=(const ReferenceSite&) = delete;
   bool contains(const grid::LonLat& p) const {
     if (!prepared_) return false;
     OGRPoint point(p.lon, p.lat);

@@ -24,6 +24,7 @@
 #include "gdal/error_capture.hpp"
 #include "pipeline/staged_output.hpp"
 #include "grid/qtm_checks.hpp"
+#include "sites/fid_list.hpp"
 #include "sites/ogr_site_reader.hpp"
 #include "write/output_size.hpp"
 #include "write/raster_writer.hpp"
@@ -297,17 +298,16 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   // Sites left without a cell still get their row; say which.
   std::vector<std::uint64_t> count(sites.table.sites.size(), 0);
   for (std::uint64_t c = 0; c < cells; ++c) ++count[static_cast<std::size_t>(site[c])];
-  std::string fids;
+  sites::FidList without_cell;
   for (std::size_t s = 0; s < count.size(); ++s) {
     sites.table.sites[s].has_own_cell = count[s] > 0;
-    if (count[s] == 0 && ++summary.sites_without_cell <= 10) {
-      fids += (fids.empty() ? "" : ", ") + std::to_string(sites.table.sites[s].fid);
-    }
+    if (count[s] == 0) without_cell.add(sites.table.sites[s].fid);
   }
-  if (summary.sites_without_cell > 0) {
-    say(Severity::warning, std::to_string(summary.sites_without_cell) + " site(s) got no cell of their own at level " +
-                               std::to_string(level) + " (FIDs " + fids + (summary.sites_without_cell > 10 ? ", ..." : "") +
-                               ")" + (format.raster ? "" : "; they keep their row, with an empty geometry"));
+  summary.sites_without_cell = without_cell.count();
+  if (without_cell.count() > 0) {
+    say(Severity::warning, std::to_string(without_cell.count()) + " site(s) got no cell of their own at level " +
+                               std::to_string(level) + " (FIDs " + without_cell.text() + ")" +
+                               (format.raster ? "" : "; they keep their row, with an empty geometry"));
   }
   summary.label_seconds = now_seconds() - t0;
 

@@ -52,7 +52,7 @@ UnwrappedPath unwrap_longitudes(const grid::LonLat* vertices, std::size_t count,
     steps_across = !reaches_seam(first ? edges - 1 : k - 1) && !reaches_seam(last ? 0 : k + 1);
   }
   const bool as_written = mode == WrapMode::none || (!has_jump && !steps_across);
-  out.straight.resize(count - 1);
+  out.straight.resize(edges);
   for (std::size_t k = 1; k < count; ++k) {
     out.straight[k - 1] = straight_edge(kinds[k - 1], vertices[k - 1], vertices[k], as_written) ? 1 : 0;
   }

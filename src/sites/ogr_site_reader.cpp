@@ -19,6 +19,7 @@
 
 #include "gdal/error_capture.hpp"
 #include "grid/qtm_checks.hpp"
+#include "sites/fid_list.hpp"
 #include "sites/polygon_validity.hpp"
 #include "sites/site_builder.hpp"
 #include "sites/site_cells.hpp"
@@ -274,7 +275,7 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
 
   std::vector<grid::LonLat> lonlat;
   std::vector<int> transformed_ok;
-  std::string wrapped_fids;  // the first features -wrap auto changed
+  FidList wrapped;  // the features -wrap auto changed
   std::chrono::steady_clock::duration rasterise{};  // tracing, filling and claims, within the read
   errors.take();
   layer->ResetReading();
@@ -389,9 +390,7 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
       }
     }
     builder.end_site();
-    if (builder.short_way_edges() > 0 && ++summary.wrapped_features <= 10) {
-      wrapped_fids += (wrapped_fids.empty() ? "" : ", ") + std::to_string(fid);
-    }
+    if (builder.short_way_edges() > 0) wrapped.add(fid);
     rasterise += std::chrono::steady_clock::now() - rasterise_start;
     record.attributes.reset(feature.release());
     out.table.sites.push_back(std::move(record));
@@ -408,11 +407,12 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   if (const std::string pending = errors.take(); !pending.empty()) say(Severity::warning, where_from + ": GDAL: " + pending);
   report_progress(options.progress, 1.0, "reading sites");
   // A user must never get a silently different geometry.
-  if (summary.wrapped_features > 0) {
-    say(Severity::warning, where_from + ": " + std::to_string(summary.wrapped_features) +
+  summary.wrapped_features = wrapped.count();
+  if (wrapped.count() > 0) {
+    say(Severity::warning, where_from + ": " + std::to_string(wrapped.count()) +
                                " feature(s) have edges more than 180 degrees of longitude long joined the short way "
-                               "across +-180 (-wrap auto; -wrap none reads them as written) (FIDs " + wrapped_fids +
-                               (summary.wrapped_features > 10 ? ", ..." : "") + ")");
+                               "across +-180 (-wrap auto; -wrap none reads them as written) (FIDs " + wrapped.text() +
+                               ")");
   }
 
   if (summary.sites == 0) {
@@ -433,21 +433,19 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   const SiteCellCounts counts = resolve_claims(out.geometry, options.distance);
   rasterise += std::chrono::steady_clock::now() - claims_start;
   summary.rasterise_seconds = std::chrono::duration<double>(rasterise).count();
-  std::string without_cell_fids;
+  FidList without_cell;
   for (std::size_t s = 0; s < out.table.sites.size(); ++s) {
     SiteRecord& r = out.table.sites[s];
     r.site_cells = counts.site_cells[s];
     r.fixed_cells = counts.fixed_cells[s];
     r.has_own_cell = counts.has_own_cell[s];
-    if (!r.has_own_cell) {
-      if (++summary.sites_without_own_cell <= 10) without_cell_fids += (without_cell_fids.empty() ? "" : ", ") + std::to_string(r.fid);
-    }
+    if (!r.has_own_cell) without_cell.add(r.fid);
   }
-  if (summary.sites_without_own_cell > 0 && options.warn_sites_without_cell) {
-    say(Severity::warning, where_from + ": " + std::to_string(summary.sites_without_own_cell) +
+  summary.sites_without_own_cell = without_cell.count();
+  if (without_cell.count() > 0 && options.warn_sites_without_cell) {
+    say(Severity::warning, where_from + ": " + std::to_string(without_cell.count()) +
                                " site(s) have no cell of their own at level " + std::to_string(options.level) +
-                               " (FIDs " + without_cell_fids + (summary.sites_without_own_cell > 10 ? ", ..." : "") +
-                               "); they are still written");
+                               " (FIDs " + without_cell.text() + "); they are still written");
   }
   std::string line = where_from + ": " + std::to_string(summary.features) + " features, " +
                      std::to_string(summary.sites) + " sites, " + std::to_string(out.geometry.pieces.size()) +

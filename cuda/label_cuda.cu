@@ -5,6 +5,8 @@
 
 #include <cub/device/device_radix_sort.cuh>
 #include <cub/device/device_scan.cuh>
+#include <cub/device/device_select.cuh>
+#include <thrust/iterator/counting_iterator.h>
 
 #include <algorithm>
 #include <chrono>
@@ -977,6 +979,26 @@ __global__ void jump_clean_kernel(TreeView tree, std::uint64_t count, std::uint8
   if (k < count) clean[k] = jump_cell_clean(tree, k);
 }
 
+/// The outline selection's test of tile cell i (code first + i): a boundary cell or a row end.
+struct OutlinePick {
+  const std::uint8_t* boundary;
+  grid::Code first;
+  int level;
+  __device__ bool operator()(std::uint32_t i) const {
+    return boundary[i] != 0 || is_row_end(grid::cell_of(first + i, level));
+  }
+};
+
+/// The selected cells (tile indices from `offset`) as outline cells.
+__global__ void gather_outline_kernel(const std::uint32_t* index, std::uint32_t count, grid::Code first,
+                                      const std::int32_t* site, const std::uint8_t* boundary, OutlineCell* out) {
+  const std::uint32_t k = blockIdx.x * blockDim.x + threadIdx.x;
+  if (k < count) {
+    const std::uint32_t i = index[k];
+    out[k] = {first + i, site[i], boundary[i] != 0 ? 1u : 0u};
+  }
+}
+
 unsigned int blocks_of(std::uint64_t count) { return static_cast<unsigned int>((count + kBlock - 1) / kBlock); }
 
 /// The fixed cells as the device build looks them up (FixedCoverView), in arrays of their own.
@@ -1282,6 +1304,11 @@ struct Labeller::Impl {
   std::uint64_t capacity = 0;
   std::size_t bytes = 0;
   std::size_t output_bytes = 0;
+  /// select_outline's buffers: a chunk's selected indices, their outline cells, the count, CUB's scratch.
+  DeviceArray<std::uint32_t> select_index;
+  DeviceArray<OutlineCell> select_cells;
+  DeviceArray<std::uint32_t> select_count;
+  DeviceArray<unsigned char> select_temp;
   cudaEvent_t start = nullptr, stop = nullptr;
   /// QTMV_FAULT_CUDA_OOM, read by open() and again by reserve() (FaultStep).
   FaultStep injected_fault = FaultStep::none;
@@ -1342,6 +1369,10 @@ struct Labeller::Impl {
   }
 
   void free_outputs() {
+    select_index.reset();
+    select_cells.reset();
+    select_count.reset();
+    select_temp.reset();
     site.reset();
     metres.reset();
     boundary.reset();
@@ -1592,6 +1623,53 @@ float Labeller::download(std::uint64_t offset, std::uint64_t count, std::int32_t
   }
   if (boundary && m.boundary) {
     QTMV_CUDA_CHECK(cudaMemcpy(boundary, m.boundary.get() + offset, count, cudaMemcpyDeviceToHost));
+  }
+  QTMV_CUDA_CHECK(cudaEventRecord(m.stop));
+  QTMV_CUDA_CHECK(cudaEventSynchronize(m.stop));
+  float ms = 0;
+  QTMV_CUDA_CHECK(cudaEventElapsedTime(&ms, m.start, m.stop));
+  return ms;
+}
+
+float Labeller::select_outline(grid::Code first, std::uint64_t count, std::vector<OutlineCell>* out) {
+  Impl& m = *impl_;
+  if (count > m.capacity || !m.boundary) {
+    throw std::invalid_argument("Labeller::select_outline: the last run had no flags for these cells");
+  }
+  QTMV_CUDA_CHECK(cudaSetDevice(m.device));
+  const std::uint64_t chunk = std::min<std::uint64_t>(kOutlineChunkCells, m.capacity);
+  if (!m.select_index) {
+    // Counted in the outputs: reserve() freed the last ones, free_outputs() frees these.
+    const std::size_t before = m.bytes;
+    m.select_index = device_alloc<std::uint32_t>(chunk, &m.bytes, m.injected_fault);
+    m.select_cells = device_alloc<OutlineCell>(chunk, &m.bytes, m.injected_fault);
+    m.select_count = device_alloc<std::uint32_t>(1, &m.bytes, m.injected_fault);
+    std::size_t temp_bytes = 0;
+    QTMV_CUDA_CHECK(cub::DeviceSelect::If(nullptr, temp_bytes, thrust::counting_iterator<std::uint32_t>(0),
+                                          m.select_index.get(), m.select_count.get(), static_cast<std::int64_t>(chunk),
+                                          OutlinePick{m.boundary.get(), first, m.level}));
+    m.select_temp = device_alloc<unsigned char>(temp_bytes, &m.bytes, m.injected_fault);
+    m.output_bytes += m.bytes - before;
+  }
+  QTMV_CUDA_CHECK(cudaEventRecord(m.start));
+  for (std::uint64_t offset = 0; offset < count; offset += chunk) {
+    const std::uint64_t n = std::min(chunk, count - offset);
+    std::size_t temp_bytes = m.select_temp.size();
+    QTMV_CUDA_CHECK(cub::DeviceSelect::If(m.select_temp.get(), temp_bytes,
+                                          thrust::counting_iterator<std::uint32_t>(0), m.select_index.get(),
+                                          m.select_count.get(), static_cast<std::int64_t>(n),
+                                          OutlinePick{m.boundary.get() + offset, first + offset, m.level}));
+    std::uint32_t selected = 0;
+    QTMV_CUDA_CHECK(cudaMemcpy(&selected, m.select_count.get(), sizeof selected, cudaMemcpyDeviceToHost));
+    if (selected == 0) continue;
+    gather_outline_kernel<<<blocks_of(selected), kBlock>>>(m.select_index.get(), selected, first + offset,
+                                                           m.site.get() + offset, m.boundary.get() + offset,
+                                                           m.select_cells.get());
+    QTMV_CUDA_CHECK_LAUNCH("gather_outline_kernel");
+    const std::size_t at = out->size();
+    out->resize(at + selected);
+    QTMV_CUDA_CHECK(cudaMemcpy(out->data() + at, m.select_cells.get(), selected * sizeof(OutlineCell),
+                               cudaMemcpyDeviceToHost));
   }
   QTMV_CUDA_CHECK(cudaEventRecord(m.stop));
   QTMV_CUDA_CHECK(cudaEventSynchronize(m.stop));

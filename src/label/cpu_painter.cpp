@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "label/label_tree.hpp"
+#include "label/openmp_threads.hpp"
 #include "label/piece_groups.hpp"
 
 namespace qtmv::label {
@@ -172,6 +173,130 @@ void cpu_tree_range(const Tree& tree, const TreeView& tv, grid::Code first, std:
         level, first, count, site, boundary, threads,
         [&](grid::Code code) { return tree_label(tv, grid::cell_of(code, level)); }, true);
   }
+}
+
+namespace {
+
+bool same_cell(const grid::Cell& a, const grid::Cell& b) {
+  return a.octant == b.octant && a.row == b.row && a.col == b.col;
+}
+
+/// A leaf's cells of the labelling level that it has labelled (code order), for its cells'
+/// neighbours inside it.
+struct LeafLabels {
+  std::vector<grid::Code> code;
+  std::vector<std::int32_t> site;
+  std::int32_t find(grid::Code c) const {
+    const auto it = std::lower_bound(code.begin(), code.end(), c);
+    return it != code.end() && *it == c ? site[static_cast<std::size_t>(it - code.begin())] : -1;
+  }
+};
+
+/// Visits one leaf: every cell of a list leaf, the rim of a uniform leaf; appends the outline
+/// cells among them.
+void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode& node, LeafOrder& order,
+                        LeafLabels& labels, std::vector<OutlineCell>& out) {
+  const int level = tv.level;
+  const int k = level - leaf.level;
+  const std::uint64_t rows = std::uint64_t{1} << k;
+  const bool uniform = node.count == kUniform;
+  // The site of a neighbour: inside a uniform leaf, the leaf's; inside a list leaf, its label;
+  // elsewhere, the tree's.
+  const auto neighbour_site = [&](const grid::Cell& nb) {
+    if (same_cell(grid::ancestor(nb, level, leaf.level), leaf.cell)) {
+      return uniform ? node.value : labels.find(grid::code_of(nb, level));
+    }
+    return tree_label(tv, nb);
+  };
+  const auto consider = [&](grid::Code code, std::int32_t site) {
+    const grid::Cell c = grid::cell_of(code, level);
+    grid::Cell nb[3];
+    grid::neighbours(c, level, nb);
+    bool boundary = false;
+    for (int s = 0; s < 3 && !boundary; ++s) boundary = neighbour_site(nb[s]) != site;
+    if (boundary || is_row_end(c)) out.push_back({code, site, boundary ? 1u : 0u});
+  };
+  if (uniform) {
+    // The rim: each row's first and last cell, and the whole row on the leaf's base (the last
+    // row of an up leaf, the first of a down leaf); interior_of_ancestor says which are inner.
+    const std::uint64_t base_row = grid::is_up(leaf.cell) ? rows - 1 : 0;
+    for (std::uint64_t r = 0; r < rows; ++r) {
+      const grid::RowCodes codes = grid::row_codes_below(leaf.cell, k, r, level);
+      if (r == base_row) {
+        for (grid::Code code = codes.first; code <= codes.last; ++code) {
+          if (!grid::interior_of_ancestor(grid::cell_of(code, level), level, leaf.level)) consider(code, node.value);
+        }
+      } else {
+        consider(codes.first, node.value);
+        if (codes.last != codes.first) consider(codes.last, node.value);
+      }
+    }
+    return;
+  }
+  labels.code.clear();
+  labels.site.clear();
+  order.make(tv, node, grid::cell_centre_vector(grid::code_of(leaf.cell, leaf.level), leaf.level),
+             node_radius(leaf.level, leaf.cell));
+  for (std::uint64_t r = 0; r < rows; ++r) {
+    const grid::RowCodes codes = grid::row_codes_below(leaf.cell, k, r, level);
+    for (grid::Code code = codes.first; code <= codes.last; ++code) {
+      labels.code.push_back(code);
+      labels.site.push_back(order.best(tv, grid::cell_centre_vector(code, level)).site);
+    }
+  }
+  // Row by row from the apex, codes increase: labels.code is sorted, as find() needs.
+  for (std::size_t m = 0; m < labels.code.size(); ++m) consider(labels.code[m], labels.site[m]);
+}
+
+bool code_less(const OutlineCell& a, const OutlineCell& b) { return a.code < b.code; }
+
+/// Per-thread lists joined and put in code order.
+std::vector<OutlineCell> join_in_code_order(std::vector<std::vector<OutlineCell>>& parts) {
+  std::size_t total = 0;
+  for (const auto& p : parts) total += p.size();
+  std::vector<OutlineCell> all;
+  all.reserve(total);
+  for (auto& p : parts) {
+    all.insert(all.end(), p.begin(), p.end());
+    std::vector<OutlineCell>().swap(p);
+  }
+  std::sort(all.begin(), all.end(), code_less);
+  return all;
+}
+
+}  // namespace
+
+std::vector<OutlineCell> cpu_tree_outlines(const Tree& tree, const TreeView& tv, int threads) {
+  const std::int64_t leaves = static_cast<std::int64_t>(tree.leaves.size());
+  std::vector<std::vector<OutlineCell>> parts(static_cast<std::size_t>(threads));
+#pragma omp parallel num_threads(threads)
+  {
+    LeafOrder order;
+    LeafLabels labels;
+    std::vector<OutlineCell>& mine = parts[static_cast<std::size_t>(thread_index())];
+#pragma omp for schedule(dynamic, 16)
+    for (std::int64_t q = 0; q < leaves; ++q) {
+      const TreeLeaf& leaf = tree.leaves[static_cast<std::size_t>(q)];
+      leaf_outline_cells(tv, leaf, tree.nodes[static_cast<std::size_t>(leaf.node)], order, labels, mine);
+    }
+  }
+  return join_in_code_order(parts);
+}
+
+void append_outline_cells(int level, grid::Code first, std::uint64_t count, const std::int32_t* site,
+                          const std::uint8_t* boundary, int threads, std::vector<OutlineCell>* out) {
+  const std::int64_t blocks = static_cast<std::int64_t>((count + kCpuBlock - 1) / kCpuBlock);
+  std::vector<std::vector<OutlineCell>> parts(static_cast<std::size_t>(blocks));
+#pragma omp parallel for schedule(dynamic, 4) num_threads(threads)
+  for (std::int64_t b = 0; b < blocks; ++b) {
+    const std::uint64_t begin = static_cast<std::uint64_t>(b) * kCpuBlock;
+    const std::uint64_t end = std::min(count, begin + kCpuBlock);
+    grid::Cell c = grid::cell_of(first + begin, level);
+    for (std::uint64_t k = begin; k < end; ++k, grid::next_in_code_order(c, level)) {
+      if (boundary[k] != 0 || is_row_end(c)) parts[static_cast<std::size_t>(b)].push_back({first + k, site[k], boundary[k] != 0 ? 1u : 0u});
+    }
+  }
+  for (const auto& p : parts) out->insert(out->end(), p.begin(), p.end());  // blocks are in code order
 }
 
 void cpu_brute_range(const std::vector<Piece>& candidates, int level, grid::Code first, std::uint64_t count,

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "label/label_engine.hpp"
+#include "label/outline_cells.hpp"
 
 namespace qtmv::label {
 
@@ -15,6 +16,17 @@ namespace qtmv::label {
 /// boundary flags come from the labels. `metres` and `boundary` may be null (not asked for).
 void cpu_tree_range(const Tree& tree, const TreeView& tv, grid::Code first, std::uint64_t count,
                     std::int32_t* site, float* metres, std::uint8_t* boundary, int threads);
+
+/// The hier pass that follows the outlines: the outline cells (outline_cells.hpp) of the whole
+/// level, in code order, from the cells of the list leaves and the rims of the uniform leaves
+/// (a uniform leaf's inner cells have all three neighbours in it: no boundary, no row end).
+/// Work and memory grow with the outlines, not with the cells.
+std::vector<OutlineCell> cpu_tree_outlines(const Tree& tree, const TreeView& tv, int threads);
+
+/// The outline cells of a labelled range [first, first + count) (code order): its boundary cells
+/// and row ends, appended to *out.
+void append_outline_cells(int level, grid::Code first, std::uint64_t count, const std::int32_t* site,
+                          const std::uint8_t* boundary, int threads, std::vector<OutlineCell>* out);
 
 /// The brute-force pass over [first, first + count): each cell against every candidate.
 void cpu_brute_range(const std::vector<Piece>& candidates, int level, grid::Code first, std::uint64_t count,

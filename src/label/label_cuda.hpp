@@ -14,6 +14,7 @@
 #include "label/label_engine.hpp"
 #include "label/label_math.hpp"
 #include "label/label_tree.hpp"
+#include "label/outline_cells.hpp"
 
 namespace qtmv::label {
 struct Tree;
@@ -29,6 +30,11 @@ class OutOfMemory : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
+
+/// Cells per selection of select_outline; its buffers take kOutlineSelectBytesPerCell bytes a
+/// cell of it (indices and outline cells), on top of the tile's outputs.
+constexpr std::uint64_t kOutlineChunkCells = std::uint64_t{1} << 25;
+constexpr std::uint64_t kOutlineSelectBytesPerCell = 4 + sizeof(OutlineCell);
 
 /// Number of CUDA devices the runtime can use (0 when there is no driver or no device).
 int device_count();
@@ -88,6 +94,10 @@ class Labeller {
   /// Returns the copy's time (milliseconds).
   float download(std::uint64_t offset, std::uint64_t count, std::int32_t* site, float* distance_m,
                  std::uint8_t* boundary);
+  /// Appends the outline cells (outline_cells.hpp) of the last run's cells [0, count), codes
+  /// first.., to *out, selected on the device in chunks of kOutlineChunkCells (CUB); the run
+  /// must have had boundary flags. Returns the time (milliseconds) of selection and copies.
+  float select_outline(grid::Code first, std::uint64_t count, std::vector<OutlineCell>* out);
   /// Bytes this object holds on the device now.
   std::size_t device_bytes() const;
   /// The float64 brute-force labels of the given codes (the reference of the benchmark's check).

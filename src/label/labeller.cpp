@@ -112,14 +112,19 @@ struct HostTile {
 /// label_cells on a GPU: device tiles as large as its memory allows (smaller ones when an
 /// allocation fails), each copied to the host tile by tile and handed to the sink. `done` counts
 /// the cells handed over, for the CPU to go on from when the GPU runs out of memory mid-run.
+/// With `outline`, the tiles' outline cells are selected on the device and appended to it
+/// instead (the host tile is not used).
 void label_on_gpu(cuda::Labeller& gpu, int device, int level, const LabelOptions& options, const MemoryEstimate& need,
                   const HostTile& host, const std::function<void(const LabelTile&)>& sink, LabelStats& stats,
-                  std::uint64_t& done) {
+                  std::uint64_t& done, std::vector<OutlineCell>* outline) {
   const std::uint64_t total = need.cells;
   const cuda::DeviceInfo info = cuda::device_info(device);
   const std::uint64_t device_limit =
       options.memory_limit_bytes ? options.memory_limit_bytes : static_cast<std::uint64_t>(info.free_bytes * 0.8);
-  std::uint64_t device_tile = std::min<std::uint64_t>(total, device_limit / need.bytes_per_cell);
+  // The outline selection's buffers come out of the same memory.
+  const std::uint64_t select_bytes = outline ? std::min(total, cuda::kOutlineChunkCells) * cuda::kOutlineSelectBytesPerCell : 0;
+  std::uint64_t device_tile =
+      std::min<std::uint64_t>(total, (device_limit > select_bytes ? device_limit - select_bytes : 0) / need.bytes_per_cell);
   if (device_tile < std::min<std::uint64_t>(total, kMinTileCells)) {
     throw std::runtime_error("level " + std::to_string(level) + " needs " + format_gib(double(need.output_bytes)) +
                              " of outputs on the GPU; not even a tile of 4096 cells fits in the " +
@@ -146,7 +151,11 @@ void label_on_gpu(cuda::Labeller& gpu, int device, int level, const LabelOptions
     const std::uint64_t count = std::min(device_tile, total - first);
     stats.label_seconds += gpu.run(first, count, options.want_distance, options.want_boundary) / 1e3;
     ++stats.tiles;
-    for (std::uint64_t offset = 0; offset < count; offset += host.cells) {
+    if (outline) {
+      stats.copy_seconds += gpu.select_outline(first, count, outline) / 1e3;
+      done = first + count;
+    }
+    for (std::uint64_t offset = 0; !outline && offset < count; offset += host.cells) {
       const std::uint64_t part = std::min(host.cells, count - offset);
       stats.copy_seconds += gpu.download(offset, part, host.site, host.metres, host.boundary) / 1e3;
       sink({first + offset, part, host.site, host.metres, host.boundary});
@@ -158,8 +167,11 @@ void label_on_gpu(cuda::Labeller& gpu, int device, int level, const LabelOptions
 
 }  // namespace
 
-LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
-                       const std::function<void(const LabelTile&)>& sink) {
+namespace {
+
+/// label_cells, or with `outline` label_outlines' pass (no sink then).
+LabelStats run_labelling(const LabelInput& input, const LabelOptions& options,
+                         const std::function<void(const LabelTile&)>& sink, std::vector<OutlineCell>* outline) {
   validate(input, options.rule);
   const int threads = thread_count(options.threads);
   const DeviceChoice device = choose_device(options.device);
@@ -252,11 +264,17 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
                              " of outputs; not even a tile of 4096 cells fits in the " + format_gib(double(host_limit)) +
                              " allowed");
   }
-  std::vector<std::int32_t> site(host_tile);
-  std::vector<float> metres(options.want_distance ? host_tile : 0);
-  std::vector<std::uint8_t> boundary(options.want_boundary ? host_tile : 0);
-  float* metres_ptr = options.want_distance ? metres.data() : nullptr;
-  std::uint8_t* boundary_ptr = options.want_boundary ? boundary.data() : nullptr;
+  // The outline pass takes a host tile only for the CPU's dense tiles (brute force).
+  std::vector<std::int32_t> site(outline ? 0 : host_tile);
+  std::vector<float> metres(options.want_distance && !outline ? host_tile : 0);
+  std::vector<std::uint8_t> boundary(options.want_boundary && !outline ? host_tile : 0);
+  float* metres_ptr = metres.empty() ? nullptr : metres.data();
+  std::uint8_t* boundary_ptr = boundary.empty() ? nullptr : boundary.data();
+  const auto grow_host_tile = [&] {  // for the CPU's tiles in the outline pass
+    site.resize(host_tile);
+    boundary.resize(host_tile);
+    boundary_ptr = boundary.data();
+  };
 
   std::uint64_t done = 0;  // cells handed to the sink
   if (on_gpu) {
@@ -266,7 +284,7 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
             std::make_unique<cuda::Labeller>(device.index, host_candidates(), hier ? &tree : nullptr, input.level);
       }
       const HostTile host{host_tile, site.data(), metres_ptr, boundary_ptr};
-      label_on_gpu(*gpu_built, device.index, input.level, options, need, host, sink, stats, done);
+      label_on_gpu(*gpu_built, device.index, input.level, options, need, host, sink, stats, done, outline);
       gpu_built.reset();
       cuda::release_cached_memory(device.index);
       return stats;
@@ -279,6 +297,20 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
     }
   }
   const TreeView tv = tree.view(host_candidates().data());
+  if (outline && hier) {
+    // Only the leaves that can touch an outline are visited (after a GPU that ran out of memory,
+    // those of the cells it had not done).
+    const double start = now_seconds();
+    std::vector<OutlineCell> cpu = cpu_tree_outlines(tree, tv, threads);
+    const auto from = std::lower_bound(cpu.begin(), cpu.end(), done,
+                                       [](const OutlineCell& c, std::uint64_t code) { return c.code < code; });
+    outline->insert(outline->end(), from, cpu.end());
+    stats.label_seconds += now_seconds() - start;
+    ++stats.tiles;
+    progress(1.0, "label");
+    return stats;
+  }
+  if (outline) grow_host_tile();
   for (std::uint64_t first = done; first < total; first += host_tile) {
     const std::uint64_t count = std::min(host_tile, total - first);
     const double start = now_seconds();
@@ -289,9 +321,33 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
     }
     stats.label_seconds += now_seconds() - start;
     ++stats.tiles;
-    sink({first, count, site.data(), metres_ptr, boundary_ptr});
+    if (outline) {
+      append_outline_cells(input.level, first, count, site.data(), boundary_ptr, threads, outline);
+    } else {
+      sink({first, count, site.data(), metres_ptr, boundary_ptr});
+    }
     progress(double(first + count) / double(total), "label");
   }
+  return stats;
+}
+
+}  // namespace
+
+LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
+                       const std::function<void(const LabelTile&)>& sink) {
+  return run_labelling(input, options, sink, nullptr);
+}
+
+LabelStats label_outlines(const LabelInput& input, const LabelOptions& options, Outlines* out) {
+  LabelOptions outline_options = options;
+  outline_options.want_distance = false;
+  outline_options.want_boundary = true;
+  Outlines result;
+  result.level = input.level;
+  result.site_count = input.site_count;
+  const LabelStats stats = run_labelling(input, outline_options, {}, &result.cells);
+  result.cells_per_site = count_cells_per_site(result.cells, input.level, input.site_count);
+  *out = std::move(result);
   return stats;
 }
 

@@ -21,6 +21,7 @@
 #include "label/label_input.hpp"
 #include "label/label_math.hpp"
 #include "label/label_tree.hpp"
+#include "label/outline_cells.hpp"
 
 namespace qtmv::label {
 
@@ -89,6 +90,14 @@ MemoryEstimate estimate_output_memory(int level, const LabelOptions& options);
 /// the estimate).
 LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
                        const std::function<void(const LabelTile&)>& sink);
+
+/// The outline cells and the cells per site of input.level (outline_cells.hpp), without every
+/// cell's label on the host: on the CPU, `hier` visits only the list leaves and the rims of the
+/// uniform leaves (work and memory follow the outlines); on a GPU the cells are labelled in
+/// device tiles and their outline cells selected there, so only those cross to the host; the
+/// CPU's brute force compacts its tiles as they come. Distances are not computed
+/// (options.want_distance and want_boundary are ignored). Throws as label_cells.
+LabelStats label_outlines(const LabelInput& input, const LabelOptions& options, Outlines* out);
 
 /// All cells' outputs in dense arrays indexed by code.
 struct LabelResult {

@@ -696,6 +696,76 @@ TEST_P(LabelDevice, TilesMatchOneRun) {
   }
 }
 
+// The sparse products (outline_cells.hpp) are those of the dense labels of every cell: the same
+// outline cells with their sites and flags, the same cells per site, for points, lines and
+// polygons, both algorithms and rules, in one tile and in many.
+TEST_P(LabelDevice, OutlinesAreThoseOfTheDenseLabels) {
+  const std::vector<SiteSet> sets = {
+      {"points L3", random_points(3, 40, 5)},       {"points L7", random_points(7, 300, 6)},
+      {"poles and dateline", poles_and_dateline(6)}, {"one site", random_points(5, 1, 7)},
+      {"arcs", arcs(7, 5, 20, 707)},                 {"wiggly lines", test::wiggly_sites(6, 706)},
+      {"polygons", polygons(6)},                     {"solid polygon", solid_polygon(7)}};
+  for (const SiteSet& set : sets) {
+    for (const Algorithm algorithm : {Algorithm::hier, Algorithm::brute}) {
+      for (const Rule rule : {Rule::exact, Rule::cell}) {
+        for (const std::size_t limit : {std::size_t{0}, std::size_t{5 * 30000}}) {
+          SCOPED_TRACE(set.name + (algorithm == Algorithm::hier ? " hier" : " brute") +
+                       (rule == Rule::exact ? " exact" : " cell") + (limit ? " tiles" : "") + " on " + GetParam());
+          LabelOptions options;
+          options.device = GetParam();
+          options.algorithm = algorithm;
+          options.rule = rule;
+          options.want_distance = false;
+          options.memory_limit_bytes = limit;
+          const LabelResult dense = label_all(set.geometry.input(), options);
+          const Outlines want = outlines_of_dense(set.geometry.level, dense.site.data(), dense.boundary.data(),
+                                                  set.geometry.site_count);
+          Outlines got;
+          label_outlines(set.geometry.input(), options, &got);
+          EXPECT_NO_THROW(check_outlines(got));
+          EXPECT_EQ(got.level, set.geometry.level);
+          ASSERT_EQ(got.cells.size(), want.cells.size());
+          std::size_t mismatches = 0;
+          for (std::size_t k = 0; k < want.cells.size(); ++k) {
+            mismatches += got.cells[k].code != want.cells[k].code || got.cells[k].site != want.cells[k].site ||
+                          got.cells[k].boundary != want.cells[k].boundary;
+          }
+          EXPECT_EQ(mismatches, 0u);
+          EXPECT_EQ(got.cells_per_site, want.cells_per_site);
+          // site_of gives every cell's label from the outline cells alone.
+          for (Code code = 0; code < grid::cell_count(got.level); code += 7) {
+            ASSERT_EQ(site_of(got.cells, code), dense.site[code]) << code;
+          }
+        }
+      }
+    }
+  }
+}
+
+// The counts and flags that outlines_of_dense derives agree with a direct count over the labels.
+TEST(LabelOutlines, DenseOutlinesCountEveryCell) {
+  const SiteGeometry g = random_points(6, 50, 3);
+  LabelOptions options;
+  options.device = "cpu";
+  const LabelResult dense = label_all(g.input(), options);
+  const Outlines o = outlines_of_dense(6, dense.site.data(), nullptr, g.site_count);
+  std::vector<std::uint64_t> count(static_cast<std::size_t>(g.site_count), 0);
+  std::uint64_t boundary = 0;
+  for (Code code = 0; code < grid::cell_count(6); ++code) {
+    ++count[static_cast<std::size_t>(dense.site[code])];
+    boundary += dense.boundary[code];
+  }
+  EXPECT_EQ(o.cells_per_site, count);
+  std::uint64_t listed_boundary = 0;
+  for (const OutlineCell& c : o.cells) listed_boundary += c.boundary;
+  EXPECT_EQ(listed_boundary, boundary);  // flags recomputed from the sites equal the labeller's
+  EXPECT_EQ(o.cells.size() - listed_boundary + boundary, o.cells.size());
+  EXPECT_NO_THROW(check_outlines(o));
+  Outlines broken = o;
+  broken.cells.erase(broken.cells.begin());  // the first row end
+  EXPECT_THROW(check_outlines(broken), std::logic_error);
+}
+
 TEST_P(LabelDevice, WithoutDistanceOrBoundary) {
   const SiteGeometry g = random_points(7, 100, 9);
   LabelOptions options;

@@ -1,0 +1,120 @@
+// The labeller's sparse output port: what the vector outputs are made of, in memory that grows
+// with the regions' outlines (2x per level) rather than with the cells (4x). The writers include
+// this header only, not the labeller.
+//
+// The outline cells of a level are, in code order, every boundary cell (one of its three edge
+// neighbours has another site) and every row end (column 0 or 2 row of its octant row: the
+// cells along the octants' meridians, +-180 and the pole cells among them). Why that suffices:
+//   - codes run row by row, and two cells next to each other in a row share an edge; a cell that
+//     is not a boundary cell has its edge neighbours' site. So between two outline cells of one
+//     row every cell has the site of the outline cell on its left (site_of), and a row starts with
+//     an outline cell; the cells per site follow from the gaps between outline codes
+//     (count_cells_per_site).
+//   - an edge between two sites has a boundary cell on each side, and the regions' cuts at +-180
+//     and along the poles' lines are edges of row ends: regions and Voronoi edges are traced from
+//     the outline cells alone, with site_of for a neighbour's site.
+#pragma once
+
+#include <algorithm>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "grid/qtm.hpp"
+
+namespace qtmv::label {
+
+/// One outline cell: its code, its site, and whether it is a boundary cell (else it is a row end
+/// whose neighbours all share its site).
+struct OutlineCell {
+  grid::Code code;
+  std::int32_t site;
+  std::uint32_t boundary;  ///< 1: boundary cell; 0: a row end only
+};
+
+/// True for the first and last cell of an octant row (column 0 or 2 row).
+QTMV_HD inline bool is_row_end(const grid::Cell& c) { return c.col == 0 || c.col == 2 * c.row; }
+
+/// Outline cells listed per octant row: 2 per row but the pole row's one, 8 octants.
+inline std::uint64_t row_end_count(int level) { return 8 * (2 * grid::rows_per_octant(level) - 1); }
+
+/// The sparse outputs of one labelled level.
+struct Outlines {
+  int level = 0;
+  std::int32_t site_count = 0;
+  std::vector<OutlineCell> cells;             ///< every outline cell, in code order, once
+  std::vector<std::uint64_t> cells_per_site;  ///< cells labelled with each site (site_count)
+};
+
+/// The site of any cell of the level: the site of the last outline cell at or before `code`
+/// (the row's first cell is one; the cells after it in the row up to the next share its site).
+inline std::int32_t site_of(const std::vector<OutlineCell>& cells, grid::Code code) {
+  const auto after = std::upper_bound(cells.begin(), cells.end(), code,
+                                      [](grid::Code c, const OutlineCell& o) { return c < o.code; });
+  if (after == cells.begin()) throw std::logic_error("outline cells: no row start at or before code " + std::to_string(code));
+  return (after - 1)->site;
+}
+
+/// The cells per site from the outline cells (in code order, row ends included): each outline
+/// cell's site owns the cells from it up to the next outline cell.
+inline std::vector<std::uint64_t> count_cells_per_site(const std::vector<OutlineCell>& cells, int level,
+                                                       std::int32_t site_count) {
+  std::vector<std::uint64_t> count(static_cast<std::size_t>(site_count), 0);
+  const grid::Code end = grid::cell_count(level);
+  for (std::size_t k = 0; k < cells.size(); ++k) {
+    const grid::Code next = k + 1 < cells.size() ? cells[k + 1].code : end;
+    count[static_cast<std::size_t>(cells[k].site)] += next - cells[k].code;
+  }
+  return count;
+}
+
+/// Checks what a producer promises (code order, unique codes, site ids in range, every row end
+/// present, the counts adding up to the level's cells); throws std::logic_error naming the first
+/// fault. O(outline cells).
+inline void check_outlines(const Outlines& o) {
+  const auto fail = [](const std::string& what) { throw std::logic_error("outline cells: " + what); };
+  if (static_cast<std::int32_t>(o.cells_per_site.size()) != o.site_count) fail("cells_per_site has the wrong size");
+  std::uint64_t row_ends = 0;
+  for (std::size_t k = 0; k < o.cells.size(); ++k) {
+    const OutlineCell& c = o.cells[k];
+    if (!grid::is_valid_code(c.code, o.level)) fail("code " + std::to_string(c.code) + " is not of the level");
+    if (k > 0 && o.cells[k - 1].code >= c.code) fail("codes not in increasing order at " + std::to_string(c.code));
+    if (c.site < 0 || c.site >= o.site_count) fail("site " + std::to_string(c.site) + " out of range");
+    row_ends += is_row_end(grid::cell_of(c.code, o.level)) ? 1 : 0;
+  }
+  if (row_ends != row_end_count(o.level)) fail("row ends missing");
+  std::uint64_t total = 0;
+  for (const std::uint64_t n : o.cells_per_site) total += n;
+  if (total != grid::cell_count(o.level)) fail("cells per site do not add up to the level's cells");
+}
+
+/// The outline cells of dense arrays (every cell's site, and optionally its boundary flag; without
+/// flags they are computed from the sites): for the tests, and for callers that hold dense labels.
+inline Outlines outlines_of_dense(int level, const std::int32_t* site, const std::uint8_t* boundary,
+                                  std::int32_t site_count) {
+  Outlines o;
+  o.level = level;
+  o.site_count = site_count;
+  const grid::Code n = grid::cell_count(level);
+  grid::Cell c{0, 0, 0};
+  for (grid::Code code = 0; code < n; ++code, grid::next_in_code_order(c, level)) {
+    if (site[code] < 0 || site[code] >= site_count) {
+      throw std::invalid_argument("label " + std::to_string(site[code]) + " of cell " + std::to_string(code) +
+                                  " is not a site id (0 to " + std::to_string(site_count - 1) + ")");
+    }
+    bool flag;
+    if (boundary) {
+      flag = boundary[code] != 0;
+    } else {
+      grid::Code nb[3];
+      grid::neighbours(code, level, nb);
+      flag = site[nb[0]] != site[code] || site[nb[1]] != site[code] || site[nb[2]] != site[code];
+    }
+    if (flag || is_row_end(c)) o.cells.push_back({code, site[code], flag ? 1u : 0u});
+  }
+  o.cells_per_site = count_cells_per_site(o.cells, level, site_count);
+  return o;
+}
+
+}  // namespace qtmv::label

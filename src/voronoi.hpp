@@ -44,8 +44,8 @@ struct VoronoiOptions {
   /// (write/output_size.hpp); the GDAL configuration option CHECK_DISK_FREE_SPACE=NO also
   /// turns this off.
   bool check_disk_space = true;
-  /// Host memory (bytes) the run may use for its per-cell arrays (the labels it keeps and the
-  /// labeller's tiles); 0: 80% of physical RAM.
+  /// Host memory (bytes) the run may use for its products (a raster's labels of every cell, vector
+  /// output's outline cells) and the labeller's tiles; 0: 80% of physical RAM.
   std::uint64_t memory_limit_bytes = 0;
   ProgressFunc progress;   ///< may be empty
   MessageSink messages;    ///< warnings, informative lines and the closing summary; may be empty
@@ -84,10 +84,6 @@ struct OutputFormat {
   bool raster = false;
 };
 OutputFormat choose_output_format(const std::string& destination, const std::string& format, OutputKind kind);
-
-/// Memory (bytes) the per-cell arrays of a run take at `level`: the dense labels the pipeline
-/// keeps and the labeller's tile buffer.
-std::uint64_t estimate_run_memory(int level, const label::LabelOptions& label_options);
 
 /// Runs the whole pipeline from `source` (any OGR dataset name) to `destination`. Checks the
 /// options, the destination (an existing one is an error unless options.overwrite) and the

@@ -20,6 +20,21 @@ struct CellLabels {
   const std::uint8_t* boundary = nullptr;  ///< 1 on boundary cells, else 0; null when not computed
 };
 
+/// The labels of one range of codes [first, first + count) (valid during the call that hands
+/// it over).
+struct CellTile {
+  grid::Code first = 0;
+  std::uint64_t count = 0;
+  const std::int32_t* site = nullptr;      ///< site id of each cell
+  const float* distance_m = nullptr;       ///< metres; null when not computed
+  const std::uint8_t* boundary = nullptr;  ///< 1 on boundary cells, else 0
+};
+
+/// Hands the labels of every cell of a level to `sink`, tile by tile in code order: the cells
+/// layer is one row per cell, written as the tiles come (the pipeline labels them again; a
+/// caller with dense labels hands them over at once).
+using CellTileSource = std::function<void(const std::function<void(const CellTile&)>& sink)>;
+
 /// The boundary flag of cell `code`: the labeller's when it computed them, else its rule (one of
 /// the three edge neighbours has another site).
 inline bool is_boundary(const CellLabels& labels, grid::Code code) {

@@ -200,39 +200,37 @@ double planar_ring_area(const std::vector<LonLat>& ring) {
   return 0.5 * twice;
 }
 
-std::vector<Region> trace_regions(int level, const std::int32_t* labels, std::int32_t site_count) {
+std::vector<Region> trace_regions(const label::Outlines& outlines) {
+  const int level = outlines.level;
   grid::require_level(level);
-  const Code cells = grid::cell_count(level);
-  const std::int64_t n = static_cast<std::int64_t>(cells);
-  for (std::int64_t code = 0; code < n; ++code) {
-    if (labels[code] < 0 || labels[code] >= site_count) {
-      throw std::invalid_argument("label " + std::to_string(labels[code]) + " of cell " + std::to_string(code) +
-                                  " is not a site id (0 to " + std::to_string(site_count - 1) + ")");
-    }
-  }
+  const std::vector<label::OutlineCell>& cells = outlines.cells;
+  const auto n = static_cast<std::int64_t>(cells.size());
 
   // Boundary edges of every region, gathered per site.
-  std::vector<std::vector<Edge>> edges_of(static_cast<std::size_t>(site_count));
+  std::vector<std::vector<Edge>> edges_of(static_cast<std::size_t>(outlines.site_count));
   FirstException failure;
 #pragma omp parallel
   {
     std::vector<std::pair<std::int32_t, Edge>> local;
 #pragma omp for schedule(static)
-    for (std::int64_t code = 0; code < n; ++code) {
+    for (std::int64_t k = 0; k < n; ++k) {
       failure.run([&] {
-        const Cell cell = grid::cell_of(static_cast<Code>(code), level);
-        const std::int32_t site = labels[code];
+        const label::OutlineCell& outline = cells[static_cast<std::size_t>(k)];
+        const Cell cell = grid::cell_of(outline.code, level);
         LonLat ring[grid::kMaxPolygonCorners];
         int across[grid::kMaxPolygonCorners];
         const int corners = drawn_ring(cell, level, ring, across);
         Code nb[3];
-        grid::neighbours(static_cast<Code>(code), level, nb);
-        for (int k = 0; k < corners; ++k) {
-          const LonLat& from = ring[k];
-          const LonLat& to = ring[(k + 1) % corners];
-          const bool on_border = across[k] == kAcrossPoleLine ||
+        grid::neighbours(outline.code, level, nb);
+        for (int e = 0; e < corners; ++e) {
+          const LonLat& from = ring[e];
+          const LonLat& to = ring[(e + 1) % corners];
+          const bool on_border = across[e] == kAcrossPoleLine ||
                                  (std::fabs(from.lon) == 180.0 && std::fabs(to.lon) == 180.0);  // cut at +-180
-          if (on_border || labels[nb[across[k]]] != site) local.push_back({site, {from, to}});
+          // Only a boundary cell has a neighbour of another site.
+          if (on_border || (outline.boundary && label::site_of(cells, nb[across[e]]) != outline.site)) {
+            local.push_back({outline.site, {from, to}});
+          }
         }
       });
     }
@@ -243,13 +241,18 @@ std::vector<Region> trace_regions(int level, const std::int32_t* labels, std::in
   }
   failure.rethrow();
 
-  std::vector<Region> regions(static_cast<std::size_t>(site_count));
+  std::vector<Region> regions(static_cast<std::size_t>(outlines.site_count));
 #pragma omp parallel for schedule(dynamic, 1)
-  for (std::int32_t site = 0; site < site_count; ++site) {
+  for (std::int32_t site = 0; site < outlines.site_count; ++site) {
     failure.run([&] { regions[static_cast<std::size_t>(site)] = link_rings(edges_of[static_cast<std::size_t>(site)]); });
   }
   failure.rethrow();
   return regions;
+}
+
+std::vector<Region> trace_regions(int level, const std::int32_t* labels, std::int32_t site_count) {
+  grid::require_level(level);
+  return trace_regions(label::outlines_of_dense(level, labels, nullptr, site_count));
 }
 
 }  // namespace qtmv::write

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "grid/qtm.hpp"
+#include "label/outline_cells.hpp"
 
 namespace qtmv::write {
 
@@ -33,9 +34,14 @@ struct RegionPolygon {
 /// The region of one site: its polygons (empty when the site has no cell).
 using Region = std::vector<RegionPolygon>;
 
-/// Traces the regions of all sites from dense labels: labels[code] is the site id of cell
-/// `code` of `level` (0 .. site_count - 1). Returns site_count regions. Throws
-/// std::invalid_argument for a label out of range.
+/// Traces the regions of all sites from the outline cells (label/outline_cells.hpp): the edges
+/// between sites are edges of boundary cells, the cuts at +-180 and along the poles' lines edges
+/// of row ends; a neighbour's site comes from label::site_of. Work and memory follow the outline
+/// cells. Returns outlines.site_count regions.
+std::vector<Region> trace_regions(const label::Outlines& outlines);
+
+/// The same from dense labels: labels[code] is the site id of cell `code` of `level`
+/// (0 .. site_count - 1). Throws std::invalid_argument for a label out of range.
 std::vector<Region> trace_regions(int level, const std::int32_t* labels, std::int32_t site_count);
 
 /// Area of a ring in lon/lat (square degrees): positive when counter-clockwise.

@@ -185,10 +185,12 @@ struct EdgeRef {
 };
 
 /// Every edge between cells of different sites, once (from the cell of the lower site id: the
-/// two drawings of an edge on +-180, at +180 and -180, are one edge), sorted by pair.
-std::vector<EdgeRef> gather_edges(const CellLabels& labels) {
-  const int level = labels.level;
-  const auto n = static_cast<std::int64_t>(grid::cell_count(level));
+/// two drawings of an edge on +-180, at +180 and -180, are one edge), sorted by pair. Such an
+/// edge has a boundary cell on each side: the outline cells hold them all.
+std::vector<EdgeRef> gather_edges(const label::Outlines& outlines) {
+  const int level = outlines.level;
+  const std::vector<label::OutlineCell>& cells = outlines.cells;
+  const auto n = static_cast<std::int64_t>(cells.size());
   std::vector<EdgeRef> all;
   FirstException failure;
 #pragma omp parallel
@@ -196,18 +198,19 @@ std::vector<EdgeRef> gather_edges(const CellLabels& labels) {
     std::vector<EdgeRef> local;
 #pragma omp for schedule(static)
     for (std::int64_t c = 0; c < n; ++c) {
-      const Code code = static_cast<Code>(c);
-      const std::int32_t site = labels.site[code];
-      Code nb[3];
-      grid::neighbours(code, level, nb);
-      if (labels.site[nb[0]] <= site && labels.site[nb[1]] <= site && labels.site[nb[2]] <= site) continue;
+      const label::OutlineCell& outline = cells[static_cast<std::size_t>(c)];
+      if (!outline.boundary) continue;
+      const Code code = outline.code;
+      const std::int32_t site = outline.site;
       failure.run([&] {
+        Code nb[3];
+        grid::neighbours(code, level, nb);
         LonLat ring[grid::kMaxPolygonCorners];
         int across[grid::kMaxPolygonCorners];
         const int corners = drawn_ring(grid::cell_of(code, level), level, ring, across);
         for (int k = 0; k < corners; ++k) {
           if (across[k] == kAcrossPoleLine) continue;
-          const std::int32_t other = labels.site[nb[across[k]]];
+          const std::int32_t other = label::site_of(cells, nb[across[k]]);
           if (other > site) {
             local.push_back({static_cast<std::uint64_t>(site) << 32 | static_cast<std::uint32_t>(other),
                              code << 2 | static_cast<std::uint64_t>(k)});
@@ -578,14 +581,14 @@ class CellRows {
 // --- the layers ------------------------------------------------------------------------------
 
 struct Input {
-  const CellLabels& labels;
+  const label::Outlines& outlines;
+  const CellTileSource& cell_tiles;  ///< the cells layer's labels
   const sites::SiteTable& table;
   std::int32_t site_count;
-  std::vector<std::uint64_t> cells_of;  ///< cells per site
 };
 
 void write_regions(Writer& w, const Input& in, double work) {
-  const int level = in.labels.level;
+  const int level = in.outlines.level;
   const OGRFeatureDefn* source = in.table.definition();
   OGRLayer* layer = w.begin_layer("regions", wkbMultiPolygon, work);
 
@@ -606,7 +609,7 @@ void write_regions(Writer& w, const Input& in, double work) {
   const int cells_index = w.add_field(cells_field);
   const int area_index = w.add_field(area_field);
 
-  const std::vector<Region> regions = trace_regions(level, in.labels.site, in.site_count);
+  const std::vector<Region> regions = trace_regions(in.outlines);
   w.layer_progress(0.3, 1.0);
 
   w.begin_features();
@@ -634,7 +637,7 @@ void write_regions(Writer& w, const Input& in, double work) {
         }
       }
       set_value(*feature, fid_index, fid_value(site.fid));
-      feature->SetField(cells_index, static_cast<GIntBig>(in.cells_of[s]));
+      feature->SetField(cells_index, static_cast<GIntBig>(in.outlines.cells_per_site[s]));
       feature->SetField(area_index, areas[s - first]);
       feature->SetGeometryDirectly(make_multipolygon(regions[s]));  // empty for a site without cells
       w.write(*feature);
@@ -646,7 +649,7 @@ void write_regions(Writer& w, const Input& in, double work) {
 }
 
 void write_boundary_cells(Writer& w, const Input& in, double work, std::uint64_t count) {
-  const int level = in.labels.level;
+  const int level = in.outlines.level;
   OGRLayer* layer = w.begin_layer("boundary_cells", wkbPolygon, work, /*per_cell=*/true);
   OGRFieldDefn code_field("code", OFTInteger64);
   OGRFieldDefn fid_field("site_fid", OFTInteger64);
@@ -654,13 +657,12 @@ void write_boundary_cells(Writer& w, const Input& in, double work, std::uint64_t
   const int fid_index = w.add_field(fid_field);
   w.begin_features();
   CellRows rows(w, layer, {code_index, fid_index});
-  const Code cells = grid::cell_count(level);
   std::uint64_t done = 0;
-  for (Code code = 0; code < cells; ++code) {
-    if (!is_boundary(in.labels, code)) continue;
-    const RowValue values[] = {RowValue::of(static_cast<std::int64_t>(code)),
-                               fid_value(in.table.sites[static_cast<std::size_t>(in.labels.site[code])].fid)};
-    rows.add(code, level, values);
+  for (const label::OutlineCell& cell : in.outlines.cells) {
+    if (!cell.boundary) continue;
+    const RowValue values[] = {RowValue::of(static_cast<std::int64_t>(cell.code)),
+                               fid_value(in.table.sites[static_cast<std::size_t>(cell.site)].fid)};
+    rows.add(cell.code, level, values);
     if (++done % kProgressEvery == 0) w.layer_progress(static_cast<double>(done), static_cast<double>(count));
   }
   rows.finish();
@@ -668,7 +670,7 @@ void write_boundary_cells(Writer& w, const Input& in, double work, std::uint64_t
 }
 
 void write_voronoi_edges(Writer& w, const Input& in, double work) {
-  const int level = in.labels.level;
+  const int level = in.outlines.level;
   OGRLayer* layer = w.begin_layer("voronoi_edges", wkbMultiLineString, work);
   OGRFieldDefn a_field("site_a", OFTInteger64);
   OGRFieldDefn b_field("site_b", OFTInteger64);
@@ -677,7 +679,7 @@ void write_voronoi_edges(Writer& w, const Input& in, double work) {
   const int b_index = w.add_field(b_field);
   const int length_index = w.add_field(length_field);
 
-  const std::vector<EdgeRef> edges = gather_edges(in.labels);
+  const std::vector<EdgeRef> edges = gather_edges(in.outlines);
   std::vector<std::size_t> pair_start;  // where each pair's run of edges begins
   for (std::size_t k = 0; k < edges.size(); ++k) {
     if (k == 0 || edges[k].key != edges[k - 1].key) pair_start.push_back(k);
@@ -726,7 +728,7 @@ void write_voronoi_edges(Writer& w, const Input& in, double work) {
 }
 
 void write_cells(Writer& w, const Input& in, double work) {
-  const int level = in.labels.level;
+  const int level = in.outlines.level;
   OGRLayer* layer = w.begin_layer("cells", wkbPolygon, work, /*per_cell=*/true);
   OGRFieldDefn code_field("code", OFTInteger64);
   OGRFieldDefn fid_field("site_fid", OFTInteger64);
@@ -740,15 +742,27 @@ void write_cells(Writer& w, const Input& in, double work) {
   w.begin_features();
   CellRows rows(w, layer, {code_index, fid_index, distance_index, boundary_index});
   const Code cells = grid::cell_count(level);
-  for (Code code = 0; code < cells; ++code) {
-    const RowValue values[] = {
-        RowValue::of(static_cast<std::int64_t>(code)),
-        fid_value(in.table.sites[static_cast<std::size_t>(in.labels.site[code])].fid),
-        in.labels.distance_m ? RowValue::of(static_cast<double>(in.labels.distance_m[code])) : RowValue{},
-        RowValue::of(std::int64_t{is_boundary(in.labels, code) ? 1 : 0})};
-    rows.add(code, level, values);
-    if ((code + 1) % kProgressEvery == 0) w.layer_progress(static_cast<double>(code + 1), static_cast<double>(cells));
-  }
+  Code next = 0;
+  in.cell_tiles([&](const CellTile& tile) {
+    if (tile.first != next) throw std::logic_error("write_vector: the cells layer's tiles are not in code order");
+    for (std::uint64_t k = 0; k < tile.count; ++k) {
+      const Code code = tile.first + k;
+      const std::int32_t site = tile.site[k];
+      if (site < 0 || site >= in.site_count) {
+        throw std::invalid_argument("write_vector: label " + std::to_string(site) + " of cell " + std::to_string(code) +
+                                    " is not a site id (0 to " + std::to_string(in.site_count - 1) + ")");
+      }
+      const RowValue values[] = {
+          RowValue::of(static_cast<std::int64_t>(code)),
+          fid_value(in.table.sites[static_cast<std::size_t>(site)].fid),
+          tile.distance_m ? RowValue::of(static_cast<double>(tile.distance_m[k])) : RowValue{},
+          RowValue::of(std::int64_t{tile.boundary[k] != 0 ? 1 : 0})};
+      rows.add(code, level, values);
+      if ((code + 1) % kProgressEvery == 0) w.layer_progress(static_cast<double>(code + 1), static_cast<double>(cells));
+    }
+    next = tile.first + tile.count;
+  });
+  if (next != cells) throw std::logic_error("write_vector: the cells layer's tiles end before the last cell");
   rows.finish();
   w.end_layer();
 }
@@ -767,8 +781,8 @@ std::string check_layer_names(const std::vector<std::string>& layers) {
   return {};
 }
 
-void write_vector(const std::string& path, const CellLabels& labels, const sites::SiteTable& table,
-                  const VectorOptions& options) {
+void write_vector(const std::string& path, const label::Outlines& outlines, const CellTileSource& cell_tiles,
+                  const sites::SiteTable& table, const VectorOptions& options) {
   // Everything that can be refused is refused before the destination is created.
   if (const std::string problem = check_layer_names(options.layers); !problem.empty()) {
     throw WriteError(path + ": " + problem);
@@ -778,24 +792,19 @@ void write_vector(const std::string& path, const CellLabels& labels, const sites
     if (std::find(layers.begin(), layers.end(), name) == layers.end()) layers.push_back(name);
   }
 
-  if (!grid::is_valid_level(labels.level)) throw std::invalid_argument("write_vector: bad level " + std::to_string(labels.level));
-  if (!labels.site) throw std::invalid_argument("write_vector: no site labels");
+  if (!grid::is_valid_level(outlines.level)) throw std::invalid_argument("write_vector: bad level " + std::to_string(outlines.level));
   const auto site_count = static_cast<std::int32_t>(table.sites.size());
-  const Code cells = grid::cell_count(labels.level);
-  Input in{labels, table, site_count, std::vector<std::uint64_t>(table.sites.size(), 0)};
+  if (outlines.site_count != site_count) {
+    throw std::invalid_argument("write_vector: the outlines have " + std::to_string(outlines.site_count) +
+                                " sites, the table " + std::to_string(site_count));
+  }
+  label::check_outlines(outlines);
+  const bool want_cells = std::find(layers.begin(), layers.end(), "cells") != layers.end();
+  if (want_cells && !cell_tiles) throw std::invalid_argument("write_vector: the cells layer needs the cells' labels");
+  const Code cells = grid::cell_count(outlines.level);
+  const Input in{outlines, cell_tiles, table, site_count};
   std::uint64_t boundary_count = 0;
-  for (Code code = 0; code < cells; ++code) {
-    const std::int32_t site = labels.site[code];
-    if (site < 0 || site >= site_count) {
-      throw std::invalid_argument("write_vector: label " + std::to_string(site) + " of cell " + std::to_string(code) +
-                                  " is not a site id (0 to " + std::to_string(site_count - 1) + ")");
-    }
-    ++in.cells_of[static_cast<std::size_t>(site)];
-  }
-  const bool want_boundary = std::find(layers.begin(), layers.end(), "boundary_cells") != layers.end();
-  if (want_boundary) {
-    for (Code code = 0; code < cells; ++code) boundary_count += is_boundary(labels, code) ? 1 : 0;
-  }
+  for (const label::OutlineCell& c : outlines.cells) boundary_count += c.boundary;
 
   GDALDriver* driver = GetGDALDriverManager()->GetDriverByName(options.driver.c_str());
   if (!driver) {
@@ -813,13 +822,14 @@ void write_vector(const std::string& path, const CellLabels& labels, const sites
   // cell and writes about 3 pairs per site. In GeoPackage the close builds the R-trees of regions
   // and voronoi_edges, about 9 us per feature.
   const double cell_count = static_cast<double>(cells), sites = static_cast<double>(site_count);
+  const double outline_count = static_cast<double>(outlines.cells.size());
   const bool rtrees = EQUAL(options.driver.c_str(), "GPKG");
   std::vector<double> work;
   double close_work = 1;
   for (const std::string& name : layers) {
-    if (name == "regions") work.push_back(0.12 * cell_count + 4 * sites + 1);
+    if (name == "regions") work.push_back(1.5 * outline_count + 4 * sites + 1);
     if (name == "boundary_cells") work.push_back(0.4 * static_cast<double>(boundary_count) + 1);
-    if (name == "voronoi_edges") work.push_back(0.08 * cell_count + 3 * 2.5 * sites + 1);
+    if (name == "voronoi_edges") work.push_back(1.0 * outline_count + 3 * 2.5 * sites + 1);
     if (name == "cells") work.push_back(0.3 * cell_count + 1);
     if (rtrees && name == "regions") close_work += 9 * sites;
     if (rtrees && name == "voronoi_edges") close_work += 9 * 3 * sites;
@@ -840,6 +850,25 @@ void write_vector(const std::string& path, const CellLabels& labels, const sites
   }
   writer.close();
   writer.report_done();
+}
+
+void write_vector(const std::string& path, const CellLabels& labels, const sites::SiteTable& table,
+                  const VectorOptions& options) {
+  if (!grid::is_valid_level(labels.level)) throw std::invalid_argument("write_vector: bad level " + std::to_string(labels.level));
+  if (!labels.site) throw std::invalid_argument("write_vector: no site labels");
+  const auto site_count = static_cast<std::int32_t>(table.sites.size());
+  const label::Outlines outlines = label::outlines_of_dense(labels.level, labels.site, labels.boundary, site_count);
+  const CellTileSource whole = [&](const std::function<void(const CellTile&)>& sink) {
+    const Code cells = grid::cell_count(labels.level);
+    if (labels.boundary) {
+      sink({0, cells, labels.site, labels.distance_m, labels.boundary});
+      return;
+    }
+    std::vector<std::uint8_t> flags(cells);
+    for (Code code = 0; code < cells; ++code) flags[code] = is_boundary(labels, code) ? 1 : 0;
+    sink({0, cells, labels.site, labels.distance_m, flags.data()});
+  };
+  write_vector(path, outlines, whole, table, options);
 }
 
 }  // namespace qtmv::write

@@ -40,6 +40,7 @@
 
 #include <string>
 
+#include "label/outline_cells.hpp"
 #include "sites/site_table.hpp"
 #include "write/cell_labels.hpp"
 
@@ -52,11 +53,19 @@ extern const char* const kVectorLayerNames[4];
 /// list is not empty, otherwise what is wrong ("no layer 'x': choose from regions, ...").
 std::string check_layer_names(const std::vector<std::string>& layers);
 
-/// Creates `path` with options.driver and writes the layers of options.layers. `labels` must
-/// hold site ids 0 .. table.sites.size() - 1 for every cell (std::invalid_argument otherwise).
-/// Throws WriteError naming the destination, the layer and GDAL's message when GDAL reports
-/// an error (creating, writing or closing), for an unknown layer name or driver; Interrupted
-/// when options.progress returns false.
+/// Creates `path` with options.driver and writes the layers of options.layers: regions,
+/// boundary_cells and voronoi_edges from `outlines` (the outline cells and cells per site of
+/// label/outline_cells.hpp: memory and work follow the outlines), the cells layer from
+/// `cell_tiles` (may be empty when that layer is not asked for). Site ids run 0 ..
+/// table.sites.size() - 1 (std::invalid_argument otherwise, or std::logic_error for outline cells
+/// that break their promises). Throws WriteError naming the destination, the layer and GDAL's
+/// message when GDAL reports an error (creating, writing or closing), for an unknown layer name
+/// or driver; Interrupted when options.progress returns false.
+void write_vector(const std::string& path, const label::Outlines& outlines, const CellTileSource& cell_tiles,
+                  const sites::SiteTable& table, const VectorOptions& options);
+
+/// The same from dense labels of every cell (labels.site, and labels.boundary or flags computed
+/// from the sites): for callers that hold them, and the tests.
 void write_vector(const std::string& path, const CellLabels& labels, const sites::SiteTable& table,
                   const VectorOptions& options);
 

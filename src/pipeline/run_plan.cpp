@@ -1,0 +1,188 @@
+#include "pipeline/run_plan.hpp"
+
+#include <cpl_conv.h>
+#include <cpl_string.h>
+#include <gdal_priv.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <stdexcept>
+
+#include "common/device_spec.hpp"
+#include "common/host_info.hpp"
+#include "grid/qtm_checks.hpp"
+#include "label/outline_cells.hpp"
+#include "write/output_size.hpp"
+#include "write/raster_writer.hpp"
+#include "write/vector_writer.hpp"
+
+namespace qtmv::pipeline {
+
+namespace {
+
+std::string lower(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+// The labeller hands its outputs over in tiles and checks for an interrupt between them; on the
+// CPU, tiles of 64 MiB (about 7 million cells) keep that check under a second.
+constexpr std::uint64_t kCpuTileBytes = std::uint64_t{64} << 20;
+
+// Host bytes per outline cell while the vector layers are made: the cell itself (16), and the
+// region and edge tracing's edges, rings and sort (measured: about 90 at level 12).
+constexpr std::uint64_t kBytesPerOutlineCell = 112;
+
+bool labels_on_cpu(const label::LabelOptions& options) {
+  const DeviceSpec device = parse_device_spec(options.device);
+  return device.kind == DeviceSpec::Kind::cpu ||
+         (device.kind == DeviceSpec::Kind::automatic && label::cuda_device_count() == 0);
+}
+
+// The tile limit the pipeline passes to the labeller (0: the labeller's own, a quarter of RAM).
+std::uint64_t tile_limit(const label::LabelOptions& options) {
+  if (options.memory_limit_bytes != 0) return options.memory_limit_bytes;
+  return labels_on_cpu(options) ? kCpuTileBytes : 0;
+}
+
+// Where the read and label stages' slices of the run end (fractions), in proportion to their
+// expected time per cell at level 11 on the 2-core development machine (bench/RESULTS.md,
+// "qtmvoronoi end to end"): labelling on the CPU ~50 ns (a GPU far less), a raster ~100 ns,
+// the cells layer ~300 ns; the outline products cost little per cell. Reading gets a fixed 5%.
+void set_stage_ends(RunPlan& plan) {
+  const bool cpu = labels_on_cpu(plan.label);
+  const double label = plan.format.raster ? (cpu ? 50 : 5) : (cpu ? 10 : 2) + (plan.cells_layer ? (cpu ? 50 : 5) : 0);
+  const double write = plan.format.raster ? 100 : 20 + (plan.cells_layer ? 300 : 0);
+  plan.read_end = 0.05;
+  plan.label_end = plan.read_end + (1 - plan.read_end) * label / (label + write);
+}
+
+void check_vector_destination(const std::string& destination, RunPlan& plan) {
+  write::VectorOptions& vector = plan.vector;
+  if (const std::string problem = write::check_layer_names(vector.layers); !problem.empty()) {
+    throw VoronoiError("-layers: " + problem);
+  }
+  // A driver without multi-layer files (Shapefile, GeoJSON, FlatGeobuf, CSV...) writing to one
+  // file of its own extension holds one layer: say so now, not after all the work.
+  GDALDriver* driver = GetGDALDriverManager()->GetDriverByName(plan.format.driver.c_str());
+  const bool multi_layer = driver && CPLTestBool(CSLFetchNameValueDef(driver->GetMetadata(),
+                                                                      GDAL_DCAP_MULTIPLE_VECTOR_LAYERS, "NO"));
+  const std::string extension = lower(CPLGetExtension(destination.c_str()));
+  if (!multi_layer && vector.layers.size() > 1 && !extension.empty()) {
+    throw VoronoiError("'" + destination + "': a " + plan.format.driver + " file holds one layer: use -layers with one of " +
+                       "them, or name a directory (for drivers that write one file per layer there) or a format " +
+                       "such as GPKG");
+  }
+  // CSV keeps no geometry unless asked to: keep it, as WKT.
+  const bool geometry_option = std::any_of(vector.layer_options.begin(), vector.layer_options.end(),
+                                           [](const std::string& o) { return lower(o).rfind("geometry=", 0) == 0; });
+  if (plan.format.driver == "CSV" && !geometry_option) vector.layer_options.push_back("GEOMETRY=AS_WKT");
+  plan.cells_layer = std::find(vector.layers.begin(), vector.layers.end(), "cells") != vector.layers.end();
+}
+
+}  // namespace
+
+std::uint64_t estimate_run_memory(const RunPlan& plan, std::uint64_t sites) {
+  const int level = plan.level;
+  const label::MemoryEstimate dense = label::estimate_output_memory(level, plan.label);
+  // The labeller's tile buffer: its limit, a quarter of RAM by default, at most 2^28 cells.
+  std::uint64_t limit = tile_limit(plan.label);
+  if (limit == 0) limit = host_ram_bytes() / 4;
+  const std::uint64_t tile_cells =
+      std::min({dense.cells, std::max<std::uint64_t>(1, limit / dense.bytes_per_cell), std::uint64_t{1} << 28});
+  const std::uint64_t tile_bytes = tile_cells * dense.bytes_per_cell;
+  if (plan.format.raster) return dense.output_bytes + tile_bytes;
+  // Outline cells: the row ends, and boundary cells along the Voronoi edges, whose length grows
+  // as the square root of the sites (about 6.6 sqrt(n) radians for n sites spread evenly), at
+  // about 3 boundary cells per cell edge (pi / 2^(L+1) radians) of it.
+  const double boundary = 6.6 * std::sqrt(static_cast<double>(std::max<std::uint64_t>(sites, 1))) * 3.0 *
+                          std::ldexp(1.0, level + 1) / 3.14159265358979;
+  const double outline = static_cast<double>(label::row_end_count(level)) + std::min(boundary, double(dense.cells));
+  return static_cast<std::uint64_t>(outline) * kBytesPerOutlineCell + tile_bytes;
+}
+
+RunPlan plan_run(const std::string& destination, const VoronoiOptions& options) {
+  RunPlan plan;
+  plan.level = options.level;
+  try {
+    grid::require_level(plan.level);
+  } catch (const std::invalid_argument& e) {
+    throw VoronoiError(std::string("-level: ") + e.what());
+  }
+  plan.format = choose_output_format(destination, options.format, options.kind);
+  static_cast<write::VectorLayers&>(plan.vector) = options.vector;
+  static_cast<write::RasterGrid&>(plan.raster) = options.raster;
+  plan.vector.driver = plan.raster.driver = plan.format.driver;
+  if (plan.format.raster) {
+    if (!options.vector.dataset_options.empty() || !options.vector.layer_options.empty()) {
+      throw VoronoiError("-dsco and -lco are for vector output; " + plan.format.driver + " output is a raster: use -co");
+    }
+    try {
+      write::raster_size(plan.level, plan.raster);  // -tr, -ts and -raster checked as the writer will
+    } catch (const write::WriteError& e) {
+      throw VoronoiError(e.what());
+    }
+  } else {
+    if (!options.raster.creation_options.empty()) {
+      throw VoronoiError("-co is for raster output; " + plan.format.driver + " output is vector: use -lco or -dsco");
+    }
+    check_vector_destination(destination, plan);
+  }
+
+  DeviceSpec device;
+  try {
+    device = parse_device_spec(options.device);
+  } catch (const std::invalid_argument& e) {
+    throw VoronoiError(std::string("-device: ") + e.what());
+  }
+  label::LabelOptions& label_options = plan.label;
+  label_options.rule = options.rule;
+  label_options.device = options.device;
+  label_options.algorithm = options.algorithm;
+  label_options.threads = options.threads;
+  label_options.want_distance = plan.format.raster || plan.cells_layer;
+  label_options.want_boundary = true;
+  label_options.memory_limit_bytes = tile_limit(label_options);
+
+  const std::uint64_t need = estimate_run_memory(plan, 1);
+  const std::uint64_t ram = host_ram_bytes();
+  const std::uint64_t allowed = options.memory_limit_bytes ? options.memory_limit_bytes : ram / 10 * 8;
+  if (need > allowed) {
+    const label::MemoryEstimate e = label::estimate_output_memory(plan.level, label_options);
+    throw VoronoiError("level " + std::to_string(plan.level) + " needs about " + format_gib(double(need)) + " for " +
+                       (plan.format.raster ? "the labels of its " + std::to_string(e.cells) + " cells (" +
+                                                 std::to_string(e.bytes_per_cell) + " bytes each, and the labeller's tiles)"
+                                           : std::string("its outline cells and the labeller's tiles")) +
+                       ", more than the " + format_gib(double(allowed)) + " allowed (80% of this host's " +
+                       format_gib(double(ram)) + " of RAM): choose a lower -level");
+  }
+
+  // A GPU asked for and missing fails now, not after the read.
+  if (device.kind == DeviceSpec::Kind::cuda) {
+    const int gpus = label::cuda_device_count();
+    if (device.index >= gpus) {
+      throw VoronoiError("-device " + label_options.device + ": " +
+                         (gpus == 0 ? std::string("no usable CUDA GPU found")
+                                    : "this host has " + std::to_string(gpus) + " CUDA device(s)") +
+                         "; use -device cpu or auto");
+    }
+  }
+
+  // An output its file system cannot hold fails now, not after the work (GDAL's GeoTIFF driver
+  // checks the same, late, and only uncompressed files).
+  if (options.check_disk_space) {
+    try {
+      write::check_disk_space(destination,
+                              plan.format.raster ? write::estimate_raster_size(plan.level, plan.raster, label_options.want_distance)
+                                                 : write::estimate_vector_size(plan.level, plan.vector),
+                              plan.format.raster ? "raster" : "cells layer");
+    } catch (const write::WriteError& e) {
+      throw VoronoiError(e.what());
+    }
+  }
+  set_stage_ends(plan);
+  return plan;
+}
+
+}  // namespace qtmv::pipeline

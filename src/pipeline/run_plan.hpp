@@ -1,0 +1,37 @@
+// The first stage of a run: every check that can fail before any work (options, output format,
+// destination, device, memory, disk space), and what they decide for the stages after it.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "label/labeller.hpp"
+#include "voronoi.hpp"
+#include "write/cell_labels.hpp"
+
+namespace qtmv::pipeline {
+
+/// What a run will do, decided before any work.
+struct RunPlan {
+  int level = 0;
+  OutputFormat format;           ///< the driver and whether it writes a raster
+  write::VectorOptions vector;   ///< the vector writer's options (progress set by the write stage)
+  write::RasterOptions raster;   ///< the raster writer's options (likewise)
+  /// The labeller's options: the outline pass for vector output (label_outlines), the dense
+  /// tiles for a raster and for the cells layer (label_cells).
+  label::LabelOptions label;
+  bool cells_layer = false;  ///< vector output with the cells layer: every cell's labels, in tiles
+  /// Ends of the read and label stages' slices of the run's progress (fractions 0..1).
+  double read_end = 0, label_end = 0;
+};
+
+/// Checks the options against the destination and this host, and plans the run; throws
+/// VoronoiError naming the option, the destination or the shortage. Nothing is written.
+RunPlan plan_run(const std::string& destination, const VoronoiOptions& options);
+
+/// Host memory (bytes) the run's largest products take: the dense labels of a raster (every
+/// cell) or, for vector output, the outline cells (an estimate from the site count: they grow
+/// 2x per level) and the labeller's tiles.
+std::uint64_t estimate_run_memory(const RunPlan& plan, std::uint64_t sites);
+
+}  // namespace qtmv::pipeline

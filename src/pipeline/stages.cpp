@@ -1,0 +1,179 @@
+#include "pipeline/stages.hpp"
+
+#include <cpl_conv.h>
+
+#include <algorithm>
+#include <cstring>
+#include <memory>
+#include <new>
+
+#include "common/host_info.hpp"
+#include "pipeline/staged_output.hpp"
+#include "sites/fid_list.hpp"
+#include "write/raster_writer.hpp"
+#include "write/vector_writer.hpp"
+
+namespace qtmv::pipeline {
+
+bool RunProgress::report(double begin, double end, double fraction, const char* stage) {
+  if (cancelled_) return false;
+  if (!user_) return true;
+  fraction = std::min(1.0, std::max(0.0, fraction));
+  if (!user_(begin + (end - begin) * fraction, stage)) cancelled_ = true;
+  return !cancelled_;
+}
+
+namespace {
+
+void say(const VoronoiOptions& options, Severity severity, const std::string& message) {
+  if (options.messages) options.messages(severity, message);
+}
+
+/// Runs a stage's work: Interrupted passes, a stop asked for during a failure is a stop, any
+/// other failure becomes a VoronoiError with `prefix` before its message.
+template <class Work>
+auto as_stage(RunProgress& progress, const std::string& prefix, Work&& work) -> decltype(work()) {
+  try {
+    return work();
+  } catch (const Interrupted&) {
+    throw;
+  } catch (const VoronoiError&) {
+    throw;
+  } catch (const std::bad_alloc&) {
+    throw VoronoiError(prefix + "out of memory");
+  } catch (const std::exception& e) {
+    if (progress.cancelled()) throw Interrupted();
+    throw VoronoiError(prefix + e.what());
+  }
+}
+
+/// Labels every cell into dense arrays (a raster's input).
+DenseLabels label_dense(const sites::SiteSet& sites, const label::LabelOptions& options, label::LabelStats* stats) {
+  const std::uint64_t cells = grid::cell_count(sites.geometry.level);
+  DenseLabels dense;
+  dense.site.resize(cells);
+  if (options.want_distance) dense.distance_m.resize(cells);
+  if (options.want_boundary) dense.boundary.resize(cells);
+  *stats = label::label_cells(sites.geometry.input(), options, [&](const label::LabelTile& tile) {
+    std::memcpy(dense.site.data() + tile.first, tile.site, tile.count * sizeof(std::int32_t));
+    if (tile.distance_m) std::memcpy(dense.distance_m.data() + tile.first, tile.distance_m, tile.count * sizeof(float));
+    if (tile.boundary) std::memcpy(dense.boundary.data() + tile.first, tile.boundary, tile.count);
+  });
+  return dense;
+}
+
+}  // namespace
+
+sites::SiteSet read_stage(const std::string& source, const VoronoiOptions& options, const RunPlan& plan,
+                          RunProgress& progress) {
+  sites::ReadOptions read_options;
+  static_cast<sites::SourceOptions&>(read_options) = options.read;
+  read_options.level = plan.level;
+  read_options.distance = options.rule;
+  read_options.progress = [&](double f, const char* stage) { return progress.report(0.0, plan.read_end, f, stage); };
+  // The reader's count of sites without a cell comes before labelling; the label stage reports
+  // the final one instead.
+  read_options.warn_sites_without_cell = false;
+  read_options.messages = options.messages;
+  if (!progress.report(0.0, plan.read_end, 0.0, "read")) throw Interrupted();
+  return as_stage(progress, "", [&] { return sites::read_sites(source, read_options); });
+}
+
+LabelledLevel label_stage(sites::SiteSet& sites, const VoronoiOptions& options, const RunPlan& plan,
+                          RunProgress& progress, std::uint64_t* without_cell) {
+  // Vector output's products grow with the outlines, and so with the sites: checked now that
+  // their number is known.
+  const std::uint64_t need = estimate_run_memory(plan, sites.table.sites.size());
+  const std::uint64_t allowed = options.memory_limit_bytes ? options.memory_limit_bytes : host_ram_bytes() / 10 * 8;
+  if (need > allowed) {
+    throw VoronoiError("level " + std::to_string(plan.level) + " with " + std::to_string(sites.table.sites.size()) +
+                       " sites needs about " + format_gib(double(need)) + " for its outline cells, more than the " +
+                       format_gib(double(allowed)) + " allowed: choose a lower -level");
+  }
+  label::LabelOptions label_options = plan.label;
+  // The labeller reports between tiles, on this thread; false stops it with Interrupted.
+  label_options.progress = [&](double f, const char* stage) {
+    return progress.report(plan.read_end, plan.label_end, f, stage);
+  };
+  label_options.messages = options.messages;
+  LabelledLevel out;
+  label::LabelStats stats;
+  std::vector<std::uint64_t> count;
+  as_stage(progress, "labelling failed: ", [&] {
+    if (plan.format.raster) {
+      out.dense = label_dense(sites, label_options, &stats);
+      count.assign(sites.table.sites.size(), 0);
+      for (const std::int32_t s : out.dense.site) ++count[static_cast<std::size_t>(s)];
+    } else {
+      stats = label::label_outlines(sites.geometry.input(), label_options, &out.outlines);
+      count = out.outlines.cells_per_site;
+    }
+  });
+  out.device = stats.device;
+  out.prepare_seconds = stats.prepare_seconds;
+
+  // Sites left without a cell still get their row; say which.
+  sites::FidList missing;
+  for (std::size_t s = 0; s < count.size(); ++s) {
+    sites.table.sites[s].has_own_cell = count[s] > 0;
+    if (count[s] == 0) missing.add(sites.table.sites[s].fid);
+  }
+  *without_cell = missing.count();
+  if (missing.count() > 0) {
+    say(options, Severity::warning,
+        std::to_string(missing.count()) + " site(s) got no cell of their own at level " + std::to_string(plan.level) +
+            " (FIDs " + missing.text() + ")" + (plan.format.raster ? "" : "; they keep their row, with an empty geometry"));
+  }
+  return out;
+}
+
+void write_stage(const std::string& path, const std::string& destination, const LabelledLevel& labels,
+                 const sites::SiteSet& sites, const RunPlan& plan, RunProgress& progress) {
+  const write::ProgressFunc write_progress = [&](double f, const char* stage) {
+    return progress.report(plan.label_end, 1.0, f, stage);
+  };
+  try {
+    const RenameInMessages name_the_destination(path, destination);
+    if (!progress.report(plan.label_end, 1.0, 0.0, "write")) throw Interrupted();
+    if (plan.format.raster) {
+      write::RasterOptions raster_options = plan.raster;
+      raster_options.progress = write_progress;
+      const DenseLabels& d = labels.dense;
+      const write::CellLabels dense{plan.level, d.site.data(), d.distance_m.empty() ? nullptr : d.distance_m.data(),
+                                    d.boundary.empty() ? nullptr : d.boundary.data()};
+      write::write_raster(path, dense, sites.table, raster_options);
+    } else {
+      write::VectorOptions vector_options = plan.vector;
+      vector_options.progress = write_progress;
+      // The cells layer: every cell's labels again, tile by tile, as the layer writes them.
+      const write::CellTileSource cell_tiles = [&](const std::function<void(const write::CellTile&)>& sink) {
+        label::LabelOptions label_options = plan.label;
+        label_options.want_distance = true;
+        label_options.want_boundary = true;
+        label::label_cells(sites.geometry.input(), label_options, [&](const label::LabelTile& tile) {
+          sink({tile.first, tile.count, tile.site, tile.distance_m, tile.boundary});
+        });
+      };
+      // A temporary file, renamed into place only after a clean close, needs no durability
+      // while it is written: no fsync, no rollback journal (nothing is rolled back; a failed
+      // write is removed). Only where the user has not set these, and never for a direct write.
+      std::unique_ptr<CPLConfigOptionSetter> no_sync, no_journal;
+      if (path != destination) {
+        no_sync = std::make_unique<CPLConfigOptionSetter>("OGR_SQLITE_SYNCHRONOUS", "OFF", true);
+        no_journal = std::make_unique<CPLConfigOptionSetter>("OGR_SQLITE_JOURNAL", "OFF", true);
+      }
+      write::write_vector(path, labels.outlines, cell_tiles, sites.table, vector_options);
+    }
+    // A stop asked for during the close is honoured too: nothing is renamed yet.
+    if (!progress.report(plan.label_end, 1.0, 1.0, "write")) throw Interrupted();
+  } catch (const Interrupted&) {
+    throw;
+  } catch (const std::exception& e) {
+    if (progress.cancelled()) throw Interrupted();
+    std::string message = e.what();
+    replace_all(message, path, destination);  // name the destination, not the temporary file
+    throw VoronoiError(message);
+  }
+}
+
+}  // namespace qtmv::pipeline

@@ -1,0 +1,63 @@
+// The stages of a run after its plan (run_plan.hpp): read the sites, label the level, write the
+// destination. Each takes the products of the one before as plain data: sites::SiteSet, then
+// label::Outlines (vector output: memory that follows the outlines) or DenseLabels (a raster).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "common/run_context.hpp"
+#include "label/outline_cells.hpp"
+#include "pipeline/run_plan.hpp"
+#include "sites/ogr_site_reader.hpp"
+
+namespace qtmv::pipeline {
+
+/// Maps each stage's progress onto its slice of the whole run and remembers a request to stop.
+class RunProgress {
+ public:
+  explicit RunProgress(const ProgressFunc& user) : user_(user) {}
+  /// Reports `fraction` of the slice [begin, end] of the run; false once the user asked to stop.
+  bool report(double begin, double end, double fraction, const char* stage);
+  bool cancelled() const { return cancelled_; }
+
+ private:
+  const ProgressFunc& user_;
+  bool cancelled_ = false;
+};
+
+/// Every cell's labels, for a raster.
+struct DenseLabels {
+  std::vector<std::int32_t> site;
+  std::vector<float> distance_m;
+  std::vector<std::uint8_t> boundary;
+};
+
+/// What the label stage hands the write stage: outlines for vector output, dense labels for a
+/// raster (the other is empty).
+struct LabelledLevel {
+  label::Outlines outlines;
+  DenseLabels dense;
+  std::string device;           ///< where the labelling ran
+  double prepare_seconds = 0;   ///< the labeller's candidates and tree
+};
+
+/// Reads and rasterises the sites (progress in [0, plan.read_end]). Throws VoronoiError naming
+/// the source, or Interrupted.
+sites::SiteSet read_stage(const std::string& source, const VoronoiOptions& options, const RunPlan& plan,
+                          RunProgress& progress);
+
+/// Labels the level (progress in [plan.read_end, plan.label_end]) and marks the sites that got
+/// no cell (SiteRecord::has_own_cell), with one warning naming them; their count goes to
+/// *without_cell. Throws VoronoiError, or Interrupted.
+LabelledLevel label_stage(sites::SiteSet& sites, const VoronoiOptions& options, const RunPlan& plan,
+                          RunProgress& progress, std::uint64_t* without_cell);
+
+/// Writes the destination from the labels (progress in [plan.label_end, 1]): into the staged
+/// output's temporary path, named as the destination in every message. For the cells layer the
+/// level is labelled again, tile by tile. Throws VoronoiError, or Interrupted.
+void write_stage(const std::string& path, const std::string& destination, const LabelledLevel& labels,
+                 const sites::SiteSet& sites, const RunPlan& plan, RunProgress& progress);
+
+}  // namespace qtmv::pipeline

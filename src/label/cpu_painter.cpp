@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <vector>
+#if defined(_OPENMP) && defined(__GLIBCXX__)
+#include <parallel/algorithm>
+#endif
 
 #include "label/label_tree.hpp"
 #include "label/openmp_threads.hpp"
@@ -192,19 +195,62 @@ struct LeafLabels {
   }
 };
 
-/// Visits one leaf: every cell of a list leaf, the rim of a uniform leaf; appends the outline
-/// cells among them.
+/// True when the cell `c` of level `l` lies in a uniform leaf of `site` (at level l or above).
+bool in_uniform_leaf_of(const TreeView& tv, const grid::Cell& c, int l, std::int32_t site) {
+  std::int32_t node = c.octant;
+  for (int at = 0; at < l && tv.nodes[node].count == kInternal; ++at) {
+    node = tv.nodes[node].value + grid::child_digit(grid::ancestor(c, l, at + 1));
+  }
+  return tv.nodes[node].count == kUniform && tv.nodes[node].value == site;
+}
+
+/// Visits one leaf: every cell of a list leaf, the rim of a uniform leaf (or of a list leaf
+/// whose cells all got one site); appends the outline cells among them. A leaf of one site whose
+/// three neighbours (of its level) lie in uniform leaves of that site has no boundary cell: only
+/// its row ends are listed.
 void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode& node, LeafOrder& order,
                         LeafLabels& labels, std::vector<OutlineCell>& out) {
   const int level = tv.level;
   const int k = level - leaf.level;
   const std::uint64_t rows = std::uint64_t{1} << k;
-  const bool uniform = node.count == kUniform;
-  // The site of a neighbour: inside a uniform leaf, the leaf's; inside a list leaf, its label;
-  // elsewhere, the tree's.
+  bool uniform = node.count == kUniform;
+  std::int32_t uniform_site = node.value;
+  if (!uniform) {
+    labels.code.clear();
+    labels.site.clear();
+    order.make(tv, node, grid::cell_centre_vector(grid::code_of(leaf.cell, leaf.level), leaf.level),
+               node_radius(leaf.level, leaf.cell));
+    for (std::uint64_t r = 0; r < rows; ++r) {
+      const grid::RowCodes codes = grid::row_codes_below(leaf.cell, k, r, level);
+      for (grid::Code code = codes.first; code <= codes.last; ++code) {
+        labels.code.push_back(code);
+        labels.site.push_back(order.best(tv, grid::cell_centre_vector(code, level)).site);
+      }
+    }
+    uniform = std::all_of(labels.site.begin(), labels.site.end(), [&](std::int32_t s) { return s == labels.site[0]; });
+    uniform_site = labels.site[0];
+  }
+  if (uniform) {
+    grid::Cell around[3];
+    grid::neighbours(leaf.cell, leaf.level, around);
+    if (in_uniform_leaf_of(tv, around[0], leaf.level, uniform_site) &&
+        in_uniform_leaf_of(tv, around[1], leaf.level, uniform_site) &&
+        in_uniform_leaf_of(tv, around[2], leaf.level, uniform_site)) {
+      // Row ends only: each row's first cell on the octant's left edge (column 0), its last on
+      // the right edge (column 2 row); only up cells reach them.
+      const bool left = leaf.cell.col == 0, right = leaf.cell.col == 2 * leaf.cell.row;
+      for (std::uint64_t r = 0; (left || right) && r < rows; ++r) {
+        const grid::RowCodes codes = grid::row_codes_below(leaf.cell, k, r, level);
+        if (left) out.push_back({codes.first, uniform_site, 0u});
+        if (right && !(left && codes.last == codes.first)) out.push_back({codes.last, uniform_site, 0u});
+      }
+      return;
+    }
+  }
+  // The site of a neighbour: inside this leaf, its site or label; elsewhere, the tree's.
   const auto neighbour_site = [&](const grid::Cell& nb) {
     if (same_cell(grid::ancestor(nb, level, leaf.level), leaf.cell)) {
-      return uniform ? node.value : labels.find(grid::code_of(nb, level));
+      return uniform ? uniform_site : labels.find(grid::code_of(nb, level));
     }
     return tree_label(tv, nb);
   };
@@ -219,30 +265,20 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
   if (uniform) {
     // The rim: each row's first and last cell, and the whole row on the leaf's base (the last
     // row of an up leaf, the first of a down leaf); interior_of_ancestor says which are inner.
+    const std::int32_t site = uniform_site;
     const std::uint64_t base_row = grid::is_up(leaf.cell) ? rows - 1 : 0;
     for (std::uint64_t r = 0; r < rows; ++r) {
       const grid::RowCodes codes = grid::row_codes_below(leaf.cell, k, r, level);
       if (r == base_row) {
         for (grid::Code code = codes.first; code <= codes.last; ++code) {
-          if (!grid::interior_of_ancestor(grid::cell_of(code, level), level, leaf.level)) consider(code, node.value);
+          if (!grid::interior_of_ancestor(grid::cell_of(code, level), level, leaf.level)) consider(code, site);
         }
       } else {
-        consider(codes.first, node.value);
-        if (codes.last != codes.first) consider(codes.last, node.value);
+        consider(codes.first, site);
+        if (codes.last != codes.first) consider(codes.last, site);
       }
     }
     return;
-  }
-  labels.code.clear();
-  labels.site.clear();
-  order.make(tv, node, grid::cell_centre_vector(grid::code_of(leaf.cell, leaf.level), leaf.level),
-             node_radius(leaf.level, leaf.cell));
-  for (std::uint64_t r = 0; r < rows; ++r) {
-    const grid::RowCodes codes = grid::row_codes_below(leaf.cell, k, r, level);
-    for (grid::Code code = codes.first; code <= codes.last; ++code) {
-      labels.code.push_back(code);
-      labels.site.push_back(order.best(tv, grid::cell_centre_vector(code, level)).site);
-    }
   }
   // Row by row from the apex, codes increase: labels.code is sorted, as find() needs.
   for (std::size_t m = 0; m < labels.code.size(); ++m) consider(labels.code[m], labels.site[m]);
@@ -260,7 +296,12 @@ std::vector<OutlineCell> join_in_code_order(std::vector<std::vector<OutlineCell>
     all.insert(all.end(), p.begin(), p.end());
     std::vector<OutlineCell>().swap(p);
   }
+  // Codes are unique: any sort gives the same order, so the parallel one is as deterministic.
+#if defined(_OPENMP) && defined(__GLIBCXX__)
+  __gnu_parallel::sort(all.begin(), all.end(), code_less);
+#else
   std::sort(all.begin(), all.end(), code_less);
+#endif
   return all;
 }
 

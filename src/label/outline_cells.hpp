@@ -56,6 +56,18 @@ inline std::int32_t site_of(const std::vector<OutlineCell>& cells, grid::Code co
   return (after - 1)->site;
 }
 
+/// site_of for a cell near the k-th outline cell, such as one of its neighbours: the cells next to
+/// it in its row are settled by the outline cells next to it in the list, others by site_of.
+inline std::int32_t site_of_near(const std::vector<OutlineCell>& cells, std::size_t k, grid::Code code) {
+  if (code < cells[k].code) {
+    if (k > 0 && cells[k - 1].code <= code) return cells[k - 1].site;
+  } else {
+    if (k + 1 == cells.size() || cells[k + 1].code > code) return cells[k].site;
+    if (k + 2 == cells.size() || cells[k + 2].code > code) return cells[k + 1].site;
+  }
+  return site_of(cells, code);
+}
+
 /// The cells per site from the outline cells (in code order, row ends included): each outline
 /// cell's site owns the cells from it up to the next outline cell.
 inline std::vector<std::uint64_t> count_cells_per_site(const std::vector<OutlineCell>& cells, int level,

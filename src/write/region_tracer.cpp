@@ -228,7 +228,8 @@ std::vector<Region> trace_regions(const label::Outlines& outlines) {
           const bool on_border = across[e] == kAcrossPoleLine ||
                                  (std::fabs(from.lon) == 180.0 && std::fabs(to.lon) == 180.0);  // cut at +-180
           // Only a boundary cell has a neighbour of another site.
-          if (on_border || (outline.boundary && label::site_of(cells, nb[across[e]]) != outline.site)) {
+          if (on_border || (outline.boundary &&
+                              label::site_of_near(cells, static_cast<std::size_t>(k), nb[across[e]]) != outline.site)) {
             local.push_back({outline.site, {from, to}});
           }
         }

@@ -210,7 +210,7 @@ std::vector<EdgeRef> gather_edges(const label::Outlines& outlines) {
         const int corners = drawn_ring(grid::cell_of(code, level), level, ring, across);
         for (int k = 0; k < corners; ++k) {
           if (across[k] == kAcrossPoleLine) continue;
-          const std::int32_t other = label::site_of(cells, nb[across[k]]);
+          const std::int32_t other = label::site_of_near(cells, static_cast<std::size_t>(c), nb[across[k]]);
           if (other > site) {
             local.push_back({static_cast<std::uint64_t>(site) << 32 | static_cast<std::uint32_t>(other),
                              code << 2 | static_cast<std::uint64_t>(k)});

@@ -1054,9 +1054,13 @@ TEST(CatalogueLimits, LevelTooLargeForMemoryFailsBeforeReading) {
   // The source does not exist: the estimate comes first.
   const Result r = run({"-level", "24", "-device", "cpu", dir + "/missing.gpkg", dir + "/out.gpkg"});
   EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(10));
-  expect_failure(r, 1, {"level 24 needs about ", " GiB for its 2251799813685248 cells", "choose a lower -level"},
+  expect_failure(r, 1, {"level 24 needs about ", " GiB for its outline cells", "choose a lower -level"},
                  dir + "/out.gpkg");
   EXPECT_FALSE(contains(r.err, "missing.gpkg")) << r.err;
+  // A raster holds every cell's labels.
+  const Result raster = run({"-level", "20", "-device", "cpu", dir + "/missing.gpkg", dir + "/out.tif"});
+  expect_failure(raster, 1, {"level 20 needs about ", " GiB for the labels of its 8796093022208 cells", "choose a lower -level"},
+                 dir + "/out.tif");
 }
 
 TEST(CatalogueLimits, RasterLargerThanTheFreeDiskSpaceFailsBeforeReading) {

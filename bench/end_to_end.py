@@ -1,0 +1,125 @@
+#!/usr/bin/env python3
+"""The end-to-end benchmark: qtmvoronoi as a user runs it, process start to exit.
+
+Each case runs the tool `--repeat` times; the table gives the median wall time, the peak host
+memory (the child's maximum resident set, from wait4) and the stage times of the tool's summary
+line (read / label / write). Ratios are taken within one run of this script, on one machine.
+
+  bench/end_to_end.py --tool PATH [--device cuda|cpu|both] [--cases NAMES] [--repeat N] [--csv OUT]
+
+PATH is the qtmvoronoi binary or the bundle's bin/qtmvoronoi wrapper (scripts/make_bundle.sh).
+The inputs: testdata/country_centres.csv (241 points) and 135 233 points spread evenly over the
+sphere (seeded; written here as CSV, so that no GDAL tool is needed on the machine).
+Standard library only: it runs on the GPU machine too.
+"""
+import argparse
+import csv
+import math
+import os
+import random
+import re
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+CENTRES = os.path.join(HERE, "..", "testdata", "country_centres.csv")
+CSV_OPTIONS = ["-oo", "X_POSSIBLE_NAMES=lon", "-oo", "Y_POSSIBLE_NAMES=lat", "-s_srs", "EPSG:4326"]
+
+# name: (input, level, layers, devices it runs on)
+CASES = {
+    "centres-L10-regions": ("centres", 10, "regions", ("cpu", "cuda")),
+    "centres-L12-regions": ("centres", 12, "regions", ("cpu", "cuda")),
+    "centres-L13-regions+edges": ("centres", 13, "regions,voronoi_edges", ("cpu", "cuda")),
+    "centres-L14-regions+edges": ("centres", 14, "regions,voronoi_edges", ("cpu", "cuda")),
+    "centres-L15-regions+edges": ("centres", 15, "regions,voronoi_edges", ("cpu", "cuda")),
+    "centres-L16-regions+edges": ("centres", 16, "regions,voronoi_edges", ("cuda",)),
+    "centres-L17-regions+edges": ("centres", 17, "regions,voronoi_edges", ("cuda",)),
+    "centres-L18-regions+edges": ("centres", 18, "regions,voronoi_edges", ("cuda",)),
+    "points135k-L13-regions": ("points", 13, "regions", ("cpu", "cuda")),
+    "points135k-L15-regions": ("points", 15, "regions", ("cpu", "cuda")),
+}
+
+SUMMARY = re.compile(r"read ([0-9.]+) s .*label ([0-9.]+) s \(prepare ([0-9.]+) s\), write ([0-9.]+) s; total ([0-9.]+) s")
+
+
+def even_points(path, n=135233, seed=135233):
+    rng = random.Random(seed)
+    with open(path, "w") as f:
+        f.write("id,lon,lat\n")
+        for k in range(n):
+            z = rng.uniform(-1.0, 1.0)
+            lon = rng.uniform(-180.0, 180.0)
+            f.write("%d,%.7f,%.7f\n" % (k, lon, math.degrees(math.asin(z))))
+
+
+def run_once(command):
+    """Wall seconds, peak resident set (bytes), exit status, stderr of one run."""
+    start = time.monotonic()
+    child = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    err = child.stderr.read().decode(errors="replace")
+    _, status, usage = os.wait4(child.pid, 0)
+    wall = time.monotonic() - start
+    child.returncode = os.waitstatus_to_exitcode(status)
+    return wall, usage.ru_maxrss * 1024, child.returncode, err
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--tool", required=True)
+    parser.add_argument("--device", default="both", choices=["cpu", "cuda", "both"])
+    parser.add_argument("--cases", default=",".join(CASES), help="comma-separated case names")
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--threads", type=int, default=0, help="-threads for the CPU runs (0: all)")
+    parser.add_argument("--csv", help="also write the rows here")
+    parser.add_argument("--keep", help="directory for the outputs (default: a temporary one)")
+    args = parser.parse_args()
+
+    work = args.keep or tempfile.mkdtemp(prefix="qtmv_e2e_")
+    points = os.path.join(work, "points135k.csv")
+    inputs = {"centres": CENTRES, "points": points}
+    names = [c for c in args.cases.split(",") if c]
+    if any(CASES[c][0] == "points" for c in names):
+        even_points(points)
+    devices = ["cpu", "cuda"] if args.device == "both" else [args.device]
+
+    rows = []
+    print("| case | device | wall s (median of %d) | peak host memory MB | read / label / write s | outline output MB |" % args.repeat)
+    print("|---|---|---|---|---|---|")
+    for name in names:
+        source, level, layers, allowed = CASES[name]
+        for device in devices:
+            if device not in allowed:
+                continue
+            out = os.path.join(work, "%s-%s.gpkg" % (name, device))
+            command = [args.tool, "-overwrite", "-device", device, "-level", str(level), "-layers", layers]
+            if device == "cpu" and args.threads:
+                command += ["-threads", str(args.threads)]
+            command += CSV_OPTIONS + [inputs[source], out]
+            runs = [run_once(command) for _ in range(args.repeat)]
+            failed = [r for r in runs if r[2] != 0]
+            if failed:
+                print("| %s | %s | failed (exit %d): %s |" % (name, device, failed[0][2], failed[0][3].strip().splitlines()[-1]))
+                sys.stdout.flush()
+                continue
+            wall = statistics.median(r[0] for r in runs)
+            peak = max(r[1] for r in runs) / 1e6
+            stages = [SUMMARY.search(r[3]) for r in runs]
+            stage = [statistics.median(float(m.group(g)) for m in stages if m) for g in (1, 2, 4)] if all(stages) else [0, 0, 0]
+            size = os.path.getsize(out) / 1e6
+            print("| %s | %s | %.2f | %.0f | %.2f / %.2f / %.2f | %.1f |" % (name, device, wall, peak, *stage, size))
+            sys.stdout.flush()
+            rows.append({"case": name, "device": device, "level": level, "layers": layers, "wall_s": "%.3f" % wall,
+                         "peak_mb": "%.0f" % peak, "read_s": stage[0], "label_s": stage[1], "write_s": stage[2],
+                         "walls": " ".join("%.3f" % r[0] for r in runs), "command": " ".join(command)})
+    if args.csv and rows:
+        with open(args.csv, "w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(rows)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,7 +1,10 @@
 #include "write/vector_writer.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstdint>
 #include <future>
 #include <memory>
@@ -48,6 +51,24 @@ struct FeatureDeleter {
   void operator()(OGRFeature* feature) const { OGRFeature::DestroyFeature(feature); }
 };
 using FeaturePtr = std::unique_ptr<OGRFeature, FeatureDeleter>;
+
+// --- tracing ---------------------------------------------------------------------------------
+
+/// QTMV_WRITE_TRACE set: each step's wall time on stderr (for tuning), as QTMV_LABEL_TRACE does
+/// for the labeller.
+class StepTrace {
+ public:
+  void operator()(const char* step) {
+    if (!on_) return;
+    const auto now = std::chrono::steady_clock::now();
+    std::fprintf(stderr, "trace: write %-28s %9.3f ms\n", step, std::chrono::duration<double, std::milli>(now - last_).count());
+    last_ = now;
+  }
+
+ private:
+  bool on_ = std::getenv("QTMV_WRITE_TRACE") != nullptr;
+  std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
+};
 
 // --- measuring ahead of writing ----------------------------------------------------------------
 
@@ -609,7 +630,9 @@ void write_regions(Writer& w, const Input& in, double work) {
   const int cells_index = w.add_field(cells_field);
   const int area_index = w.add_field(area_field);
 
+  StepTrace trace;
   const std::vector<Region> regions = trace_regions(in.outlines);
+  trace("regions traced");
   w.layer_progress(0.3, 1.0);
 
   w.begin_features();
@@ -645,7 +668,9 @@ void write_regions(Writer& w, const Input& in, double work) {
     w.layer_progress(0.3 + 0.7 * static_cast<double>(last) / static_cast<double>(in.site_count), 1.0);
   };
   measure_ahead(static_cast<std::size_t>(in.site_count), kRegionBlock, measure, write);
+  trace("regions measured and written");
   w.end_layer();
+  trace("regions layer ended");
 }
 
 void write_boundary_cells(Writer& w, const Input& in, double work, std::uint64_t count) {
@@ -679,7 +704,9 @@ void write_voronoi_edges(Writer& w, const Input& in, double work) {
   const int b_index = w.add_field(b_field);
   const int length_index = w.add_field(length_field);
 
+  StepTrace trace;
   const std::vector<EdgeRef> edges = gather_edges(in.outlines);
+  trace("edges gathered");
   std::vector<std::size_t> pair_start;  // where each pair's run of edges begins
   for (std::size_t k = 0; k < edges.size(); ++k) {
     if (k == 0 || edges[k].key != edges[k - 1].key) pair_start.push_back(k);
@@ -724,7 +751,9 @@ void write_voronoi_edges(Writer& w, const Input& in, double work) {
     w.layer_progress(0.2 + 0.8 * static_cast<double>(last) / static_cast<double>(pairs), 1.0);
   };
   measure_ahead(pairs, kEdgePairBlock, measure, write);
+  trace("edges linked and written");
   w.end_layer();
+  trace("edges layer ended");
 }
 
 void write_cells(Writer& w, const Input& in, double work) {
@@ -848,7 +877,9 @@ void write_vector(const std::string& path, const label::Outlines& outlines, cons
     if (name == "voronoi_edges") write_voronoi_edges(writer, in, work[k]);
     if (name == "cells") write_cells(writer, in, work[k]);
   }
+  StepTrace trace;
   writer.close();
+  trace("dataset closed");
   writer.report_done();
 }
 

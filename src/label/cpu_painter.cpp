@@ -3,10 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <vector>
-#if defined(_OPENMP) && defined(__GLIBCXX__)
-#include <parallel/algorithm>
-#endif
 
+#include "common/parallel_sort.hpp"
 #include "label/label_tree.hpp"
 #include "label/openmp_threads.hpp"
 #include "label/piece_groups.hpp"
@@ -296,12 +294,7 @@ std::vector<OutlineCell> join_in_code_order(std::vector<std::vector<OutlineCell>
     all.insert(all.end(), p.begin(), p.end());
     std::vector<OutlineCell>().swap(p);
   }
-  // Codes are unique: any sort gives the same order, so the parallel one is as deterministic.
-#if defined(_OPENMP) && defined(__GLIBCXX__)
-  __gnu_parallel::sort(all.begin(), all.end(), code_less);
-#else
-  std::sort(all.begin(), all.end(), code_less);
-#endif
+  parallel_sort(all.begin(), all.end(), code_less);  // codes are unique
   return all;
 }
 

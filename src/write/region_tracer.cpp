@@ -1,11 +1,15 @@
 #include "write/region_tracer.hpp"
 
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
 #include <algorithm>
 #include <cmath>
-#include <map>
 #include <stdexcept>
 #include <string>
 
+#include "common/parallel_sort.hpp"
 #include "grid/qtm_checks.hpp"
 #include "write/first_exception.hpp"
 
@@ -19,6 +23,27 @@ using grid::Code;
 struct Edge {
   LonLat from, to;
 };
+
+/// An edge of the region of `site`.
+struct SiteEdge {
+  std::int32_t site;
+  Edge edge;
+};
+
+int omp_threads() {
+#ifdef _OPENMP
+  return omp_get_num_threads();
+#else
+  return 1;
+#endif
+}
+int omp_thread() {
+#ifdef _OPENMP
+  return omp_get_thread_num();
+#else
+  return 0;
+#endif
+}
 
 /// Angle (radians, in (0, 2 pi]) turned clockwise from direction d to direction t.
 double clockwise_angle(double dx, double dy, double tx, double ty) {
@@ -45,28 +70,40 @@ std::vector<LonLat> drop_straight_runs(const std::vector<LonLat>& ring) {
   return out;
 }
 
+/// One step of a walk: the vertex, and its id (the index of the first edge leaving it).
+struct WalkStep {
+  LonLat point;
+  std::size_t vertex;
+};
+
 /// Cuts a closed walk that passes a vertex more than once into simple rings. Where a region
 /// meets itself at a vertex, no pairing of the edges there suits every case: lobes that touch
 /// at a point, a hole that touches its shell, holes that touch each other. Each loop cut off
-/// here is a shell (counter-clockwise) or a hole (clockwise) of its own.
-std::vector<std::vector<LonLat>> split_at_repeated_vertices(const std::vector<LonLat>& walk) {
+/// here is a shell (counter-clockwise) or a hole (clockwise) of its own. `position` (indexed by
+/// vertex id, all kNone) is scratch, left all kNone again.
+constexpr std::size_t kNone = ~std::size_t{0};
+std::vector<std::vector<LonLat>> split_at_repeated_vertices(const std::vector<WalkStep>& walk,
+                                                            std::vector<std::size_t>& position) {
   std::vector<std::vector<LonLat>> rings;
-  std::vector<LonLat> stack;
-  std::map<std::pair<double, double>, std::size_t> position;  // vertex -> its index in stack
-  for (const LonLat& p : walk) {
-    const auto found = position.find({p.lon, p.lat});
-    if (found == position.end()) {
-      position.emplace(std::make_pair(p.lon, p.lat), stack.size());
-      stack.push_back(p);
+  std::vector<WalkStep> stack;
+  for (const WalkStep& step : walk) {
+    const std::size_t first = position[step.vertex];
+    if (first == kNone) {
+      position[step.vertex] = stack.size();
+      stack.push_back(step);
       continue;
     }
-    // The walk came back to p: the stretch since p's first visit is a closed loop.
-    const std::size_t first = found->second;
-    rings.emplace_back(stack.begin() + static_cast<std::ptrdiff_t>(first), stack.end());
-    for (std::size_t k = first + 1; k < stack.size(); ++k) position.erase({stack[k].lon, stack[k].lat});
+    // The walk came back to this vertex: the stretch since its first visit is a closed loop.
+    std::vector<LonLat>& ring = rings.emplace_back();
+    for (std::size_t k = first; k < stack.size(); ++k) ring.push_back(stack[k].point);
+    for (std::size_t k = first + 1; k < stack.size(); ++k) position[stack[k].vertex] = kNone;
     stack.resize(first + 1);
   }
-  rings.push_back(std::move(stack));
+  std::vector<LonLat>& last = rings.emplace_back();
+  for (const WalkStep& step : stack) {
+    last.push_back(step.point);
+    position[step.vertex] = kNone;
+  }
   return rings;
 }
 
@@ -98,26 +135,31 @@ struct Box {
   }
 };
 
-/// Links one site's boundary edges into rings and groups them into polygons.
-Region link_rings(std::vector<Edge>& edges) {
-  // Sorted by both ends, so that the rings come out the same whatever order the edges came in.
-  std::sort(edges.begin(), edges.end(), [](const Edge& a, const Edge& b) {
-    return point_less(a.from, b.from) || (same_point(a.from, b.from) && point_less(a.to, b.to));
-  });
-  std::vector<char> used(edges.size(), 0);
-  auto next_edge = [&](std::size_t e) {
+/// Order of the edges: by start, then end.
+bool edge_less(const Edge& a, const Edge& b) {
+  return point_less(a.from, b.from) || (same_point(a.from, b.from) && point_less(a.to, b.to));
+}
+
+/// Links one site's boundary edges, sorted by edge_less (so that the rings come out the same
+/// whatever order the edges came in), into rings and groups them into polygons.
+Region link_rings(const Edge* edges, std::size_t count) {
+  const Edge* end = edges + count;
+  std::vector<char> used(count, 0);
+  // The first edge leaving `at`: the vertex's id.
+  const auto first_from = [&](const LonLat& at) {
+    return static_cast<std::size_t>(
+        std::lower_bound(edges, end, at, [](const Edge& x, const LonLat& p) { return point_less(x.from, p); }) - edges);
+  };
+  const auto next_edge = [&](std::size_t e, std::size_t first) {
     const LonLat at = edges[e].to;
-    auto first = std::lower_bound(edges.begin(), edges.end(), at,
-                                  [](const Edge& x, const LonLat& p) { return point_less(x.from, p); });
-    std::size_t best = edges.size();
+    std::size_t best = count;
     double best_angle = 1e300;
     // Reverse of the incoming edge; the region lies clockwise from it, so the outgoing edge of
     // the same wedge is the first one met turning clockwise.
     const double dx = edges[e].from.lon - at.lon, dy = edges[e].from.lat - at.lat;
-    for (auto it = first; it != edges.end() && same_point(it->from, at); ++it) {
-      const std::size_t k = static_cast<std::size_t>(it - edges.begin());
+    for (std::size_t k = first; k < count && same_point(edges[k].from, at); ++k) {
       if (used[k]) continue;
-      const double angle = clockwise_angle(dx, dy, it->to.lon - at.lon, it->to.lat - at.lat);
+      const double angle = clockwise_angle(dx, dy, edges[k].to.lon - at.lon, edges[k].to.lat - at.lat);
       if (angle < best_angle) {
         best_angle = angle;
         best = k;
@@ -126,17 +168,21 @@ Region link_rings(std::vector<Edge>& edges) {
     return best;
   };
 
+  std::vector<std::size_t> position(count, kNone);
   std::vector<std::vector<LonLat>> shells, holes;
-  for (std::size_t start = 0; start < edges.size(); ++start) {
+  std::vector<WalkStep> walk;
+  for (std::size_t start = 0; start < count; ++start) {
     if (used[start]) continue;
-    std::vector<LonLat> ring;
+    walk.clear();
     std::size_t e = start;
-    while (e < edges.size() && !used[e]) {
+    std::size_t vertex = first_from(edges[start].from);
+    while (e < count && !used[e]) {
       used[e] = 1;
-      ring.push_back(edges[e].from);
-      e = next_edge(e);
+      walk.push_back({edges[e].from, vertex});
+      vertex = first_from(edges[e].to);
+      e = next_edge(e, vertex);
     }
-    for (std::vector<LonLat>& simple : split_at_repeated_vertices(ring)) {
+    for (std::vector<LonLat>& simple : split_at_repeated_vertices(walk, position)) {
       simple = drop_straight_runs(simple);
       if (simple.size() < 3) continue;
       (planar_ring_area(simple) > 0 ? shells : holes).push_back(std::move(simple));
@@ -171,7 +217,12 @@ Region link_rings(std::vector<Edge>& edges) {
 }  // namespace
 
 int drawn_ring(const Cell& c, int level, LonLat ring[grid::kMaxPolygonCorners], int across[grid::kMaxPolygonCorners]) {
-  const int n = grid::cell_polygon(c, level, ring);
+  drawn_edges(c, across);
+  return grid::cell_polygon(c, level, ring);  // 4 corners exactly where drawn_edges says
+}
+
+int drawn_edges(const Cell& c, int across[grid::kMaxPolygonCorners]) {
+  const int n = c.row == 0 ? 4 : 3;  // an octant's pole cell is drawn as a quadrilateral
   if (n == 4) {  // the pole quadrilateral: left side, bottom, right side, the pole line
     across[0] = grid::kNeighbourLeft;
     across[1] = grid::kNeighbourVertical;
@@ -206,12 +257,14 @@ std::vector<Region> trace_regions(const label::Outlines& outlines) {
   const std::vector<label::OutlineCell>& cells = outlines.cells;
   const auto n = static_cast<std::int64_t>(cells.size());
 
-  // Boundary edges of every region, gathered per site.
-  std::vector<std::vector<Edge>> edges_of(static_cast<std::size_t>(outlines.site_count));
+  // Boundary edges of every region with their site, each thread's in a list of its own.
+  std::vector<std::vector<SiteEdge>> parts;
   FirstException failure;
 #pragma omp parallel
   {
-    std::vector<std::pair<std::int32_t, Edge>> local;
+#pragma omp single
+    parts.resize(static_cast<std::size_t>(omp_threads()));
+    std::vector<SiteEdge>& local = parts[static_cast<std::size_t>(omp_thread())];
 #pragma omp for schedule(static)
     for (std::int64_t k = 0; k < n; ++k) {
       failure.run([&] {
@@ -229,23 +282,43 @@ std::vector<Region> trace_regions(const label::Outlines& outlines) {
                                  (std::fabs(from.lon) == 180.0 && std::fabs(to.lon) == 180.0);  // cut at +-180
           // Only a boundary cell has a neighbour of another site.
           if (on_border || (outline.boundary &&
-                              label::site_of_near(cells, static_cast<std::size_t>(k), nb[across[e]]) != outline.site)) {
+                            label::site_of_near(cells, static_cast<std::size_t>(k), nb[across[e]]) != outline.site)) {
             local.push_back({outline.site, {from, to}});
           }
         }
       });
     }
-#pragma omp critical
-    failure.run([&] {
-      for (const auto& [site, edge] : local) edges_of[static_cast<std::size_t>(site)].push_back(edge);
-    });
   }
   failure.rethrow();
+  std::vector<SiteEdge> all;
+  {
+    std::size_t total = 0;
+    for (const auto& p : parts) total += p.size();
+    all.reserve(total);
+    for (auto& p : parts) {
+      all.insert(all.end(), p.begin(), p.end());
+      std::vector<SiteEdge>().swap(p);
+    }
+  }
+  // By site, then as link_rings needs them; no two edges are equal (each cell edge of a region
+  // is drawn once).
+  parallel_sort(all.begin(), all.end(), [](const SiteEdge& a, const SiteEdge& b) {
+    return a.site != b.site ? a.site < b.site : edge_less(a.edge, b.edge);
+  });
+  std::vector<Edge> edges(all.size());
+  std::vector<std::size_t> start(static_cast<std::size_t>(outlines.site_count) + 1, 0);
+  for (std::size_t k = 0; k < all.size(); ++k) {
+    edges[k] = all[k].edge;
+    ++start[static_cast<std::size_t>(all[k].site) + 1];
+  }
+  std::vector<SiteEdge>().swap(all);
+  for (std::size_t s = 1; s < start.size(); ++s) start[s] += start[s - 1];
 
   std::vector<Region> regions(static_cast<std::size_t>(outlines.site_count));
 #pragma omp parallel for schedule(dynamic, 1)
   for (std::int32_t site = 0; site < outlines.site_count; ++site) {
-    failure.run([&] { regions[static_cast<std::size_t>(site)] = link_rings(edges_of[static_cast<std::size_t>(site)]); });
+    const auto s = static_cast<std::size_t>(site);
+    failure.run([&] { regions[s] = link_rings(edges.data() + start[s], start[s + 1] - start[s]); });
   }
   failure.rethrow();
   return regions;

@@ -56,6 +56,9 @@ constexpr int kAcrossPoleLine = -1;
 int drawn_ring(const grid::Cell& c, int level, LonLat ring[grid::kMaxPolygonCorners],
                int across[grid::kMaxPolygonCorners]);
 
+/// drawn_ring's corner count and `across`, without the coordinates.
+int drawn_edges(const grid::Cell& c, int across[grid::kMaxPolygonCorners]);
+
 /// Exact equality and a strict order of lon/lat points (degrees): the grid computes a shared
 /// vertex to the same bits from every cell around it.
 inline bool same_point(const LonLat& a, const LonLat& b) { return a.lon == b.lon && a.lat == b.lat; }

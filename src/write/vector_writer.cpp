@@ -20,6 +20,7 @@
 #include <ogr_spatialref.h>
 #include <ogrsf_frmts.h>
 
+#include "common/parallel_sort.hpp"
 #include "gdal/error_capture.hpp"
 #include "grid/qtm.hpp"
 #include "write/first_exception.hpp"
@@ -226,9 +227,8 @@ std::vector<EdgeRef> gather_edges(const label::Outlines& outlines) {
       failure.run([&] {
         Code nb[3];
         grid::neighbours(code, level, nb);
-        LonLat ring[grid::kMaxPolygonCorners];
         int across[grid::kMaxPolygonCorners];
-        const int corners = drawn_ring(grid::cell_of(code, level), level, ring, across);
+        const int corners = drawn_edges(grid::cell_of(code, level), across);
         for (int k = 0; k < corners; ++k) {
           if (across[k] == kAcrossPoleLine) continue;
           const std::int32_t other = label::site_of_near(cells, static_cast<std::size_t>(c), nb[across[k]]);
@@ -243,7 +243,7 @@ std::vector<EdgeRef> gather_edges(const label::Outlines& outlines) {
     failure.run([&] { all.insert(all.end(), local.begin(), local.end()); });
   }
   failure.rethrow();
-  std::sort(all.begin(), all.end());
+  parallel_sort(all.begin(), all.end(), std::less<EdgeRef>());  // each cell edge once: no ties
   return all;
 }
 

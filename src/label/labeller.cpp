@@ -121,10 +121,14 @@ void label_on_gpu(cuda::Labeller& gpu, int device, int level, const LabelOptions
   const cuda::DeviceInfo info = cuda::device_info(device);
   const std::uint64_t device_limit =
       options.memory_limit_bytes ? options.memory_limit_bytes : static_cast<std::uint64_t>(info.free_bytes * 0.8);
-  // The outline selection's buffers come out of the same memory.
-  const std::uint64_t select_bytes = outline ? std::min(total, cuda::kOutlineChunkCells) * cuda::kOutlineSelectBytesPerCell : 0;
-  std::uint64_t device_tile =
-      std::min<std::uint64_t>(total, (device_limit > select_bytes ? device_limit - select_bytes : 0) / need.bytes_per_cell);
+  // The outline selection's buffers (kOutlineSelectBytesPerCell a cell of a chunk, which is at
+  // most kOutlineChunkCells and at most a tile) come out of the same memory.
+  const std::uint64_t select = outline ? cuda::kOutlineSelectBytesPerCell : 0;
+  std::uint64_t device_tile = std::min<std::uint64_t>(total, device_limit / (need.bytes_per_cell + select));
+  if (outline && device_tile > cuda::kOutlineChunkCells) {
+    device_tile = std::min<std::uint64_t>(
+        total, (device_limit - cuda::kOutlineChunkCells * cuda::kOutlineSelectBytesPerCell) / need.bytes_per_cell);
+  }
   if (device_tile < std::min<std::uint64_t>(total, kMinTileCells)) {
     throw std::runtime_error("level " + std::to_string(level) + " needs " + format_gib(double(need.output_bytes)) +
                              " of outputs on the GPU; not even a tile of 4096 cells fits in the " +

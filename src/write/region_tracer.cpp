@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <stdexcept>
 #include <string>
 
@@ -140,16 +141,62 @@ bool edge_less(const Edge& a, const Edge& b) {
   return point_less(a.from, b.from) || (same_point(a.from, b.from) && point_less(a.to, b.to));
 }
 
+/// The first edge leaving a point, among edges sorted by edge_less: a hash of the points for
+/// long lists (a binary search costs a region of millions of edges most of its walk), a binary
+/// search for short ones. count when no edge leaves the point.
+class FirstEdgeIndex {
+ public:
+  FirstEdgeIndex(const Edge* edges, std::size_t count) : edges_(edges), count_(count) {
+    if (count < kHashFrom) return;
+    std::size_t size = 1;
+    while (size < 2 * count) size <<= 1;
+    mask_ = size - 1;
+    table_.assign(size, kNone);
+    for (std::size_t k = 0; k < count; ++k) {
+      if (k > 0 && same_point(edges[k].from, edges[k - 1].from)) continue;
+      std::size_t h = hash(edges[k].from) & mask_;
+      while (table_[h] != kNone) h = (h + 1) & mask_;
+      table_[h] = k;
+    }
+  }
+  std::size_t operator()(const LonLat& p) const {
+    if (table_.empty()) {
+      return static_cast<std::size_t>(std::lower_bound(edges_, edges_ + count_, p, [](const Edge& x, const LonLat& q) {
+                                        return point_less(x.from, q);
+                                      }) - edges_);
+    }
+    for (std::size_t h = hash(p) & mask_;; h = (h + 1) & mask_) {
+      const std::size_t k = table_[h];
+      if (k == kNone) return count_;
+      if (same_point(edges_[k].from, p)) return k;
+    }
+  }
+
+ private:
+  static constexpr std::size_t kHashFrom = 1024;
+  static std::uint64_t bits(double x) {
+    x += 0.0;  // -0 and +0 are the same point
+    std::uint64_t b;
+    std::memcpy(&b, &x, sizeof b);
+    return b;
+  }
+  static std::size_t hash(const LonLat& p) {
+    std::uint64_t h = bits(p.lon) * 0x9E3779B97F4A7C15ull;
+    h ^= bits(p.lat) + 0x632BE59BD9B4E019ull + (h << 6) + (h >> 2);
+    h ^= h >> 29;
+    return static_cast<std::size_t>(h * 0xBF58476D1CE4E5B9ull >> 16);
+  }
+  const Edge* edges_;
+  std::size_t count_;
+  std::size_t mask_ = 0;
+  std::vector<std::size_t> table_;
+};
+
 /// Links one site's boundary edges, sorted by edge_less (so that the rings come out the same
 /// whatever order the edges came in), into rings and groups them into polygons.
 Region link_rings(const Edge* edges, std::size_t count) {
-  const Edge* end = edges + count;
   std::vector<char> used(count, 0);
-  // The first edge leaving `at`: the vertex's id.
-  const auto first_from = [&](const LonLat& at) {
-    return static_cast<std::size_t>(
-        std::lower_bound(edges, end, at, [](const Edge& x, const LonLat& p) { return point_less(x.from, p); }) - edges);
-  };
+  const FirstEdgeIndex first_from(edges, count);  // a point's first edge: the vertex's id
   const auto next_edge = [&](std::size_t e, std::size_t first) {
     const LonLat at = edges[e].to;
     std::size_t best = count;
@@ -290,35 +337,50 @@ std::vector<Region> trace_regions(const label::Outlines& outlines) {
     }
   }
   failure.rethrow();
-  std::vector<SiteEdge> all;
-  {
-    std::size_t total = 0;
-    for (const auto& p : parts) total += p.size();
-    all.reserve(total);
-    for (auto& p : parts) {
-      all.insert(all.end(), p.begin(), p.end());
-      std::vector<SiteEdge>().swap(p);
+
+  // Bucketed by site (each thread's counts, then their places), and each site's edges sorted
+  // as link_rings needs them: no two edges of a site are equal (a cell edge is drawn once).
+  const auto sites = static_cast<std::size_t>(outlines.site_count);
+  const std::size_t threads = parts.size();
+  std::vector<std::vector<std::size_t>> place(threads, std::vector<std::size_t>(sites + 1, 0));
+#pragma omp parallel for schedule(static, 1)
+  for (std::int64_t t = 0; t < static_cast<std::int64_t>(threads); ++t) {
+    for (const SiteEdge& e : parts[static_cast<std::size_t>(t)]) ++place[static_cast<std::size_t>(t)][static_cast<std::size_t>(e.site)];
+  }
+  std::vector<std::size_t> start(sites + 1, 0);
+  std::size_t at = 0;
+  for (std::size_t s = 0; s < sites; ++s) {
+    start[s] = at;
+    for (std::size_t t = 0; t < threads; ++t) {
+      const std::size_t n = place[t][s];
+      place[t][s] = at;
+      at += n;
     }
   }
-  // By site, then as link_rings needs them; no two edges are equal (each cell edge of a region
-  // is drawn once).
-  parallel_sort(all.begin(), all.end(), [](const SiteEdge& a, const SiteEdge& b) {
-    return a.site != b.site ? a.site < b.site : edge_less(a.edge, b.edge);
-  });
-  std::vector<Edge> edges(all.size());
-  std::vector<std::size_t> start(static_cast<std::size_t>(outlines.site_count) + 1, 0);
-  for (std::size_t k = 0; k < all.size(); ++k) {
-    edges[k] = all[k].edge;
-    ++start[static_cast<std::size_t>(all[k].site) + 1];
+  start[sites] = at;
+  std::vector<Edge> edges(at);
+#pragma omp parallel for schedule(static, 1)
+  for (std::int64_t t = 0; t < static_cast<std::int64_t>(threads); ++t) {
+    std::vector<std::size_t>& next = place[static_cast<std::size_t>(t)];
+    for (const SiteEdge& e : parts[static_cast<std::size_t>(t)]) edges[next[static_cast<std::size_t>(e.site)]++] = e.edge;
+    std::vector<SiteEdge>().swap(parts[static_cast<std::size_t>(t)]);
   }
-  std::vector<SiteEdge>().swap(all);
-  for (std::size_t s = 1; s < start.size(); ++s) start[s] += start[s - 1];
+  // The largest sites' edges sorted on all cores, the others one site a thread.
+  const std::size_t big = std::max<std::size_t>(std::size_t{1} << 16, at / 64);
+  for (std::size_t s = 0; s < sites; ++s) {
+    if (start[s + 1] - start[s] >= big) parallel_sort(edges.begin() + start[s], edges.begin() + start[s + 1], edge_less);
+  }
+#pragma omp parallel for schedule(dynamic, 1)
+  for (std::int64_t s = 0; s < static_cast<std::int64_t>(sites); ++s) {
+    const auto k = static_cast<std::size_t>(s);
+    if (start[k + 1] - start[k] < big) std::sort(edges.begin() + start[k], edges.begin() + start[k + 1], edge_less);
+  }
 
   std::vector<Region> regions(static_cast<std::size_t>(outlines.site_count));
 #pragma omp parallel for schedule(dynamic, 1)
   for (std::int32_t site = 0; site < outlines.site_count; ++site) {
-    const auto s = static_cast<std::size_t>(site);
-    failure.run([&] { regions[s] = link_rings(edges.data() + start[s], start[s + 1] - start[s]); });
+    const auto k = static_cast<std::size_t>(site);
+    failure.run([&] { regions[k] = link_rings(edges.data() + start[k], start[k + 1] - start[k]); });
   }
   failure.rethrow();
   return regions;

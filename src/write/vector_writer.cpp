@@ -12,8 +12,6 @@
 #include <utility>
 #include <vector>
 
-#include <GeographicLib/Geodesic.hpp>
-#include <GeographicLib/PolygonArea.hpp>
 #include <cpl_error.h>
 #include <cpl_string.h>
 #include <gdal_priv.h>
@@ -25,6 +23,7 @@
 #include "grid/qtm.hpp"
 #include "write/first_exception.hpp"
 #include "write/gpkg_rows.hpp"
+#include "write/region_measures.hpp"
 #include "write/region_tracer.hpp"
 
 namespace qtmv::write {
@@ -93,108 +92,6 @@ void measure_ahead(std::size_t count, std::size_t block, const Measure& measure,
     if (first + block < count) next = ahead(first + block);
     write(first, std::min(count, first + block), results);
   }
-}
-
-// --- geodesic measures -----------------------------------------------------------------------
-
-/// Longitudes (degrees) of the grid vertices strictly between lon_from and lon_to on the
-/// parallel `lat` (a row line, or a pole line, where the octant corners are the vertices), in
-/// the order met going from lon_from to lon_to. Computed as grid_vertex computes them, so that
-/// they are the cells' own vertices to the bit.
-void row_line_vertices(double lat, double lon_from, double lon_to, int level, std::vector<double>& out) {
-  out.clear();
-  const double lo = std::min(lon_from, lon_to), hi = std::max(lon_from, lon_to);
-  if (std::fabs(lat) == 90.0) {
-    for (double lon : {-90.0, 0.0, 90.0}) {
-      if (lon > lo && lon < hi) out.push_back(lon);
-    }
-  } else {
-    const double rows = static_cast<double>(grid::rows_per_octant(level));
-    const double lat_local = std::fabs(lat);
-    const auto r = static_cast<std::uint64_t>(std::llround((90.0 - lat_local) / 90.0 * rows));
-    const bool north = lat >= 0;  // the equator's vertices are the same from either side
-    const int first_octant = north ? 0 : 4;
-    if (r == 0 || std::fabs(grid::grid_vertex(first_octant, r, 0, level).lat) != lat_local) return;  // not a row line
-    for (int o = first_octant; o < first_octant + 4; ++o) {
-      const double origin = grid::lon_from_local(o, 0.0);
-      // The run's local longitudes (lon') in this octant.
-      double local_lo = north ? lo - origin : origin - hi;
-      double local_hi = north ? hi - origin : origin - lo;
-      local_lo = std::max(local_lo, 0.0);
-      local_hi = std::min(local_hi, 90.0);
-      if (local_lo > local_hi) continue;
-      const double per_degree = static_cast<double>(r) / 90.0;
-      const auto k_first = static_cast<std::uint64_t>(std::max(0.0, std::floor(local_lo * per_degree) - 1));
-      const auto k_last = std::min(r, static_cast<std::uint64_t>(std::ceil(local_hi * per_degree)) + 1);
-      for (std::uint64_t k = k_first; k <= k_last; ++k) {
-        const double lon = grid::grid_vertex(o, r, k, level).lon;
-        if (lon > lo && lon < hi) out.push_back(lon);
-      }
-    }
-  }
-  std::sort(out.begin(), out.end());
-  out.erase(std::unique(out.begin(), out.end()), out.end());
-  if (lon_to < lon_from) std::reverse(out.begin(), out.end());
-}
-
-/// Rough area (square metres) inside a ring in lon/lat, of either orientation: the sphere's
-/// area between each edge and the equator by the trapezoid rule in sin(latitude), scaled to
-/// the ellipsoid's area. Good to a few percent, enough to resolve a multiple of the whole.
-double lonlat_ring_area(const std::vector<LonLat>& ring) {
-  double sum = 0;  // steradians, signed
-  const std::size_t n = ring.size();
-  for (std::size_t k = 0; k < n; ++k) {
-    const LonLat& p = ring[k];
-    const LonLat& q = ring[(k + 1) % n];
-    sum += (q.lon - p.lon) * grid::kDegree * 0.5 * (std::sin(p.lat * grid::kDegree) + std::sin(q.lat * grid::kDegree));
-  }
-  return std::fabs(sum) / (4 * grid::kPi) * GeographicLib::Geodesic::WGS84().EllipsoidArea();
-}
-
-/// Area (square metres) on the left of a counter-clockwise ring, or on the right of a clockwise
-/// one (`clockwise`), in [0, area of the ellipsoid). The tracer drops the vertices in the
-/// middle of runs along row lines; they are put back, so that every edge is one cell edge and
-/// neighbouring regions share their geodesic edges exactly. Runs along the pole lines get the
-/// octant corners back too, which keeps every edge there under 180 degrees of longitude.
-double ring_area(const std::vector<LonLat>& ring, bool clockwise, int level, std::vector<double>& scratch) {
-  GeographicLib::PolygonArea polygon(GeographicLib::Geodesic::WGS84());
-  const std::size_t n = ring.size();
-  for (std::size_t k = 0; k < n; ++k) {
-    const LonLat& from = ring[k];
-    const LonLat& to = ring[(k + 1) % n];
-    polygon.AddPoint(from.lat, from.lon);
-    if (from.lat == to.lat) {
-      row_line_vertices(from.lat, from.lon, to.lon, level, scratch);
-      for (double lon : scratch) polygon.AddPoint(from.lat, lon);
-    }
-  }
-  double perimeter = 0, area = 0;
-  // sign = false: the area on the ring's inner side (left, or right when reversed), never a
-  // negative remainder; so a ring around a pole gives the polar cap.
-  polygon.Compute(clockwise, false, perimeter, area);
-  // That area is known modulo the ellipsoid's, in [0, A): a ring that holds both poles' lines
-  // from -180 to 180 (the whole rectangle, less notches) encloses nearly A, which can come
-  // back as nearly 0. A rough area from the lon/lat ring tells the two apart.
-  const double ellipsoid = GeographicLib::Geodesic::WGS84().EllipsoidArea();
-  if (area < 0.5 * ellipsoid && lonlat_ring_area(ring) - area > 0.5 * ellipsoid) area += ellipsoid;
-  return area;
-}
-
-/// Area of a region (square metres): its shells less its holes.
-double region_area(const Region& region, int level, std::vector<double>& scratch) {
-  double area = 0;
-  for (const RegionPolygon& part : region) {
-    area += ring_area(part.shell, false, level, scratch);
-    for (const auto& hole : part.holes) area -= ring_area(hole, true, level, scratch);
-  }
-  return area;
-}
-
-/// Geodesic length (metres) of the segment between two points (degrees).
-double geodesic_length(const LonLat& a, const LonLat& b) {
-  double s12 = 0;
-  GeographicLib::Geodesic::WGS84().Inverse(a.lat, a.lon, b.lat, b.lon, s12);
-  return s12;
 }
 
 // --- voronoi edges ---------------------------------------------------------------------------
@@ -636,20 +533,7 @@ void write_regions(Writer& w, const Input& in, double work) {
   w.layer_progress(0.3, 1.0);
 
   w.begin_features();
-  const auto measure = [&](std::size_t first, std::size_t last) {
-    std::vector<double> areas(last - first, 0.0);
-    FirstException failure;
-#pragma omp parallel
-    {
-      std::vector<double> scratch;
-#pragma omp for schedule(dynamic, 16)
-      for (std::int64_t s = static_cast<std::int64_t>(first); s < static_cast<std::int64_t>(last); ++s) {
-        failure.run([&] { areas[static_cast<std::size_t>(s) - first] = region_area(regions[s], level, scratch); });
-      }
-    }
-    failure.rethrow();
-    return areas;
-  };
+  const auto measure = [&](std::size_t first, std::size_t last) { return region_areas(regions, first, last, level); };
   const auto write = [&](std::size_t first, std::size_t last, const std::vector<double>& areas) {
     for (std::size_t s = first; s < last; ++s) {
       const sites::SiteRecord& site = in.table.sites[s];

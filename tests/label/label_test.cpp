@@ -990,6 +990,38 @@ TEST(LabelDeviceFaults, OutOfMemoryFallsBackWithTheSameResults) {
 // The device build leaves its scratch idle in the memory pool; an allocation that fails while it
 // is there gives it back and tries again (fault injection: the first try fails), and
 // release_cached_memory gives it back on request. Labels and flags stay the CPU's.
+// The outline pass too: a GPU that runs out of memory before or during the tiles hands the rest
+// to the CPU's tree pass, and the outline cells are those of the CPU alone.
+TEST(LabelDeviceFaults, OutlinesFallBackWithTheSameResults) {
+  if (cuda_device_count() == 0) GTEST_SKIP() << "no CUDA GPU";
+  const SiteGeometry g = arcs(8, 5, 20, 808);
+  LabelOptions options;
+  options.device = "cpu";
+  Outlines want;
+  label_outlines(g.input(), options, &want);
+  for (const std::string step : {"build", "reserve", "run"}) {
+    options.device = "cuda";
+    options.algorithm = Algorithm::hier;
+    options.memory_limit_bytes = step == "run" ? 25 * 50000 : 0;  // several tiles: a run after the first fails
+    ::setenv("QTMV_FAULT_CUDA_OOM", step.c_str(), 1);
+    Outlines got;
+    const LabelStats stats = label_outlines(g.input(), options, &got);
+    ::unsetenv("QTMV_FAULT_CUDA_OOM");
+    EXPECT_NO_THROW(check_outlines(got)) << step;
+    ASSERT_EQ(got.cells.size(), want.cells.size()) << step;
+    std::size_t mismatches = 0;
+    for (std::size_t k = 0; k < want.cells.size(); ++k) {
+      mismatches += got.cells[k].code != want.cells[k].code || got.cells[k].site != want.cells[k].site ||
+                    got.cells[k].boundary != want.cells[k].boundary;
+    }
+    EXPECT_EQ(mismatches, 0u) << step;
+    EXPECT_EQ(got.cells_per_site, want.cells_per_site) << step;
+    if (step == "run") {
+      EXPECT_NE(stats.device.find("then cpu"), std::string::npos) << stats.device;
+    }
+  }
+}
+
 TEST(LabelDeviceFaults, FailedAllocationGivesThePoolBackAndRetries) {
   if (cuda_device_count() == 0) GTEST_SKIP() << "no CUDA GPU";
   const int level = 9;

@@ -193,6 +193,29 @@ struct LeafLabels {
   }
 };
 
+/// A thread's scratch for the outline pass: the visited leaf's order and labels, and the order
+/// of the list leaf last met across its rim (consecutive rim cells mostly border the same one).
+struct OutlineScratch {
+  LeafOrder order;
+  LeafLabels labels;
+  LeafOrder neighbour;
+  std::int32_t neighbour_node = -1;
+  /// The site of cell c (not in the visited leaf): its leaf's, or the best of its list.
+  std::int32_t site_of(const TreeView& tv, const grid::Cell& c) {
+    int leaf_level;
+    const std::int32_t node = find_leaf(tv, c, &leaf_level);
+    const TreeNode leaf = tv.nodes[node];
+    if (leaf.count == kUniform) return leaf.value;
+    if (node != neighbour_node) {
+      const grid::Cell at = grid::ancestor(c, tv.level, leaf_level);
+      neighbour.make(tv, leaf, grid::cell_centre_vector(grid::code_of(at, leaf_level), leaf_level),
+                     node_radius(leaf_level, at));
+      neighbour_node = node;
+    }
+    return neighbour.best(tv, grid::cell_centre_vector(c, tv.level)).site;
+  }
+};
+
 /// True when the cell `c` of level `l` lies in a uniform leaf of `site` (at level l or above).
 bool in_uniform_leaf_of(const TreeView& tv, const grid::Cell& c, int l, std::int32_t site) {
   std::int32_t node = c.octant;
@@ -206,8 +229,10 @@ bool in_uniform_leaf_of(const TreeView& tv, const grid::Cell& c, int l, std::int
 /// whose cells all got one site); appends the outline cells among them. A leaf of one site whose
 /// three neighbours (of its level) lie in uniform leaves of that site has no boundary cell: only
 /// its row ends are listed.
-void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode& node, LeafOrder& order,
-                        LeafLabels& labels, std::vector<OutlineCell>& out) {
+void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode& node, OutlineScratch& scratch,
+                        std::vector<OutlineCell>& out) {
+  LeafOrder& order = scratch.order;
+  LeafLabels& labels = scratch.labels;
   const int level = tv.level;
   const int k = level - leaf.level;
   const std::uint64_t rows = std::uint64_t{1} << k;
@@ -250,7 +275,7 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
     if (same_cell(grid::ancestor(nb, level, leaf.level), leaf.cell)) {
       return uniform ? uniform_site : labels.find(grid::code_of(nb, level));
     }
-    return tree_label(tv, nb);
+    return scratch.site_of(tv, nb);
   };
   const auto consider = [&](grid::Code code, std::int32_t site) {
     const grid::Cell c = grid::cell_of(code, level);
@@ -305,13 +330,12 @@ std::vector<OutlineCell> cpu_tree_outlines(const Tree& tree, const TreeView& tv,
   std::vector<std::vector<OutlineCell>> parts(static_cast<std::size_t>(threads));
 #pragma omp parallel num_threads(threads)
   {
-    LeafOrder order;
-    LeafLabels labels;
+    OutlineScratch scratch;
     std::vector<OutlineCell>& mine = parts[static_cast<std::size_t>(thread_index())];
 #pragma omp for schedule(dynamic, 16)
     for (std::int64_t q = 0; q < leaves; ++q) {
       const TreeLeaf& leaf = tree.leaves[static_cast<std::size_t>(q)];
-      leaf_outline_cells(tv, leaf, tree.nodes[static_cast<std::size_t>(leaf.node)], order, labels, mine);
+      leaf_outline_cells(tv, leaf, tree.nodes[static_cast<std::size_t>(leaf.node)], scratch, mine);
     }
   }
   return join_in_code_order(parts);

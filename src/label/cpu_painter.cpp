@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <vector>
 
 #include "common/parallel_sort.hpp"
@@ -325,18 +326,25 @@ std::vector<OutlineCell> join_in_code_order(std::vector<std::vector<OutlineCell>
 
 }  // namespace
 
-std::vector<OutlineCell> cpu_tree_outlines(const Tree& tree, const TreeView& tv, int threads) {
-  const std::int64_t leaves = static_cast<std::int64_t>(tree.leaves.size());
+std::vector<OutlineCell> cpu_tree_outlines(const Tree& tree, const TreeView& tv, int threads,
+                                           const std::function<void(double)>& done) {
+  const std::size_t leaves = tree.leaves.size();
   std::vector<std::vector<OutlineCell>> parts(static_cast<std::size_t>(threads));
+  std::vector<OutlineScratch> scratch(static_cast<std::size_t>(threads));
+  // Leaves in batches, so that `done` (which may throw to stop the run) is called every so often.
+  const std::size_t batch = std::max<std::size_t>(4096, leaves / 256);
+  for (std::size_t first = 0; first < leaves; first += batch) {
+    const std::size_t last = std::min(leaves, first + batch);
 #pragma omp parallel num_threads(threads)
-  {
-    OutlineScratch scratch;
-    std::vector<OutlineCell>& mine = parts[static_cast<std::size_t>(thread_index())];
+    {
+      const auto t = static_cast<std::size_t>(thread_index());
 #pragma omp for schedule(dynamic, 16)
-    for (std::int64_t q = 0; q < leaves; ++q) {
-      const TreeLeaf& leaf = tree.leaves[static_cast<std::size_t>(q)];
-      leaf_outline_cells(tv, leaf, tree.nodes[static_cast<std::size_t>(leaf.node)], scratch, mine);
+      for (std::int64_t q = static_cast<std::int64_t>(first); q < static_cast<std::int64_t>(last); ++q) {
+        const TreeLeaf& leaf = tree.leaves[static_cast<std::size_t>(q)];
+        leaf_outline_cells(tv, leaf, tree.nodes[static_cast<std::size_t>(leaf.node)], scratch[t], parts[t]);
+      }
     }
+    if (done) done(static_cast<double>(last) / static_cast<double>(leaves));
   }
   return join_in_code_order(parts);
 }

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "label/label_engine.hpp"
@@ -21,7 +22,10 @@ void cpu_tree_range(const Tree& tree, const TreeView& tv, grid::Code first, std:
 /// level, in code order, from the cells of the list leaves and the rims of the uniform leaves
 /// (a uniform leaf's inner cells have all three neighbours in it: no boundary, no row end).
 /// Work and memory grow with the outlines, not with the cells.
-std::vector<OutlineCell> cpu_tree_outlines(const Tree& tree, const TreeView& tv, int threads);
+/// `done` (may be empty) is called on the calling thread, outside any parallel region, with the
+/// fraction of the leaves done, every 1/256 of them or so; it may throw to stop the pass.
+std::vector<OutlineCell> cpu_tree_outlines(const Tree& tree, const TreeView& tv, int threads,
+                                           const std::function<void(double)>& done = {});
 
 /// The outline cells of a labelled range [first, first + count) (code order): its boundary cells
 /// and row ends, appended to *out.

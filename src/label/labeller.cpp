@@ -324,7 +324,8 @@ LabelStats run_labelling(const LabelInput& input, const LabelOptions& options,
     // Only the leaves that can touch an outline are visited (after a GPU that ran out of memory,
     // those of the cells it had not done).
     const double start = now_seconds();
-    std::vector<OutlineCell> cpu = cpu_tree_outlines(tree, tv, threads);
+    std::vector<OutlineCell> cpu =
+        cpu_tree_outlines(tree, tv, threads, [&](double fraction) { progress(fraction, "label"); });
     const auto from = std::lower_bound(cpu.begin(), cpu.end(), done,
                                        [](const OutlineCell& c, std::uint64_t code) { return c.code < code; });
     outline->insert(outline->end(), from, cpu.end());

@@ -57,15 +57,39 @@ inline std::int32_t site_of(const std::vector<OutlineCell>& cells, grid::Code co
 }
 
 /// site_of for a cell near the k-th outline cell, such as one of its neighbours: the cells next to
-/// it in its row are settled by the outline cells next to it in the list, others by site_of.
+/// it in its row are settled by the outline cells next to it in the list; others (the cell above
+/// or below, a row away) by a search that gallops out from k, so that it stays in memory near k.
 inline std::int32_t site_of_near(const std::vector<OutlineCell>& cells, std::size_t k, grid::Code code) {
+  const std::size_t n = cells.size();
+  // The answer is the last index j with cells[j].code <= code; find lo <= j < hi around k.
+  std::size_t lo, hi;
   if (code < cells[k].code) {
     if (k > 0 && cells[k - 1].code <= code) return cells[k - 1].site;
+    std::size_t step = 2;
+    hi = k;
+    lo = k >= step ? k - step : 0;
+    while (lo > 0 && cells[lo].code > code) {
+      hi = lo;
+      step *= 2;
+      lo = lo >= step ? lo - step : 0;
+    }
+    if (cells[lo].code > code) throw std::logic_error("outline cells: no row start at or before code " + std::to_string(code));
   } else {
-    if (k + 1 == cells.size() || cells[k + 1].code > code) return cells[k].site;
-    if (k + 2 == cells.size() || cells[k + 2].code > code) return cells[k + 1].site;
+    if (k + 1 == n || cells[k + 1].code > code) return cells[k].site;
+    if (k + 2 == n || cells[k + 2].code > code) return cells[k + 1].site;
+    std::size_t step = 2;
+    lo = k + 2;
+    hi = std::min(n, lo + step);
+    while (hi < n && cells[hi].code <= code) {
+      lo = hi;
+      step *= 2;
+      hi = std::min(n, hi + step);
+    }
   }
-  return site_of(cells, code);
+  // cells[lo].code <= code < cells[hi].code (or hi == n).
+  const auto after = std::upper_bound(cells.begin() + static_cast<std::ptrdiff_t>(lo), cells.begin() + static_cast<std::ptrdiff_t>(hi), code,
+                                      [](grid::Code c, const OutlineCell& o) { return c < o.code; });
+  return (after - 1)->site;
 }
 
 /// The cells per site from the outline cells (in code order, row ends included): each outline

@@ -761,6 +761,17 @@ TEST(LabelOutlines, DenseOutlinesCountEveryCell) {
   EXPECT_EQ(listed_boundary, boundary);  // flags recomputed from the sites equal the labeller's
   EXPECT_EQ(o.cells.size() - listed_boundary + boundary, o.cells.size());
   EXPECT_NO_THROW(check_outlines(o));
+  // site_of_near (a search from a given outline cell) agrees with site_of for the cells around
+  // each outline cell and for far ones.
+  std::mt19937_64 rng(11);
+  std::size_t disagree = 0;
+  for (std::size_t k = 0; k < o.cells.size(); ++k) {
+    Code nb[3];
+    grid::neighbours(o.cells[k].code, 6, nb);
+    std::uniform_int_distribution<Code> any(0, grid::cell_count(6) - 1);
+    for (const Code c : {nb[0], nb[1], nb[2], any(rng)}) disagree += site_of_near(o.cells, k, c) != site_of(o.cells, c);
+  }
+  EXPECT_EQ(disagree, 0u);
   Outlines broken = o;
   broken.cells.erase(broken.cells.begin());  // the first row end
   EXPECT_THROW(check_outlines(broken), std::logic_error);

@@ -298,7 +298,10 @@ double planar_ring_area(const std::vector<LonLat>& ring) {
   return 0.5 * twice;
 }
 
-std::vector<Region> trace_regions(const label::Outlines& outlines) {
+std::vector<Region> trace_regions(const label::Outlines& outlines, const std::function<void(double)>& step_done) {
+  const auto done = [&](double fraction) {
+    if (step_done) step_done(fraction);
+  };
   const int level = outlines.level;
   grid::require_level(level);
   const std::vector<label::OutlineCell>& cells = outlines.cells;
@@ -337,6 +340,7 @@ std::vector<Region> trace_regions(const label::Outlines& outlines) {
     }
   }
   failure.rethrow();
+  done(0.4);
 
   // Bucketed by site (each thread's counts, then their places), and each site's edges sorted
   // as link_rings needs them: no two edges of a site are equal (a cell edge is drawn once).
@@ -365,6 +369,7 @@ std::vector<Region> trace_regions(const label::Outlines& outlines) {
     for (const SiteEdge& e : parts[static_cast<std::size_t>(t)]) edges[next[static_cast<std::size_t>(e.site)]++] = e.edge;
     std::vector<SiteEdge>().swap(parts[static_cast<std::size_t>(t)]);
   }
+  done(0.5);
   // The largest sites' edges sorted on all cores, the others one site a thread.
   const std::size_t big = std::max<std::size_t>(std::size_t{1} << 16, at / 64);
   for (std::size_t s = 0; s < sites; ++s) {
@@ -376,6 +381,7 @@ std::vector<Region> trace_regions(const label::Outlines& outlines) {
     if (start[k + 1] - start[k] < big) std::sort(edges.begin() + start[k], edges.begin() + start[k + 1], edge_less);
   }
 
+  done(0.7);
   std::vector<Region> regions(static_cast<std::size_t>(outlines.site_count));
 #pragma omp parallel for schedule(dynamic, 1)
   for (std::int32_t site = 0; site < outlines.site_count; ++site) {

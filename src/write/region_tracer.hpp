@@ -15,6 +15,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "grid/qtm.hpp"
@@ -37,8 +38,10 @@ using Region = std::vector<RegionPolygon>;
 /// Traces the regions of all sites from the outline cells (label/outline_cells.hpp): the edges
 /// between sites are edges of boundary cells, the cuts at +-180 and along the poles' lines edges
 /// of row ends; a neighbour's site comes from label::site_of. Work and memory follow the outline
-/// cells. Returns outlines.site_count regions.
-std::vector<Region> trace_regions(const label::Outlines& outlines);
+/// cells. Returns outlines.site_count regions. `step_done` (may be empty) is called on the
+/// calling thread after each step (gather, bucket, sort, link) with the fraction done; it may
+/// throw to stop the tracing.
+std::vector<Region> trace_regions(const label::Outlines& outlines, const std::function<void(double)>& step_done = {});
 
 /// The same from dense labels: labels[code] is the site id of cell `code` of `level`
 /// (0 .. site_count - 1). Throws std::invalid_argument for a label out of range.

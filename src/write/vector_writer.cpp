@@ -528,7 +528,7 @@ void write_regions(Writer& w, const Input& in, double work) {
   const int area_index = w.add_field(area_field);
 
   StepTrace trace;
-  const std::vector<Region> regions = trace_regions(in.outlines);
+  const std::vector<Region> regions = trace_regions(in.outlines, [&](double f) { w.layer_progress(0.3 * f, 1.0); });
   trace("regions traced");
   w.layer_progress(0.3, 1.0);
 

@@ -265,10 +265,12 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   const GIntBig feature_count = layer->GetFeatureCount(FALSE);
   report_progress(options.progress, 0.0, "reading sites");
 
+  // One warning a skipped feature, the first kMostListed of them; then a count (a CSV read without
+  // its coordinate columns would otherwise give a line per row).
   auto skip = [&](GIntBig fid, const std::string& reason, std::uint64_t& counter) {
     const std::string message = where_from + ", FID " + std::to_string(fid) + ": " + reason;
     if (options.strict) throw ReadError(message + " (-strict)");
-    say(Severity::warning, message + "; feature skipped");
+    if (summary.skipped < PolygonValidityCheck::kMostListed) say(Severity::warning, message + "; feature skipped");
     ++summary.skipped;
     ++counter;
   };
@@ -397,6 +399,10 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
     ++summary.sites;
   }
   validity.finish();
+  if (summary.skipped > PolygonValidityCheck::kMostListed) {
+    say(Severity::warning, where_from + ": " + std::to_string(summary.skipped - PolygonValidityCheck::kMostListed) +
+                               " more skipped feature(s) not listed (" + std::to_string(summary.skipped) + " in all)");
+  }
   summary.invalid_polygons = validity.invalid();
   summary.repaired_polygons = validity.repaired();
   // Drivers report a bad filter or a broken file while reading (GeoPackage's -where, say).

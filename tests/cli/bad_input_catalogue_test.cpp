@@ -297,6 +297,20 @@ TEST(CatalogueFiles, SourceReplacedByItsOwnRegionsWithOverwrite) {
 // ---------------------------------------------------------------------------------------------
 // Geometries
 
+// Many skipped features give 20 lines and a count, not a line each.
+TEST(CatalogueGeometry, ManySkippedFeaturesAreCountedAfterTwentyLines) {
+  const std::string dir = test_dir();
+  std::vector<std::string> features(30, "null");
+  features.push_back(R"({"type":"Point","coordinates":[3,4]})");
+  const std::string src = geojson(dir + "/many_empty.geojson", features);
+  const Result r = run_small({"-layers", "regions", src, dir + "/out.gpkg"});
+  expect_success(r, dir + "/out.gpkg");
+  EXPECT_TRUE(contains(r.err, "FID 19: empty geometry; feature skipped")) << r.err;
+  EXPECT_FALSE(contains(r.err, "FID 20: empty geometry")) << r.err;
+  EXPECT_TRUE(contains(r.err, "10 more skipped feature(s) not listed (30 in all)")) << r.err;
+  EXPECT_TRUE(contains(r.err, "1 site read, 30 skipped")) << r.err;
+}
+
 TEST(CatalogueGeometry, NullAndEmptyGeometriesAreSkippedByFid) {
   const std::string dir = test_dir();
   const std::string src = geojson(dir + "/empty.geojson", {"null", R"({"type":"Point","coordinates":[]})",

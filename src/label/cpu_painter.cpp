@@ -188,11 +188,61 @@ bool same_cell(const grid::Cell& a, const grid::Cell& b) {
 struct LeafLabels {
   std::vector<grid::Code> code;
   std::vector<std::int32_t> site;
+  std::vector<std::uint8_t> inner;  ///< all three neighbours in a settled node of its site
   std::int32_t find(grid::Code c) const {
     const auto it = std::lower_bound(code.begin(), code.end(), c);
     return it != code.end() && *it == c ? site[static_cast<std::size_t>(it - code.begin())] : -1;
   }
 };
+
+/// A node below a list leaf whose cells all have one site.
+struct SettledNode {
+  grid::Cell cell;
+  int level;
+  std::int32_t site;
+};
+
+/// The site of every cell of node `cell` (level l) when the list's items that can be nearest to
+/// some point of it (those within prune_threshold of its centre, as build_tree keeps them) all
+/// have one site; else -1.
+std::int32_t one_site_below(const TreeView& tv, const TreeNode& list, const grid::Cell& cell, int l) {
+  const Vec3 centre = grid::cell_centre_vector(grid::code_of(cell, l), l);
+  const std::int32_t* items = tv.lists + list.value;
+  double min_ub2 = 1e300;
+  for (std::int32_t k = 0; k < list.count; ++k) {
+    double lb2, ub2;
+    std::int32_t site;
+    item_bounds(centre, items[k], tv.pieces, tv.groups, &lb2, &ub2, &site);
+    min_ub2 = std::min(min_ub2, ub2);
+  }
+  const double threshold = prune_threshold(min_ub2, node_radius(l, cell));
+  std::int32_t one = -1;
+  for (std::int32_t k = 0; k < list.count; ++k) {
+    double lb2, ub2;
+    std::int32_t site;
+    item_bounds(centre, items[k], tv.pieces, tv.groups, &lb2, &ub2, &site);
+    if (lb2 > threshold) continue;
+    if (one >= 0 && site != one) return -1;
+    one = site;
+  }
+  return one;
+}
+
+/// The settled nodes below node `cell` (level l) of a list leaf, down to a level above the
+/// labelling level (single cells are searched anyway).
+void settle_below(const TreeView& tv, const TreeNode& list, const grid::Cell& cell, int l, std::vector<SettledNode>& out) {
+  if (l + 1 >= tv.level) return;
+  grid::Cell kids[4];
+  grid::children(cell, kids);
+  for (const grid::Cell& kid : kids) {
+    const std::int32_t site = one_site_below(tv, list, kid, l + 1);
+    if (site >= 0) {
+      out.push_back({kid, l + 1, site});
+    } else {
+      settle_below(tv, list, kid, l + 1, out);
+    }
+  }
+}
 
 /// A thread's scratch for the outline pass: the visited leaf's order and labels, and the order
 /// of the list leaf last met across its rim (consecutive rim cells mostly border the same one).
@@ -201,6 +251,7 @@ struct OutlineScratch {
   LeafLabels labels;
   LeafOrder neighbour;
   std::int32_t neighbour_node = -1;
+  std::vector<SettledNode> settled;
   /// The site of cell c (not in the visited leaf): its leaf's, or the best of its list.
   std::int32_t site_of(const TreeView& tv, const grid::Cell& c) {
     int leaf_level;
@@ -244,11 +295,27 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
     labels.site.clear();
     order.make(tv, node, grid::cell_centre_vector(grid::code_of(leaf.cell, leaf.level), leaf.level),
                node_radius(leaf.level, leaf.cell));
+    // Nodes below the leaf whose kept items all have one site (the build's own rule, carried on
+    // below the list level): their cells need no search, and their inner cells no neighbours.
+    scratch.settled.clear();
+    settle_below(tv, node, leaf.cell, leaf.level, scratch.settled);
+    labels.inner.clear();
     for (std::uint64_t r = 0; r < rows; ++r) {
       const grid::RowCodes codes = grid::row_codes_below(leaf.cell, k, r, level);
       for (grid::Code code = codes.first; code <= codes.last; ++code) {
+        const grid::Cell c = grid::cell_of(code, level);
+        std::int32_t site = -1;
+        bool inner = false;
+        for (const SettledNode& n : scratch.settled) {
+          if (same_cell(grid::ancestor(c, level, n.level), n.cell)) {
+            site = n.site;
+            inner = grid::interior_of_ancestor(c, level, n.level);
+            break;
+          }
+        }
         labels.code.push_back(code);
-        labels.site.push_back(order.best(tv, grid::cell_centre_vector(code, level)).site);
+        labels.site.push_back(site >= 0 ? site : order.best(tv, grid::cell_centre_vector(code, level)).site);
+        labels.inner.push_back(inner ? 1 : 0);
       }
     }
     uniform = std::all_of(labels.site.begin(), labels.site.end(), [&](std::int32_t s) { return s == labels.site[0]; });
@@ -305,7 +372,9 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
     return;
   }
   // Row by row from the apex, codes increase: labels.code is sorted, as find() needs.
-  for (std::size_t m = 0; m < labels.code.size(); ++m) consider(labels.code[m], labels.site[m]);
+  for (std::size_t m = 0; m < labels.code.size(); ++m) {
+    if (!labels.inner[m]) consider(labels.code[m], labels.site[m]);
+  }
 }
 
 bool code_less(const OutlineCell& a, const OutlineCell& b) { return a.code < b.code; }

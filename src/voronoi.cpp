@@ -68,7 +68,7 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   output.commit();
   summary.write_seconds = now_seconds() - t0;
   summary.total_seconds = now_seconds() - t_start;
-  if (options.messages) options.messages(Severity::info, summary.line());
+  tell(options.messages, Severity::info, summary.line());
   return summary;
 }
 

@@ -4,7 +4,7 @@
 #include <vector>
 
 #include "label/label_engine.hpp"
-#include "label/openmp_threads.hpp"
+#include "common/openmp_threads.hpp"
 
 #ifdef _OPENMP
 #include <parallel/algorithm>

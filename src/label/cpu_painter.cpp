@@ -7,7 +7,7 @@
 
 #include "common/parallel_sort.hpp"
 #include "label/label_tree.hpp"
-#include "label/openmp_threads.hpp"
+#include "common/openmp_threads.hpp"
 #include "label/piece_groups.hpp"
 
 namespace qtmv::label {
@@ -202,44 +202,50 @@ struct SettledNode {
   std::int32_t site;
 };
 
+/// An item's lower bound (squared chord) and site, as one_site_below weighs them.
+struct ItemBound {
+  double lb2;
+  std::int32_t site;
+};
+
 /// The site of every cell of node `cell` (level l) when the list's items that can be nearest to
 /// some point of it (those within prune_threshold of its centre, as build_tree keeps them) all
-/// have one site; else -1.
-std::int32_t one_site_below(const TreeView& tv, const TreeNode& list, const grid::Cell& cell, int l) {
+/// have one site; else -1. `bounds`: scratch.
+std::int32_t one_site_below(const TreeView& tv, const TreeNode& list, const grid::Cell& cell, int l,
+                            std::vector<ItemBound>& bounds) {
   const Vec3 centre = grid::cell_centre_vector(grid::code_of(cell, l), l);
   const std::int32_t* items = tv.lists + list.value;
+  bounds.resize(static_cast<std::size_t>(list.count));
   double min_ub2 = 1e300;
   for (std::int32_t k = 0; k < list.count; ++k) {
-    double lb2, ub2;
-    std::int32_t site;
-    item_bounds(centre, items[k], tv.pieces, tv.groups, &lb2, &ub2, &site);
+    double ub2;
+    ItemBound& b = bounds[static_cast<std::size_t>(k)];
+    item_bounds(centre, items[k], tv.pieces, tv.groups, &b.lb2, &ub2, &b.site);
     min_ub2 = std::min(min_ub2, ub2);
   }
   const double threshold = prune_threshold(min_ub2, node_radius(l, cell));
   std::int32_t one = -1;
-  for (std::int32_t k = 0; k < list.count; ++k) {
-    double lb2, ub2;
-    std::int32_t site;
-    item_bounds(centre, items[k], tv.pieces, tv.groups, &lb2, &ub2, &site);
-    if (lb2 > threshold) continue;
-    if (one >= 0 && site != one) return -1;
-    one = site;
+  for (const ItemBound& b : bounds) {
+    if (b.lb2 > threshold) continue;
+    if (one >= 0 && b.site != one) return -1;
+    one = b.site;
   }
   return one;
 }
 
 /// The settled nodes below node `cell` (level l) of a list leaf, down to a level above the
 /// labelling level (single cells are searched anyway).
-void settle_below(const TreeView& tv, const TreeNode& list, const grid::Cell& cell, int l, std::vector<SettledNode>& out) {
+void settle_below(const TreeView& tv, const TreeNode& list, const grid::Cell& cell, int l, std::vector<SettledNode>& out,
+                  std::vector<ItemBound>& bounds) {
   if (l + 1 >= tv.level) return;
   grid::Cell kids[4];
   grid::children(cell, kids);
   for (const grid::Cell& kid : kids) {
-    const std::int32_t site = one_site_below(tv, list, kid, l + 1);
+    const std::int32_t site = one_site_below(tv, list, kid, l + 1, bounds);
     if (site >= 0) {
       out.push_back({kid, l + 1, site});
     } else {
-      settle_below(tv, list, kid, l + 1, out);
+      settle_below(tv, list, kid, l + 1, out, bounds);
     }
   }
 }
@@ -252,6 +258,7 @@ struct OutlineScratch {
   LeafOrder neighbour;
   std::int32_t neighbour_node = -1;
   std::vector<SettledNode> settled;
+  std::vector<ItemBound> bounds;
   /// The site of cell c (not in the visited leaf): its leaf's, or the best of its list.
   std::int32_t site_of(const TreeView& tv, const grid::Cell& c) {
     int leaf_level;
@@ -270,11 +277,8 @@ struct OutlineScratch {
 
 /// True when the cell `c` of level `l` lies in a uniform leaf of `site` (at level l or above).
 bool in_uniform_leaf_of(const TreeView& tv, const grid::Cell& c, int l, std::int32_t site) {
-  std::int32_t node = c.octant;
-  for (int at = 0; at < l && tv.nodes[node].count == kInternal; ++at) {
-    node = tv.nodes[node].value + grid::child_digit(grid::ancestor(c, l, at + 1));
-  }
-  return tv.nodes[node].count == kUniform && tv.nodes[node].value == site;
+  const TreeNode node = tv.nodes[walk_to_jump_level(tv.nodes, c, l).node];  // the walk down to level l
+  return node.count == kUniform && node.value == site;
 }
 
 /// Visits one leaf: every cell of a list leaf, the rim of a uniform leaf (or of a list leaf
@@ -298,7 +302,7 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
     // Nodes below the leaf whose kept items all have one site (the build's own rule, carried on
     // below the list level): their cells need no search, and their inner cells no neighbours.
     scratch.settled.clear();
-    settle_below(tv, node, leaf.cell, leaf.level, scratch.settled);
+    settle_below(tv, node, leaf.cell, leaf.level, scratch.settled, scratch.bounds);
     labels.inner.clear();
     for (std::uint64_t r = 0; r < rows; ++r) {
       const grid::RowCodes codes = grid::row_codes_below(leaf.cell, k, r, level);

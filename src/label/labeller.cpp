@@ -17,7 +17,7 @@
 #include "label/cpu_painter.hpp"
 #include "label/label_cuda.hpp"
 #include "label/label_engine.hpp"
-#include "label/openmp_threads.hpp"
+#include "common/openmp_threads.hpp"
 #include "label/piece_groups.hpp"
 #include "label/tree_node_rule.hpp"
 
@@ -293,11 +293,6 @@ LabelStats run_labelling(const LabelInput& input, const LabelOptions& options,
   std::vector<std::uint8_t> boundary(options.want_boundary && !outline ? host_tile : 0);
   float* metres_ptr = metres.empty() ? nullptr : metres.data();
   std::uint8_t* boundary_ptr = boundary.empty() ? nullptr : boundary.data();
-  const auto grow_host_tile = [&] {  // for the CPU's tiles in the outline pass
-    site.resize(host_tile);
-    boundary.resize(host_tile);
-    boundary_ptr = boundary.data();
-  };
 
   std::uint64_t done = 0;  // cells handed to the sink
   if (on_gpu) {
@@ -334,7 +329,11 @@ LabelStats run_labelling(const LabelInput& input, const LabelOptions& options,
     progress(1.0, "label");
     return stats;
   }
-  if (outline) grow_host_tile();
+  if (outline) {  // the CPU's dense tiles, compacted as they come
+    site.resize(host_tile);
+    boundary.resize(host_tile);
+    boundary_ptr = boundary.data();
+  }
   for (std::uint64_t first = done; first < total; first += host_tile) {
     const std::uint64_t count = std::min(host_tile, total - first);
     const double start = now_seconds();
@@ -384,6 +383,11 @@ LabelResult label_all(const LabelInput& input, const LabelOptions& options) {
                              " for its dense outputs, more than half of this host's " + format_gib(double(ram)) +
                              "; use label_cells() to stream tiles instead");
   }
+  return label_dense(input, options);
+}
+
+LabelResult label_dense(const LabelInput& input, const LabelOptions& options) {
+  const MemoryEstimate need = estimate_output_memory(input.level, options);
   LabelResult result;
   result.site.resize(need.cells);
   if (options.want_distance) result.distance_m.resize(need.cells);

@@ -106,7 +106,10 @@ struct LabelResult {
   std::vector<std::uint8_t> boundary;
   LabelStats stats;
 };
+/// Throws std::runtime_error when they would take more than half of this host's RAM.
 LabelResult label_all(const LabelInput& input, const LabelOptions& options);
+/// label_all without that check, for a caller that has weighed the memory itself (the pipeline).
+LabelResult label_dense(const LabelInput& input, const LabelOptions& options);
 
 /// Number of usable CUDA devices (0 when built without CUDA or none is present).
 int cuda_device_count();

@@ -10,7 +10,7 @@
 #include "common/host_info.hpp"
 #include "grid/qtm_checks.hpp"
 #include "label/label_engine.hpp"
-#include "label/openmp_threads.hpp"
+#include "common/openmp_threads.hpp"
 #include "label/piece_groups.hpp"
 #include "label/tree_node_rule.hpp"
 

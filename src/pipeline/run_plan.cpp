@@ -5,7 +5,6 @@
 #include <gdal_priv.h>
 
 #include <algorithm>
-#include <cctype>
 #include <cmath>
 #include <stdexcept>
 
@@ -20,11 +19,6 @@
 namespace qtmv::pipeline {
 
 namespace {
-
-std::string lower(std::string s) {
-  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return s;
-}
 
 // The labeller hands its outputs over in tiles and checks for an interrupt between them; on the
 // CPU, tiles of 64 MiB (about 7 million cells) keep that check under a second.
@@ -68,7 +62,7 @@ void check_vector_destination(const std::string& destination, RunPlan& plan) {
   GDALDriver* driver = GetGDALDriverManager()->GetDriverByName(plan.format.driver.c_str());
   const bool multi_layer = driver && CPLTestBool(CSLFetchNameValueDef(driver->GetMetadata(),
                                                                       GDAL_DCAP_MULTIPLE_VECTOR_LAYERS, "NO"));
-  const std::string extension = lower(CPLGetExtension(destination.c_str()));
+  const std::string extension = CPLGetExtension(destination.c_str());
   if (!multi_layer && vector.layers.size() > 1 && !extension.empty()) {
     throw VoronoiError("'" + destination + "': a " + plan.format.driver + " file holds one layer: use -layers with one of " +
                        "them, or name a directory (for drivers that write one file per layer there) or a format " +
@@ -76,7 +70,7 @@ void check_vector_destination(const std::string& destination, RunPlan& plan) {
   }
   // CSV keeps no geometry unless asked to: keep it, as WKT.
   const bool geometry_option = std::any_of(vector.layer_options.begin(), vector.layer_options.end(),
-                                           [](const std::string& o) { return lower(o).rfind("geometry=", 0) == 0; });
+                                           [](const std::string& o) { return STARTS_WITH_CI(o.c_str(), "GEOMETRY="); });
   if (plan.format.driver == "CSV" && !geometry_option) vector.layer_options.push_back("GEOMETRY=AS_WKT");
   plan.cells_layer = std::find(vector.layers.begin(), vector.layers.end(), "cells") != vector.layers.end();
 }
@@ -100,6 +94,22 @@ std::uint64_t estimate_run_memory(const RunPlan& plan, std::uint64_t sites) {
                           std::ldexp(1.0, level + 1) / 3.14159265358979;
   const double outline = static_cast<double>(label::row_end_count(level)) + std::min(boundary, double(dense.cells));
   return static_cast<std::uint64_t>(outline) * kBytesPerOutlineCell + tile_bytes;
+}
+
+void check_run_memory(const RunPlan& plan, std::uint64_t memory_limit_bytes, std::uint64_t sites) {
+  const std::uint64_t need = estimate_run_memory(plan, sites);
+  const std::uint64_t ram = host_ram_bytes();
+  const std::uint64_t allowed = memory_limit_bytes ? memory_limit_bytes : ram / 10 * 8;
+  if (need <= allowed) return;
+  const label::MemoryEstimate e = label::estimate_output_memory(plan.level, plan.label);
+  throw VoronoiError("level " + std::to_string(plan.level) + (sites ? " with " + std::to_string(sites) + " sites" : "") +
+                     " needs about " + format_gib(double(need)) + " for " +
+                     (plan.format.raster ? "the labels of its " + std::to_string(e.cells) + " cells (" +
+                                               std::to_string(e.bytes_per_cell) + " bytes each, and the labeller's tiles)"
+                                         : std::string("its outline cells and the labeller's tiles")) +
+                     ", more than the " + format_gib(double(allowed)) + " allowed" +
+                     (memory_limit_bytes ? "" : " (80% of this host's " + format_gib(double(ram)) + " of RAM)") +
+                     ": choose a lower -level");
 }
 
 RunPlan plan_run(const std::string& destination, const VoronoiOptions& options) {
@@ -145,18 +155,7 @@ RunPlan plan_run(const std::string& destination, const VoronoiOptions& options) 
   label_options.want_boundary = true;
   label_options.memory_limit_bytes = tile_limit(label_options);
 
-  const std::uint64_t need = estimate_run_memory(plan, 1);
-  const std::uint64_t ram = host_ram_bytes();
-  const std::uint64_t allowed = options.memory_limit_bytes ? options.memory_limit_bytes : ram / 10 * 8;
-  if (need > allowed) {
-    const label::MemoryEstimate e = label::estimate_output_memory(plan.level, label_options);
-    throw VoronoiError("level " + std::to_string(plan.level) + " needs about " + format_gib(double(need)) + " for " +
-                       (plan.format.raster ? "the labels of its " + std::to_string(e.cells) + " cells (" +
-                                                 std::to_string(e.bytes_per_cell) + " bytes each, and the labeller's tiles)"
-                                           : std::string("its outline cells and the labeller's tiles")) +
-                       ", more than the " + format_gib(double(allowed)) + " allowed (80% of this host's " +
-                       format_gib(double(ram)) + " of RAM): choose a lower -level");
-  }
+  check_run_memory(plan, options.memory_limit_bytes, 0);
 
   // A GPU asked for and missing fails now, not after the read.
   if (device.kind == DeviceSpec::Kind::cuda) {

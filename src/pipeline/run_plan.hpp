@@ -29,6 +29,11 @@ struct RunPlan {
 /// VoronoiError naming the option, the destination or the shortage. Nothing is written.
 RunPlan plan_run(const std::string& destination, const VoronoiOptions& options);
 
+/// Throws VoronoiError, with the estimate, when estimate_run_memory(plan, sites) is more than the
+/// run may use: memory_limit_bytes (VoronoiOptions), or 80% of RAM when 0. `sites`: 0 before the
+/// read (the estimate then takes one).
+void check_run_memory(const RunPlan& plan, std::uint64_t memory_limit_bytes, std::uint64_t sites);
+
 /// Host memory (bytes) the run's largest products take: the dense labels of a raster (every
 /// cell) or, for vector output, the outline cells (an estimate from the site count: they grow
 /// 2x per level) and the labeller's tiles.

@@ -3,7 +3,6 @@
 #include <cpl_conv.h>
 
 #include <algorithm>
-#include <cstring>
 #include <memory>
 #include <new>
 
@@ -25,10 +24,6 @@ bool RunProgress::report(double begin, double end, double fraction, const char* 
 
 namespace {
 
-void say(const VoronoiOptions& options, Severity severity, const std::string& message) {
-  if (options.messages) options.messages(severity, message);
-}
-
 /// Runs a stage's work: Interrupted passes, a stop asked for during a failure is a stop, any
 /// other failure becomes a VoronoiError with `prefix` before its message.
 template <class Work>
@@ -45,21 +40,6 @@ auto as_stage(RunProgress& progress, const std::string& prefix, Work&& work) -> 
     if (progress.cancelled()) throw Interrupted();
     throw VoronoiError(prefix + e.what());
   }
-}
-
-/// Labels every cell into dense arrays (a raster's input).
-DenseLabels label_dense(const sites::SiteSet& sites, const label::LabelOptions& options, label::LabelStats* stats) {
-  const std::uint64_t cells = grid::cell_count(sites.geometry.level);
-  DenseLabels dense;
-  dense.site.resize(cells);
-  if (options.want_distance) dense.distance_m.resize(cells);
-  if (options.want_boundary) dense.boundary.resize(cells);
-  *stats = label::label_cells(sites.geometry.input(), options, [&](const label::LabelTile& tile) {
-    std::memcpy(dense.site.data() + tile.first, tile.site, tile.count * sizeof(std::int32_t));
-    if (tile.distance_m) std::memcpy(dense.distance_m.data() + tile.first, tile.distance_m, tile.count * sizeof(float));
-    if (tile.boundary) std::memcpy(dense.boundary.data() + tile.first, tile.boundary, tile.count);
-  });
-  return dense;
 }
 
 }  // namespace
@@ -83,13 +63,7 @@ LabelledLevel label_stage(sites::SiteSet& sites, const VoronoiOptions& options, 
                           RunProgress& progress, std::uint64_t* without_cell) {
   // Vector output's products grow with the outlines, and so with the sites: checked now that
   // their number is known.
-  const std::uint64_t need = estimate_run_memory(plan, sites.table.sites.size());
-  const std::uint64_t allowed = options.memory_limit_bytes ? options.memory_limit_bytes : host_ram_bytes() / 10 * 8;
-  if (need > allowed) {
-    throw VoronoiError("level " + std::to_string(plan.level) + " with " + std::to_string(sites.table.sites.size()) +
-                       " sites needs about " + format_gib(double(need)) + " for its outline cells, more than the " +
-                       format_gib(double(allowed)) + " allowed: choose a lower -level");
-  }
+  check_run_memory(plan, options.memory_limit_bytes, sites.table.sites.size());
   label::LabelOptions label_options = plan.label;
   // The labeller reports between tiles, on this thread; false stops it with Interrupted.
   label_options.progress = [&](double f, const char* stage) {
@@ -101,7 +75,9 @@ LabelledLevel label_stage(sites::SiteSet& sites, const VoronoiOptions& options, 
   std::vector<std::uint64_t> count;
   as_stage(progress, "labelling failed: ", [&] {
     if (plan.format.raster) {
-      out.dense = label_dense(sites, label_options, &stats);
+      // The plan weighed the memory (check_run_memory).
+      out.dense = label::label_dense(sites.geometry.input(), label_options);
+      stats = out.dense.stats;
       count.assign(sites.table.sites.size(), 0);
       for (const std::int32_t s : out.dense.site) ++count[static_cast<std::size_t>(s)];
     } else {
@@ -120,9 +96,9 @@ LabelledLevel label_stage(sites::SiteSet& sites, const VoronoiOptions& options, 
   }
   *without_cell = missing.count();
   if (missing.count() > 0) {
-    say(options, Severity::warning,
-        std::to_string(missing.count()) + " site(s) got no cell of their own at level " + std::to_string(plan.level) +
-            " (FIDs " + missing.text() + ")" + (plan.format.raster ? "" : "; they keep their row, with an empty geometry"));
+    tell(options.messages, Severity::warning,
+         std::to_string(missing.count()) + " site(s) got no cell of their own at level " + std::to_string(plan.level) +
+             " (FIDs " + missing.text() + ")" + (plan.format.raster ? "" : "; they keep their row, with an empty geometry"));
   }
   return out;
 }
@@ -138,7 +114,7 @@ void write_stage(const std::string& path, const std::string& destination, const 
     if (plan.format.raster) {
       write::RasterOptions raster_options = plan.raster;
       raster_options.progress = write_progress;
-      const DenseLabels& d = labels.dense;
+      const label::LabelResult& d = labels.dense;
       const write::CellLabels dense{plan.level, d.site.data(), d.distance_m.empty() ? nullptr : d.distance_m.data(),
                                     d.boundary.empty() ? nullptr : d.boundary.data()};
       write::write_raster(path, dense, sites.table, raster_options);

@@ -1,6 +1,7 @@
 // The stages of a run after its plan (run_plan.hpp): read the sites, label the level, write the
 // destination. Each takes the products of the one before as plain data: sites::SiteSet, then
-// label::Outlines (vector output: memory that follows the outlines) or DenseLabels (a raster).
+// label::Outlines (vector output: memory that follows the outlines) or label::LabelResult (every
+// cell's labels: a raster).
 #pragma once
 
 #include <cstdint>
@@ -8,6 +9,7 @@
 #include <vector>
 
 #include "common/run_context.hpp"
+#include "label/labeller.hpp"
 #include "label/outline_cells.hpp"
 #include "pipeline/run_plan.hpp"
 #include "sites/ogr_site_reader.hpp"
@@ -27,18 +29,11 @@ class RunProgress {
   bool cancelled_ = false;
 };
 
-/// Every cell's labels, for a raster.
-struct DenseLabels {
-  std::vector<std::int32_t> site;
-  std::vector<float> distance_m;
-  std::vector<std::uint8_t> boundary;
-};
-
 /// What the label stage hands the write stage: outlines for vector output, dense labels for a
 /// raster (the other is empty).
 struct LabelledLevel {
   label::Outlines outlines;
-  DenseLabels dense;
+  label::LabelResult dense;
   std::string device;           ///< where the labelling ran
   double prepare_seconds = 0;   ///< the labeller's candidates and tree
 };

@@ -1,15 +1,12 @@
 #include "write/region_tracer.hpp"
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
-
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <stdexcept>
 #include <string>
 
+#include "common/openmp_threads.hpp"
 #include "common/parallel_sort.hpp"
 #include "grid/qtm_checks.hpp"
 #include "write/first_exception.hpp"
@@ -31,20 +28,6 @@ struct SiteEdge {
   Edge edge;
 };
 
-int omp_threads() {
-#ifdef _OPENMP
-  return omp_get_num_threads();
-#else
-  return 1;
-#endif
-}
-int omp_thread() {
-#ifdef _OPENMP
-  return omp_get_thread_num();
-#else
-  return 0;
-#endif
-}
 
 /// Angle (radians, in (0, 2 pi]) turned clockwise from direction d to direction t.
 double clockwise_angle(double dx, double dy, double tx, double ty) {
@@ -308,13 +291,12 @@ std::vector<Region> trace_regions(const label::Outlines& outlines, const std::fu
   const auto n = static_cast<std::int64_t>(cells.size());
 
   // Boundary edges of every region with their site, each thread's in a list of its own.
-  std::vector<std::vector<SiteEdge>> parts;
+  const int team = thread_count(0);
+  std::vector<std::vector<SiteEdge>> parts(static_cast<std::size_t>(team));
   FirstException failure;
-#pragma omp parallel
+#pragma omp parallel num_threads(team)
   {
-#pragma omp single
-    parts.resize(static_cast<std::size_t>(omp_threads()));
-    std::vector<SiteEdge>& local = parts[static_cast<std::size_t>(omp_thread())];
+    std::vector<SiteEdge>& local = parts[static_cast<std::size_t>(thread_index())];
 #pragma omp for schedule(static)
     for (std::int64_t k = 0; k < n; ++k) {
       failure.run([&] {

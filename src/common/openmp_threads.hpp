@@ -1,11 +1,11 @@
-// The CPU threads a labelling run uses (OpenMP), one rule for every stage.
+// The CPU threads a run uses (OpenMP), one rule for every stage: the labeller's and the writers'.
 #pragma once
 
 #ifdef _OPENMP
 #include <omp.h>
 #endif
 
-namespace qtmv::label {
+namespace qtmv {
 
 /// `requested` threads, or OpenMP's default when 0 (1 without OpenMP).
 inline int thread_count(int requested) {
@@ -26,4 +26,4 @@ inline int thread_index() {
 #endif
 }
 
-}  // namespace qtmv::label
+}  // namespace qtmv

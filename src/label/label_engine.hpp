@@ -16,6 +16,9 @@
 
 namespace qtmv::label {
 
+/// The input checks of label_cells: throws std::invalid_argument naming the first bad entry.
+void check_label_input(const LabelInput& input, Rule rule);
+
 /// The input's fixed cells ordered by site, then in quadtree order (quadtree_key): into *storage,
 /// unless they are in that order already (then the input's own array). make_candidates and the
 /// device build take them in this order (the groups of a site's fixed cells are then compact

@@ -88,6 +88,8 @@ DeviceChoice choose_device(const std::string& name) {
 
 }  // namespace
 
+void check_label_input(const LabelInput& input, Rule rule) { validate(input, rule); }
+
 // --- the run --------------------------------------------------------------------------------
 
 MemoryEstimate estimate_output_memory(int level, const LabelOptions& options) {

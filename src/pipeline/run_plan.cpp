@@ -11,6 +11,7 @@
 #include "common/device_spec.hpp"
 #include "common/host_info.hpp"
 #include "grid/qtm_checks.hpp"
+#include "label/label_session.hpp"
 #include "label/outline_cells.hpp"
 #include "write/output_size.hpp"
 #include "write/raster_writer.hpp"
@@ -46,8 +47,10 @@ std::uint64_t tile_limit(const label::LabelOptions& options) {
 // the cells layer ~300 ns; the outline products cost little per cell. Reading gets a fixed 5%.
 void set_stage_ends(RunPlan& plan) {
   const bool cpu = labels_on_cpu(plan.label);
-  const double label = plan.format.raster ? (cpu ? 50 : 5) : (cpu ? 10 : 2) + (plan.cells_layer ? (cpu ? 50 : 5) : 0);
-  const double write = plan.format.raster ? 100 : 20 + (plan.cells_layer ? 300 : 0);
+  // A raster's labels are made on the CPU strip by strip while it is written (~50 ns a cell);
+  // the label stage finds its outlines (which sites got a cell) and builds the session's tree.
+  const double label = plan.format.raster ? (cpu ? 12 : 3) : (cpu ? 10 : 2) + (plan.cells_layer ? (cpu ? 50 : 5) : 0);
+  const double write = plan.format.raster ? 150 : 20 + (plan.cells_layer ? 300 : 0);
   plan.read_end = 0.05;
   plan.label_end = plan.read_end + (1 - plan.read_end) * label / (label + write);
 }
@@ -86,13 +89,25 @@ std::uint64_t estimate_run_memory(const RunPlan& plan, std::uint64_t sites) {
   const std::uint64_t tile_cells =
       std::min({dense.cells, std::max<std::uint64_t>(1, limit / dense.bytes_per_cell), std::uint64_t{1} << 28});
   const std::uint64_t tile_bytes = tile_cells * dense.bytes_per_cell;
-  if (plan.format.raster) return dense.output_bytes + tile_bytes;
   // Outline cells: the row ends, and boundary cells along the Voronoi edges, whose length grows
   // as the square root of the sites (about 6.6 sqrt(n) radians for n sites spread evenly), at
   // about 3 boundary cells per cell edge (pi / 2^(L+1) radians) of it.
   const double boundary = 6.6 * std::sqrt(static_cast<double>(std::max<std::uint64_t>(sites, 1))) * 3.0 *
                           std::ldexp(1.0, level + 1) / 3.14159265358979;
   const double outline = static_cast<double>(label::row_end_count(level)) + std::min(boundary, double(dense.cells));
+  if (plan.format.raster) {
+    // The label stage holds the outline cells (not traced: their own bytes only) and the
+    // labeller's tiles; the write stage the session's tree (its jump table grows with the level,
+    // up to 256 MiB) and the writer's strip, never every cell's labels.
+    const std::uint64_t label_stage = static_cast<std::uint64_t>(outline) * sizeof(label::OutlineCell) + tile_bytes;
+    std::uint64_t strip = 0;
+    try {
+      strip = write::raster_buffer_bytes(level, plan.raster, plan.label.want_distance);
+    } catch (const write::WriteError&) {
+      strip = write::kDefaultStripBytes;  // bad sizes are reported by plan_run
+    }
+    return std::max(label_stage, label::session_jump_table_bytes(level) + strip);
+  }
   return static_cast<std::uint64_t>(outline) * kBytesPerOutlineCell + tile_bytes;
 }
 
@@ -101,11 +116,10 @@ void check_run_memory(const RunPlan& plan, std::uint64_t memory_limit_bytes, std
   const std::uint64_t ram = host_ram_bytes();
   const std::uint64_t allowed = memory_limit_bytes ? memory_limit_bytes : ram / 10 * 8;
   if (need <= allowed) return;
-  const label::MemoryEstimate e = label::estimate_output_memory(plan.level, plan.label);
   throw VoronoiError("level " + std::to_string(plan.level) + (sites ? " with " + std::to_string(sites) + " sites" : "") +
                      " needs about " + format_gib(double(need)) + " for " +
-                     (plan.format.raster ? "the labels of its " + std::to_string(e.cells) + " cells (" +
-                                               std::to_string(e.bytes_per_cell) + " bytes each, and the labeller's tiles)"
+                     (plan.format.raster ? std::string("its outline cells, the labeller's tree and tiles, and the raster's "
+                                                       "strips")
                                          : std::string("its outline cells and the labeller's tiles")) +
                      ", more than the " + format_gib(double(allowed)) + " allowed" +
                      (memory_limit_bytes ? "" : " (80% of this host's " + format_gib(double(ram)) + " of RAM)") +
@@ -130,10 +144,18 @@ RunPlan plan_run(const std::string& destination, const VoronoiOptions& options) 
     }
     try {
       write::raster_size(plan.level, plan.raster);  // -tr, -ts and -raster checked as the writer will
+      write::check_raster_data_type(plan.raster.data_type);
     } catch (const write::WriteError& e) {
       throw VoronoiError(e.what());
     }
+    // The writer's strip follows the memory the run may use.
+    if (options.memory_limit_bytes != 0) {
+      plan.raster.strip_bytes = std::min<std::uint64_t>(write::kDefaultStripBytes, options.memory_limit_bytes / 4);
+    }
   } else {
+    if (!options.raster.data_type.empty()) {
+      throw VoronoiError("-ot is for raster output; " + plan.format.driver + " output is vector");
+    }
     if (!options.raster.creation_options.empty()) {
       throw VoronoiError("-co is for raster output; " + plan.format.driver + " output is vector: use -lco or -dsco");
     }

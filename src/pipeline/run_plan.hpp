@@ -17,8 +17,8 @@ struct RunPlan {
   OutputFormat format;           ///< the driver and whether it writes a raster
   write::VectorOptions vector;   ///< the vector writer's options (progress set by the write stage)
   write::RasterOptions raster;   ///< the raster writer's options (likewise)
-  /// The labeller's options: the outline pass for vector output (label_outlines), the dense
-  /// tiles for a raster and for the cells layer (label_cells).
+  /// The labeller's options: the outline pass (label_outlines), the raster's labelling session
+  /// and the tiles of the cells layer (label_cells).
   label::LabelOptions label;
   bool cells_layer = false;  ///< vector output with the cells layer: every cell's labels, in tiles
   /// Ends of the read and label stages' slices of the run's progress (fractions 0..1).
@@ -34,9 +34,10 @@ RunPlan plan_run(const std::string& destination, const VoronoiOptions& options);
 /// read (the estimate then takes one).
 void check_run_memory(const RunPlan& plan, std::uint64_t memory_limit_bytes, std::uint64_t sites);
 
-/// Host memory (bytes) the run's largest products take: the dense labels of a raster (every
-/// cell) or, for vector output, the outline cells (an estimate from the site count: they grow
-/// 2x per level) and the labeller's tiles.
+/// Host memory (bytes) the run's largest products take: the outline cells (an estimate from the
+/// site count: they grow 2x per level) and the labeller's tiles; for a raster, the larger of
+/// that (the label stage) and the session's jump table with the writer's strip (the write
+/// stage), which follow the strip size, not the cells.
 std::uint64_t estimate_run_memory(const RunPlan& plan, std::uint64_t sites);
 
 }  // namespace qtmv::pipeline

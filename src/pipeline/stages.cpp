@@ -74,19 +74,34 @@ LabelledLevel label_stage(sites::SiteSet& sites, const VoronoiOptions& options, 
   label::LabelStats stats;
   std::vector<std::uint64_t> count;
   as_stage(progress, "labelling failed: ", [&] {
+    // The outline cells' counts tell which sites got no cell, for a raster too (cheaply: the work
+    // follows the outlines); a raster's labels come later, strip by strip, from the session.
+    label::LabelOptions outline_options = label_options;
     if (plan.format.raster) {
-      // The plan weighed the memory (check_run_memory).
-      out.dense = label::label_dense(sites.geometry.input(), label_options);
-      stats = out.dense.stats;
-      count.assign(sites.table.sites.size(), 0);
-      for (const std::int32_t s : out.dense.site) ++count[static_cast<std::size_t>(s)];
-    } else {
-      stats = label::label_outlines(sites.geometry.input(), label_options, &out.outlines);
-      count = out.outlines.cells_per_site;
+      outline_options.progress = [&](double f, const char* stage) {
+        return progress.report(plan.read_end, plan.label_end, 0.6 * f, stage);
+      };
+    }
+    stats = label::label_outlines(sites.geometry.input(), outline_options, &out.outlines);
+    count = out.outlines.cells_per_site;
+    if (plan.format.raster) {
+      out.outlines = {};
+      label::LabelOptions session_options = label_options;
+      session_options.want_distance = true;
+      session_options.want_boundary = true;
+      session_options.progress = [&](double f, const char* stage) {
+        return progress.report(plan.read_end, plan.label_end, 0.6 + 0.4 * f, stage);
+      };
+      out.session = std::make_unique<label::LabelSession>(sites.geometry.input(), session_options);
     }
   });
   out.device = stats.device;
   out.prepare_seconds = stats.prepare_seconds;
+  if (out.session) {
+    const label::LabelStats& raster = out.session->stats();
+    if (raster.device != out.device) out.device += ", raster labels on " + raster.device;
+    out.prepare_seconds += raster.prepare_seconds;
+  }
 
   // Sites left without a cell still get their row; say which.
   sites::FidList missing;
@@ -103,21 +118,55 @@ LabelledLevel label_stage(sites::SiteSet& sites, const VoronoiOptions& options, 
   return out;
 }
 
-void write_stage(const std::string& path, const std::string& destination, const LabelledLevel& labels,
-                 const sites::SiteSet& sites, const RunPlan& plan, RunProgress& progress) {
+namespace {
+
+/// The labelling session as the raster writer's label source, timing its work.
+class SessionSource : public write::CellLabelSource {
+ public:
+  explicit SessionSource(const label::LabelSession& session) : session_(session) {}
+  int level() const override { return session_.level(); }
+  bool has_distance() const override { return session_.has_distance(); }
+  void label_range(grid::Code first, std::uint64_t count, std::int32_t* site, float* distance_m,
+                   std::uint8_t* boundary) const override {
+    const double t0 = now_seconds();
+    session_.label_range(first, count, site, distance_m, boundary);
+    seconds += now_seconds() - t0;
+  }
+  void label_codes(const grid::Code* codes, std::size_t count, std::int32_t* site, float* distance_m,
+                   std::uint8_t* boundary) const override {
+    const double t0 = now_seconds();
+    session_.label_codes(codes, count, site, distance_m, boundary);
+    seconds += now_seconds() - t0;
+  }
+  mutable double seconds = 0;  ///< spent labelling
+
+ private:
+  const label::LabelSession& session_;
+};
+
+}  // namespace
+
+double write_stage(const std::string& path, const std::string& destination, const LabelledLevel& labels,
+                   const sites::SiteSet& sites, const RunPlan& plan, RunProgress& progress) {
   const write::ProgressFunc write_progress = [&](double f, const char* stage) {
     return progress.report(plan.label_end, 1.0, f, stage);
   };
+  double label_seconds = 0;
   try {
     const RenameInMessages name_the_destination(path, destination);
     if (!progress.report(plan.label_end, 1.0, 0.0, "write")) throw Interrupted();
     if (plan.format.raster) {
       write::RasterOptions raster_options = plan.raster;
       raster_options.progress = write_progress;
-      const label::LabelResult& d = labels.dense;
-      const write::CellLabels dense{plan.level, d.site.data(), d.distance_m.empty() ? nullptr : d.distance_m.data(),
-                                    d.boundary.empty() ? nullptr : d.boundary.data()};
-      write::write_raster(path, dense, sites.table, raster_options);
+      if (!labels.session) throw VoronoiError(destination + ": no labelling session for the raster");
+      const SessionSource source(*labels.session);
+      try {
+        write::write_raster(path, source, sites.table, raster_options);
+      } catch (...) {
+        label_seconds = source.seconds;
+        throw;
+      }
+      label_seconds = source.seconds;
     } else {
       write::VectorOptions vector_options = plan.vector;
       vector_options.progress = write_progress;
@@ -142,6 +191,7 @@ void write_stage(const std::string& path, const std::string& destination, const 
     }
     // A stop asked for during the close is honoured too: nothing is renamed yet.
     if (!progress.report(plan.label_end, 1.0, 1.0, "write")) throw Interrupted();
+    return label_seconds;
   } catch (const Interrupted&) {
     throw;
   } catch (const std::exception& e) {

@@ -1,14 +1,16 @@
 // The stages of a run after its plan (run_plan.hpp): read the sites, label the level, write the
 // destination. Each takes the products of the one before as plain data: sites::SiteSet, then
-// label::Outlines (vector output: memory that follows the outlines) or label::LabelResult (every
-// cell's labels: a raster).
+// label::Outlines (vector output: memory that follows the outlines) or a label::LabelSession (a
+// raster: the labeller prepared once, asked for each strip's labels as the raster is written).
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "common/run_context.hpp"
+#include "label/label_session.hpp"
 #include "label/labeller.hpp"
 #include "label/outline_cells.hpp"
 #include "pipeline/run_plan.hpp"
@@ -29,13 +31,14 @@ class RunProgress {
   bool cancelled_ = false;
 };
 
-/// What the label stage hands the write stage: outlines for vector output, dense labels for a
-/// raster (the other is empty).
+/// What the label stage hands the write stage: outlines for vector output; for a raster, the
+/// labelling session the writer streams from (the outlines' cells per site only told which
+/// sites got no cell, and are gone).
 struct LabelledLevel {
   label::Outlines outlines;
-  label::LabelResult dense;
+  std::unique_ptr<label::LabelSession> session;
   std::string device;           ///< where the labelling ran
-  double prepare_seconds = 0;   ///< the labeller's candidates and tree
+  double prepare_seconds = 0;   ///< the labeller's candidates and tree (both trees for a raster)
 };
 
 /// Reads and rasterises the sites (progress in [0, plan.read_end]). Throws VoronoiError naming
@@ -51,8 +54,10 @@ LabelledLevel label_stage(sites::SiteSet& sites, const VoronoiOptions& options, 
 
 /// Writes the destination from the labels (progress in [plan.label_end, 1]): into the staged
 /// output's temporary path, named as the destination in every message. For the cells layer the
-/// level is labelled again, tile by tile. Throws VoronoiError, or Interrupted.
-void write_stage(const std::string& path, const std::string& destination, const LabelledLevel& labels,
-                 const sites::SiteSet& sites, const RunPlan& plan, RunProgress& progress);
+/// level is labelled again, tile by tile; a raster asks the session for each strip's labels.
+/// Returns the seconds spent labelling strips (part of the stage's time). Throws VoronoiError, or
+/// Interrupted.
+double write_stage(const std::string& path, const std::string& destination, const LabelledLevel& labels,
+                   const sites::SiteSet& sites, const RunPlan& plan, RunProgress& progress);
 
 }  // namespace qtmv::pipeline

@@ -1,6 +1,7 @@
 // What the writers take from the labeller: plain per-cell arrays, and their options.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <stdexcept>
@@ -18,6 +19,25 @@ struct CellLabels {
   const std::int32_t* site = nullptr;      ///< site id of each cell (an index into the site table)
   const float* distance_m = nullptr;       ///< distance to the site (metres); null when not computed
   const std::uint8_t* boundary = nullptr;  ///< 1 on boundary cells, else 0; null when not computed
+};
+
+/// Labels on demand, for a writer that streams (the raster writer, strip by strip): it asks for
+/// the labels of what it is about to write, into its own buffers, and never holds a level's.
+/// The pipeline's source is the labeller's session (label/label_session.hpp); DenseLabelSource
+/// hands over arrays a caller already has.
+class CellLabelSource {
+ public:
+  virtual ~CellLabelSource() = default;
+  virtual int level() const = 0;
+  /// Whether distances can be asked for (distance_m may be non-null below).
+  virtual bool has_distance() const = 0;
+  /// Codes [first, first + count): site ids (indices into the site table), distances (metres;
+  /// null: not wanted) and boundary flags (0/1), entry k for code first + k.
+  virtual void label_range(grid::Code first, std::uint64_t count, std::int32_t* site, float* distance_m,
+                           std::uint8_t* boundary) const = 0;
+  /// The same for codes[0..count) (sorted, without repeats), entry k for codes[k].
+  virtual void label_codes(const grid::Code* codes, std::size_t count, std::int32_t* site, float* distance_m,
+                           std::uint8_t* boundary) const = 0;
 };
 
 /// The labels of one range of codes [first, first + count) (valid during the call that hands
@@ -44,6 +64,30 @@ inline bool is_boundary(const CellLabels& labels, grid::Code code) {
   const std::int32_t site = labels.site[code];
   return labels.site[nb[0]] != site || labels.site[nb[1]] != site || labels.site[nb[2]] != site;
 }
+
+/// CellLabels as a CellLabelSource (boundary flags from is_boundary when labels.boundary is null).
+class DenseLabelSource : public CellLabelSource {
+ public:
+  explicit DenseLabelSource(const CellLabels& labels) : labels_(labels) {}
+  int level() const override { return labels_.level; }
+  bool has_distance() const override { return labels_.distance_m != nullptr; }
+  void label_range(grid::Code first, std::uint64_t count, std::int32_t* site, float* distance_m,
+                   std::uint8_t* boundary) const override {
+    for (std::uint64_t k = 0; k < count; ++k) put(first + k, k, site, distance_m, boundary);
+  }
+  void label_codes(const grid::Code* codes, std::size_t count, std::int32_t* site, float* distance_m,
+                   std::uint8_t* boundary) const override {
+    for (std::size_t k = 0; k < count; ++k) put(codes[k], k, site, distance_m, boundary);
+  }
+
+ private:
+  void put(grid::Code code, std::size_t k, std::int32_t* site, float* distance_m, std::uint8_t* boundary) const {
+    site[k] = labels_.site[code];
+    if (distance_m) distance_m[k] = labels_.distance_m[code];
+    if (boundary) boundary[k] = is_boundary(labels_, code) ? 1 : 0;
+  }
+  CellLabels labels_;
+};
 
 // The run's plumbing (common/run_context.hpp): a progress callback returning false stops the
 // writing with Interrupted, and what was written is removed.
@@ -79,6 +123,9 @@ struct RasterGrid {
   Layout layout = Layout::qtm;
   double x_resolution = 0, y_resolution = 0;  ///< -tr (degrees); 0: from -ts or the default
   int width = 0, height = 0;                  ///< -ts (pixels); 0: from -tr or the default
+  /// -ot: the bands' data type, one of Byte, UInt16, Int16, UInt32, Int32, Float32, Float64
+  /// (any case); empty: the default of raster_writer.hpp.
+  std::string data_type;
   std::vector<std::string> creation_options;  ///< -co NAME=VALUE
 };
 
@@ -86,6 +133,9 @@ struct RasterGrid {
 struct RasterOptions : RasterGrid {
   std::string driver = "GTiff";  ///< GDAL driver short name
   ProgressFunc progress;         ///< may be empty
+  /// Bytes the writer's buffers for one strip of rows may take (its pixels and their labels);
+  /// 0: kDefaultStripBytes. At least one row is written at a time, whatever this says.
+  std::uint64_t strip_bytes = 0;
 };
 
 }  // namespace qtmv::write

@@ -4,6 +4,7 @@
 #include <cpl_conv.h>
 #include <cpl_string.h>
 #include <cpl_vsi.h>
+#include <gdal.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -19,11 +20,16 @@ namespace qtmv::write {
 OutputSize estimate_raster_size(int level, const RasterOptions& options, bool with_distance) {
   const RasterSize size = raster_size(level, options);
   const int bands = with_distance ? 3 : 2;
-  const std::uint64_t bytes_per_sample = with_distance ? 8 : 4;  // Float64 or Int32 (raster_writer.hpp)
+  check_raster_data_type(options.data_type);
+  // The default before the FIDs are known: Float32 with distances, Int32 without (larger FIDs
+  // make it Float64 later).
+  const std::string type = options.data_type.empty() ? (with_distance ? "Float32" : "Int32") : options.data_type;
+  const GDALDataType gdal_type = GDALGetDataTypeByName(type.c_str());
+  const std::uint64_t bytes_per_sample = static_cast<std::uint64_t>(GDALGetDataTypeSizeBytes(gdal_type));
   OutputSize out;
   out.bytes = static_cast<std::uint64_t>(size.width) * static_cast<std::uint64_t>(size.height) * bands * bytes_per_sample;
   out.what = std::to_string(size.width) + " x " + std::to_string(size.height) + " pixels, " + std::to_string(bands) +
-             " bands of " + (with_distance ? "Float64" : "Int32");
+             " bands of " + GDALGetDataTypeName(gdal_type);
   const bool sized = options.width > 0 || options.height > 0 || options.x_resolution > 0 || options.y_resolution > 0;
   out.smaller = options.layout == RasterOptions::Layout::lonlat && sized ? "fewer pixels (-tr, -ts)" : "a lower -level";
   return out;

@@ -13,11 +13,15 @@
 #include <climits>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
+#include <functional>
 #include <limits>
 #include <string>
 #include <vector>
 
 #include "gdal/error_capture.hpp"
+#include "common/openmp_threads.hpp"
+#include "common/parallel_sort.hpp"
 #include "grid/qtm.hpp"
 
 namespace qtmv::write {
@@ -28,11 +32,10 @@ using grid::Code;
 
 constexpr const char* kStage = "write";
 constexpr const char* kBandNames[3] = {"site_fid", "boundary", "distance_m"};
-/// Largest staging dataset kept in memory for CreateCopy-only drivers (bytes).
-constexpr std::uint64_t kMemStagingLimit = std::uint64_t{1} << 30;
-/// A row strip: at least this many pixels per RasterIO, at most this many bytes of buffer.
-constexpr std::uint64_t kStripPixels = std::uint64_t{1} << 20;
-constexpr std::uint64_t kStripBytesMax = std::uint64_t{64} << 20;
+/// The data types of -ot, as GDAL names them.
+constexpr const char* kDataTypes[] = {"Byte", "UInt16", "Int16", "UInt32", "Int32", "Float32", "Float64"};
+/// The block height assumed by raster_buffer_bytes (GeoTIFF's tiles are 256 x 256).
+constexpr std::uint64_t kAssumedBlockRows = 256;
 
 bool is_vsi(const std::string& path) { return path.rfind("/vsi", 0) == 0; }
 
@@ -42,76 +45,207 @@ bool has_token(const char* list, const char* token) {
   return tokens.FindString(token) >= 0;
 }
 
-/// Fills row strips of band-sequential buffers of T (int32 or double), nodata -1.
+bool is_integer(GDALDataType type) { return type != GDT_Float32 && type != GDT_Float64; }
+
+/// The largest value a band of `type` holds as data (below the nodata of an unsigned type).
+double largest_value(GDALDataType type) {
+  switch (type) {
+    case GDT_Byte: return 254;
+    case GDT_UInt16: return 65534;
+    case GDT_Int16: return 32767;
+    case GDT_UInt32: return 4294967294.0;
+    case GDT_Int32: return 2147483647.0;
+    case GDT_Float32: return static_cast<double>(std::numeric_limits<float>::max());
+    default: return std::numeric_limits<double>::max();
+  }
+}
+
+/// Whether FID `fid` is stored exactly in a band of `type`.
+bool fid_fits(std::int64_t fid, GDALDataType type) {
+  if (fid < 0) return false;
+  if (type == GDT_Float32) return static_cast<std::int64_t>(static_cast<float>(fid)) == fid;
+  if (type == GDT_Float64) return static_cast<std::int64_t>(static_cast<double>(fid)) == fid;
+  return static_cast<double>(fid) <= largest_value(type);
+}
+
+std::string range_text(GDALDataType type) {
+  switch (type) {
+    case GDT_Byte: return "0..254, 255 being nodata";
+    case GDT_UInt16: return "0..65534, 65535 being nodata";
+    case GDT_Int16: return "0..32767";
+    case GDT_UInt32: return "0..4294967294, 4294967295 being nodata";
+    case GDT_Int32: return "0..2147483647";
+    case GDT_Float32: return "integers up to 16777216 = 2^24 and some larger ones";
+    default: return "integers up to 2^53 and some larger ones";
+  }
+}
+
+GDALDataType type_by_name(const std::string& name) {
+  for (const char* t : kDataTypes) {
+    if (EQUAL(name.c_str(), t)) return GDALGetDataTypeByName(t);
+  }
+  return GDT_Unknown;
+}
+
+/// The labels of one strip and the pixels' cells: what the source fills.
+struct StripLabels {
+  std::vector<grid::Code> pixel_code;  // lonlat: each pixel's cell (kInvalidCode: nodata)
+  std::vector<grid::Code> codes;       // lonlat: the strip's cells, sorted, without repeats
+  std::vector<std::int32_t> site;
+  std::vector<float> distance_m;
+  std::vector<std::uint8_t> boundary;
+};
+
+/// Fills row strips of band-sequential buffers of T with the labels of a CellLabelSource.
 struct Filler {
   int level;
   RasterOptions::Layout layout;
   RasterSize size;
   int bands;
-  const CellLabels& labels;
-  const std::vector<std::int32_t>& fid_of;
-  std::atomic<std::int64_t> bad_site{-1};  // first site id outside the table, if any
+  GDALDataType type;
+  double nodata;
+  const CellLabelSource& source;
+  const std::vector<std::int64_t>& fid_of;
+  int threads;
+  StripLabels labels;
+  std::atomic<std::int64_t> bad_site{-1};      // first site id outside the table, if any
+  std::atomic<std::int64_t> bad_distance{-1};  // a cell whose distance does not fit the type
+  float bad_distance_value = 0;
 
+  /// Asks the source for the labels of rows [y0, y0 + rows) and fills `buffer` with them.
   template <typename T>
   void fill(int y0, int rows, T* buffer) {
     const std::size_t band_space = static_cast<std::size_t>(size.width) * rows;
-#pragma omp parallel for schedule(dynamic, 4)
+    const bool with_distance = bands == 3;
+    if (layout == RasterOptions::Layout::qtm) {
+      const Code first = row_start(y0);
+      const std::size_t count = static_cast<std::size_t>(row_span(y0, rows));
+      resize(count, with_distance);
+      source.label_range(first, count, labels.site.data(), with_distance ? labels.distance_m.data() : nullptr,
+                         labels.boundary.data());
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 4)
+      for (int r = 0; r < rows; ++r) {
+        T* out = buffer + static_cast<std::size_t>(r) * size.width;
+        const Code start = row_start(y0 + r);
+        const std::size_t cols = static_cast<std::size_t>(2 * row_of(y0 + r) + 1);
+        for (std::size_t x = 0; x < cols; ++x) put(static_cast<std::size_t>(start - first) + x, start + x, out, x, band_space);
+        for (std::size_t x = cols; x < static_cast<std::size_t>(size.width); ++x) put_nodata(out, x, band_space);
+      }
+      return;
+    }
+    // lon/lat: each pixel's cell, then the strip's cells once each.
+    labels.pixel_code.resize(band_space);
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 4)
+    for (int r = 0; r < rows; ++r) {
+      const double lat = 90.0 - (y0 + r + 0.5) * size.y_resolution;
+      Code* codes = labels.pixel_code.data() + static_cast<std::size_t>(r) * size.width;
+      for (std::size_t x = 0; x < static_cast<std::size_t>(size.width); ++x) {
+        const double lon = -180.0 + (static_cast<double>(x) + 0.5) * size.x_resolution;
+        codes[x] = grid::lonlat_to_code(lon, lat, level);  // invalid past latitude -90
+      }
+    }
+    labels.codes = labels.pixel_code;
+    parallel_sort(labels.codes.begin(), labels.codes.end(), std::less<Code>());
+    labels.codes.erase(std::unique(labels.codes.begin(), labels.codes.end()), labels.codes.end());
+    if (!labels.codes.empty() && labels.codes.back() == grid::kInvalidCode) labels.codes.pop_back();
+    resize(labels.codes.size(), with_distance);
+    source.label_codes(labels.codes.data(), labels.codes.size(), labels.site.data(),
+                       with_distance ? labels.distance_m.data() : nullptr, labels.boundary.data());
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 4)
     for (int r = 0; r < rows; ++r) {
       T* out = buffer + static_cast<std::size_t>(r) * size.width;
-      if (layout == RasterOptions::Layout::qtm) {
-        fill_qtm_row(y0 + r, out, band_space);
-      } else {
-        fill_lonlat_row(y0 + r, out, band_space);
+      const Code* codes = labels.pixel_code.data() + static_cast<std::size_t>(r) * size.width;
+      for (std::size_t x = 0; x < static_cast<std::size_t>(size.width); ++x) {
+        if (codes[x] == grid::kInvalidCode) {
+          put_nodata(out, x, band_space);
+          continue;
+        }
+        const std::size_t k = static_cast<std::size_t>(
+            std::lower_bound(labels.codes.begin(), labels.codes.end(), codes[x]) - labels.codes.begin());
+        put(k, codes[x], out, x, band_space);
       }
     }
   }
 
+  Code row_start(int y) const {
+    const std::uint64_t octant = static_cast<std::uint64_t>(y) >> level;
+    const std::uint64_t i = row_of(y);
+    return octant * grid::cells_per_octant(level) + i * i;
+  }
+  std::uint64_t row_of(int y) const { return static_cast<std::uint64_t>(y) & (grid::rows_per_octant(level) - 1); }
+  /// Codes of rows [y0, y0 + rows): contiguous, since an octant's last row ends where the next
+  /// octant's first row begins.
+  std::uint64_t row_span(int y0, int rows) const {
+    const int last = y0 + rows - 1;
+    return row_start(last) + 2 * row_of(last) + 1 - row_start(y0);
+  }
+
+  void resize(std::size_t count, bool with_distance) {
+    labels.site.resize(count);
+    labels.boundary.resize(count);
+    if (with_distance) labels.distance_m.resize(count);
+  }
+
   template <typename T>
-  void put(Code code, T* out, std::size_t x, std::size_t band_space) {
-    const std::int32_t s = labels.site[code];
+  void put(std::size_t k, Code code, T* out, std::size_t x, std::size_t band_space) {
+    const std::int32_t s = labels.site[k];
     if (s < 0 || static_cast<std::size_t>(s) >= fid_of.size()) {
-      if (s >= 0) {
-        std::int64_t expected = -1;
-        bad_site.compare_exchange_strong(expected, s);
-      }
+      std::int64_t expected = -1;
+      bad_site.compare_exchange_strong(expected, s);
       put_nodata(out, x, band_space);
       return;
     }
-    out[x] = static_cast<T>(fid_of[s]);
-    out[band_space + x] = static_cast<T>(is_boundary(labels, code));
-    if (bands == 3) out[2 * band_space + x] = static_cast<T>(labels.distance_m[code]);
+    out[x] = static_cast<T>(fid_of[s]);  // exact: checked against the type before writing
+    out[band_space + x] = static_cast<T>(labels.boundary[k]);
+    if (bands == 3) {
+      const float d = labels.distance_m[k];
+      if (is_integer(type)) {
+        const double metres = std::nearbyint(static_cast<double>(d));  // whole metres, ties to even
+        if (!(metres >= 0 && metres <= largest_value(type))) {
+          std::int64_t expected = -1;
+          if (bad_distance.compare_exchange_strong(expected, static_cast<std::int64_t>(code))) bad_distance_value = d;
+          out[2 * band_space + x] = static_cast<T>(nodata);
+          return;
+        }
+        out[2 * band_space + x] = static_cast<T>(metres);
+      } else {
+        out[2 * band_space + x] = static_cast<T>(d);
+      }
+    }
   }
 
   template <typename T>
   void put_nodata(T* out, std::size_t x, std::size_t band_space) {
-    for (int b = 0; b < bands; ++b) out[b * band_space + x] = static_cast<T>(kRasterNodata);
+    for (int b = 0; b < bands; ++b) out[b * band_space + x] = static_cast<T>(nodata);
   }
+};
 
+/// A strip buffer of any band type, and Filler::fill for it.
+struct StripBuffer {
+  GDALDataType type;
+  std::vector<unsigned char> bytes;
   template <typename T>
-  void fill_qtm_row(int y, T* out, std::size_t band_space) {
-    const std::uint64_t rows_per = grid::rows_per_octant(level);
-    const std::uint64_t octant = static_cast<std::uint64_t>(y) >> level;
-    const std::uint64_t i = static_cast<std::uint64_t>(y) & (rows_per - 1);
-    const Code row_start = octant * grid::cells_per_octant(level) + i * i;
-    const std::size_t cols = static_cast<std::size_t>(2 * i + 1);
-    for (std::size_t x = 0; x < cols; ++x) put(row_start + x, out, x, band_space);
-    for (std::size_t x = cols; x < static_cast<std::size_t>(size.width); ++x) put_nodata(out, x, band_space);
-  }
-
-  template <typename T>
-  void fill_lonlat_row(int y, T* out, std::size_t band_space) {
-    const double lat = 90.0 - (y + 0.5) * size.y_resolution;
-    for (std::size_t x = 0; x < static_cast<std::size_t>(size.width); ++x) {
-      const double lon = -180.0 + (static_cast<double>(x) + 0.5) * size.x_resolution;
-      const Code code = grid::lonlat_to_code(lon, lat, level);  // invalid past latitude -90
-      if (code == grid::kInvalidCode) {
-        put_nodata(out, x, band_space);
-      } else {
-        put(code, out, x, band_space);
-      }
+  T* as() { return reinterpret_cast<T*>(bytes.data()); }
+  void fill(Filler& filler, int y0, int rows) {
+    switch (type) {
+      case GDT_Byte: filler.fill(y0, rows, as<std::uint8_t>()); break;
+      case GDT_UInt16: filler.fill(y0, rows, as<std::uint16_t>()); break;
+      case GDT_Int16: filler.fill(y0, rows, as<std::int16_t>()); break;
+      case GDT_UInt32: filler.fill(y0, rows, as<std::uint32_t>()); break;
+      case GDT_Int32: filler.fill(y0, rows, as<std::int32_t>()); break;
+      case GDT_Float32: filler.fill(y0, rows, as<float>()); break;
+      default: filler.fill(y0, rows, as<double>()); break;
     }
   }
 };
+
+/// Bytes a pixel of a strip takes in the writer's buffers: its bands, and its cell's labels (the
+/// lon/lat layout also keeps the pixel's code and the strip's sorted codes).
+std::uint64_t strip_bytes_per_pixel(RasterOptions::Layout layout, int bands, int type_bytes) {
+  const std::uint64_t labels = sizeof(std::int32_t) + sizeof(float) + 1;
+  return static_cast<std::uint64_t>(bands) * type_bytes + labels +
+         (layout == RasterOptions::Layout::lonlat ? 2 * sizeof(grid::Code) : 0);
+}
 
 struct CopyProgress {
   const ProgressFunc* progress;
@@ -199,31 +333,88 @@ RasterSize raster_size(int level, const RasterOptions& options) {
   return size;
 }
 
+void check_raster_data_type(const std::string& data_type) {
+  if (data_type.empty() || type_by_name(data_type) != GDT_Unknown) return;
+  std::string names;
+  for (const char* t : kDataTypes) names += (names.empty() ? "" : ", ") + std::string(t);
+  throw WriteError("-ot: '" + data_type + "' is not one of " + names);
+}
+
+double raster_nodata(const std::string& data_type) {
+  const GDALDataType type = type_by_name(data_type);
+  switch (type) {
+    case GDT_Byte: return 255;
+    case GDT_UInt16: return 65535;
+    case GDT_UInt32: return 4294967295.0;
+    default: return -1;
+  }
+}
+
+std::string raster_data_type(const RasterOptions& options, bool with_distance, const sites::SiteTable& table) {
+  check_raster_data_type(options.data_type);
+  const auto all_fit = [&](GDALDataType type) {
+    return std::all_of(table.sites.begin(), table.sites.end(),
+                       [&](const sites::SiteRecord& site) { return fid_fits(site.fid, type); });
+  };
+  GDALDataType type;
+  if (!options.data_type.empty()) {
+    type = type_by_name(options.data_type);
+  } else if (with_distance) {
+    type = all_fit(GDT_Float32) ? GDT_Float32 : GDT_Float64;
+  } else {
+    type = all_fit(GDT_Int32) ? GDT_Int32 : GDT_Float64;
+  }
+  for (std::size_t s = 0; s < table.sites.size(); ++s) {
+    const std::int64_t fid = table.sites[s].fid;
+    if (fid_fits(fid, type)) continue;
+    const std::string name = GDALGetDataTypeName(type);
+    throw WriteError("band 1 (site_fid): site " + std::to_string(s) + " has FID " + std::to_string(fid) +
+                     (fid < 0 ? ", and FIDs must be 0 or more" : ", which " + name + " does not hold exactly (" +
+                                                                     range_text(type) + ")") +
+                     (options.data_type.empty() ? "" : ": choose a wider -ot than " + name + ", e.g. " +
+                                                           (type == GDT_Float32 ? "Float64" : "Int32 or Float64")));
+  }
+  return GDALGetDataTypeName(type);
+}
+
+std::uint64_t raster_buffer_bytes(int level, const RasterOptions& options, bool with_distance) {
+  const RasterSize size = raster_size(level, options);
+  const int bands = with_distance ? 3 : 2;
+  const std::uint64_t strip = options.strip_bytes ? options.strip_bytes : kDefaultStripBytes;
+  const std::uint64_t row = static_cast<std::uint64_t>(size.width) * strip_bytes_per_pixel(options.layout, bands, 8);
+  const std::uint64_t block_row = static_cast<std::uint64_t>(size.width) * bands * 8 *
+                                  std::min<std::uint64_t>(kAssumedBlockRows, static_cast<std::uint64_t>(size.height));
+  return std::max({strip, row, block_row});
+}
+
 void write_raster(const std::string& path, const CellLabels& labels, const sites::SiteTable& table,
                   const RasterOptions& options) {
   if (labels.site == nullptr) throw WriteError(path + ": no labels to write");
-  const int level = labels.level;
+  write_raster(path, DenseLabelSource(labels), table, options);
+}
+
+void write_raster(const std::string& path, const CellLabelSource& labels, const sites::SiteTable& table,
+                  const RasterOptions& options) {
+  const int level = labels.level();
   RasterSize size;
   try {
     size = raster_size(level, options);
   } catch (const WriteError& e) {
     throw WriteError(path + ": " + e.what());
   }
-  const bool with_distance = labels.distance_m != nullptr;
+  const bool with_distance = labels.has_distance();
   const int bands = with_distance ? 3 : 2;
-  const GDALDataType type = with_distance ? GDT_Float64 : GDT_Int32;
-  const int type_bytes = GDALGetDataTypeSizeBytes(type);
-
-  // Band 1 is specified as Int32: a FID outside it is an error, not a wrapped value.
-  std::vector<std::int32_t> fid_of(table.sites.size());
-  for (std::size_t s = 0; s < table.sites.size(); ++s) {
-    const std::int64_t fid = table.sites[s].fid;
-    if (fid < 0 || fid > std::numeric_limits<std::int32_t>::max()) {
-      throw WriteError(path + ": band 1 (site_fid): site " + std::to_string(s) + " has FID " + std::to_string(fid) +
-                       ", outside 0.." + std::to_string(std::numeric_limits<std::int32_t>::max()));
-    }
-    fid_of[s] = static_cast<std::int32_t>(fid);
+  GDALDataType type;
+  try {
+    type = GDALGetDataTypeByName(raster_data_type(options, with_distance, table).c_str());
+  } catch (const WriteError& e) {
+    throw WriteError(path + ": " + e.what());
   }
+  const int type_bytes = GDALGetDataTypeSizeBytes(type);
+  const double nodata = raster_nodata(GDALGetDataTypeName(type));
+  std::vector<std::int64_t> fid_of(table.sites.size());
+  for (std::size_t s = 0; s < table.sites.size(); ++s) fid_of[s] = table.sites[s].fid;
+  const std::uint64_t strip_budget = options.strip_bytes ? options.strip_bytes : kDefaultStripBytes;
 
   if (GDALGetDriverCount() == 0) GDALAllRegister();
   gdal::ErrorCapture errors(gdal::ErrorCapture::Warnings::pass_on);
@@ -239,8 +430,7 @@ void write_raster(const std::string& path, const CellLabels& labels, const sites
   const char* types = GDALGetMetadataItem(driver, GDAL_DMD_CREATIONDATATYPES, nullptr);
   if (!has_token(types, GDALGetDataTypeName(type))) {
     throw WriteError(path + ": driver " + name + " cannot hold " + GDALGetDataTypeName(type) + " bands (it creates " +
-                     types + "); band 1 (site_fid) needs Int32" +
-                     (with_distance ? ", and with band 3 (distance_m) all bands are Float64" : "") +
+                     types + ")" + (options.data_type.empty() ? "; -ot names another type, if the values fit it" : "") +
                      "; use GTiff or another format");
   }
 
@@ -280,7 +470,7 @@ void write_raster(const std::string& path, const CellLabels& labels, const sites
       out.dataset = GDALCreate(driver, path.c_str(), size.width, size.height, bands, type, co.List());
       if (out.dataset != nullptr) out.created = true;
       if (out.dataset == nullptr || errors.failed()) throw gdal_error("cannot create " + name + " raster");
-    } else if (total_bytes <= kMemStagingLimit || is_vsi(path)) {
+    } else if (total_bytes <= strip_budget || is_vsi(path)) {
       out.dataset = GDALCreate(GDALGetDriverByName("MEM"), "", size.width, size.height, bands, type, nullptr);
       if (out.dataset == nullptr || errors.failed()) throw gdal_error("cannot create the in-memory staging raster");
     } else {
@@ -322,48 +512,59 @@ void write_raster(const std::string& path, const CellLabels& labels, const sites
       GDALRasterBandH band = GDALGetRasterBand(ds, b + 1);
       GDALSetDescription(band, kBandNames[b]);
       if (errors.failed()) throw gdal_error(band_label(b) + ": setting the description");
-      check(GDALSetRasterNoDataValue(band, kRasterNodata), band_label(b) + ": setting nodata");
+      check(GDALSetRasterNoDataValue(band, nodata), band_label(b) + ": setting nodata");
       if (b == 2) check(GDALSetRasterUnitType(band, "m"), band_label(b) + ": setting the unit");
     }
 
     // --- the pixels, strip by strip ---------------------------------------------------------------
+    // Strips of whole rows of blocks where the budget allows (each block written once, then
+    // flushed from GDAL's cache); else at least one row, and the blocks flushed when their row
+    // of blocks is complete.
     int block_w = 0, block_h = 0;
     GDALGetBlockSize(GDALGetRasterBand(ds, 1), &block_w, &block_h);
     block_h = std::max(1, block_h);
-    const std::uint64_t row_bytes = static_cast<std::uint64_t>(size.width) * bands * type_bytes;
-    std::uint64_t strip = std::max<std::uint64_t>(1, kStripPixels / size.width);
-    strip = (strip + block_h - 1) / block_h * block_h;  // whole blocks: each tile is written once
-    strip = std::max<std::uint64_t>(1, std::min<std::uint64_t>(strip, kStripBytesMax / row_bytes));
+    const std::uint64_t row_bytes = static_cast<std::uint64_t>(size.width) * strip_bytes_per_pixel(options.layout, bands, type_bytes);
+    std::uint64_t strip = std::max<std::uint64_t>(1, strip_budget / row_bytes);
+    if (strip >= static_cast<std::uint64_t>(block_h)) strip = strip / block_h * block_h;
     strip = std::min<std::uint64_t>(strip, static_cast<std::uint64_t>(size.height));
     const int strip_rows = static_cast<int>(strip);
 
-    Filler filler{level, options.layout, size, bands, labels, fid_of};
-    std::vector<std::int32_t> ints;
-    std::vector<double> doubles;
-    (type == GDT_Int32 ? ints.resize(strip * size.width * bands) : doubles.resize(strip * size.width * bands));
+    Filler filler{level, options.layout, size, bands, type, nodata, labels, fid_of, thread_count(0), {}, {-1}, {-1}, 0};
+    StripBuffer buffer{type, {}};
+    buffer.bytes.resize(strip * size.width * bands * type_bytes);
     const double write_share = can_create ? 1.0 : 0.5;
     if (options.progress && !options.progress(0.0, kStage)) throw Interrupted();
     for (int y0 = 0; y0 < size.height; y0 += strip_rows) {
       const int rows = std::min(strip_rows, size.height - y0);
-      void* buffer;
-      if (type == GDT_Int32) {
-        filler.fill(y0, rows, ints.data());
-        buffer = ints.data();
-      } else {
-        filler.fill(y0, rows, doubles.data());
-        buffer = doubles.data();
-      }
+      buffer.fill(filler, y0, rows);
       if (filler.bad_site >= 0) {
         throw WriteError(path + ": band 1 (site_fid): site id " + std::to_string(filler.bad_site.load()) +
                          " is not in the site table (" + std::to_string(fid_of.size()) + " sites)");
       }
+      if (filler.bad_distance >= 0) {
+        char metres[64];
+        std::snprintf(metres, sizeof metres, "%.1f", static_cast<double>(filler.bad_distance_value));
+        throw WriteError(path + ": band 3 (distance_m): cell " + std::to_string(filler.bad_distance.load()) +
+                         " is " + metres + " m from its site, outside " + GDALGetDataTypeName(type) + " (" +
+                         range_text(type) + "; distances are rounded to whole metres): choose a wider -ot, e.g. " +
+                         "UInt32, Int32 or Float32");
+      }
       const std::size_t band_space = static_cast<std::size_t>(size.width) * rows;
       for (int b = 0; b < bands; ++b) {
-        void* data = static_cast<char*>(buffer) + b * band_space * type_bytes;
+        void* data = buffer.bytes.data() + b * band_space * type_bytes;
         const CPLErr err =
             GDALRasterIO(GDALGetRasterBand(ds, b + 1), GF_Write, 0, y0, size.width, rows, data, size.width, rows, type, 0, 0);
         if (err != CE_None || errors.failed()) {
           throw gdal_error(band_label(b) + ": writing rows " + std::to_string(y0) + "-" + std::to_string(y0 + rows - 1));
+        }
+      }
+      // A complete row of blocks leaves GDAL's cache now: its memory follows the strip.
+      if ((y0 + rows) % block_h == 0 || y0 + rows == size.height) {
+        for (int b = 0; b < bands; ++b) {
+          const CPLErr err = GDALFlushRasterCache(GDALGetRasterBand(ds, b + 1));
+          if (err != CE_None || errors.failed()) {
+            throw gdal_error(band_label(b) + ": writing rows up to " + std::to_string(y0 + rows - 1));
+          }
         }
       }
       if (options.progress && !options.progress(write_share * (y0 + rows) / size.height, kStage)) {

@@ -6,12 +6,21 @@
 //   2  1 on boundary cells, else 0
 //   3  distance from the cell's centre to its site (metres); only when labels.distance_m is set
 //
-// One data type and one nodata value for all bands. GDAL's Create takes one type for all bands,
-// and GeoTIFF keeps one nodata value per file (TIFFTAG_GDAL_NODATA), so the spec's per-band
-// Int32 / Byte / Float32 with nodata -1 / 255 / NaN cannot be stored in one GeoTIFF. Instead:
-//   - with distances:    Float64 (holds every Int32 FID, 0/1 and every Float32 distance exactly)
-//   - without distances: Int32 (two bands)
-//   - nodata is -1 in every band (FIDs, 0/1 and distances are all >= 0).
+// One data type and one nodata value for all bands: GDAL's Create takes one type for all bands,
+// and GeoTIFF keeps one nodata value per file (TIFFTAG_GDAL_NODATA), so an Int32 FID, a Byte
+// flag and a Float32 distance cannot share one GeoTIFF. No value is ever changed silently:
+//   - default with distances: Float32 when every FID is exact in Float32 (every FID up to
+//     2^24 = 16 777 216, and larger ones that happen to be), else Float64. Float32 holds the
+//     labeller's distances (float metres) and the 0/1 flags exactly, at half Float64's size.
+//   - default without distances: Int32 when every FID fits it, else Float64.
+//   - -ot TYPE (RasterGrid::data_type; Byte, UInt16, Int16, UInt32, Int32, Float32, Float64, as
+//     gdal_translate): integer types hold distances rounded to whole metres. A FID outside the
+//     type (or not exact in Float32) is a WriteError naming -ot and the FID before anything is
+//     written; a distance outside it a WriteError naming -ot, the distance and the cell, found
+//     while writing (the output is then removed).
+//   - nodata (raster_nodata): -1 for signed integer and float types, the type's largest value for
+//     unsigned ones (255, 65535, 4294967295), which no FID may then take. FIDs, 0/1 and distances
+//     are all >= 0.
 //
 // When labels.boundary is null, band 2 is computed from labels.site with grid::neighbours (a cell
 // is on a boundary when one of its three edge neighbours has another site).
@@ -30,14 +39,22 @@
 //           the equator: 4 * 2^L x 2 * 2^L pixels, as many pixels as cells.
 //           Dataset metadata: QTM_LEVEL, QTM_LAYOUT=lonlat.
 //
-// Drivers: any GDAL raster driver that can Create (written strip by strip) or only CreateCopy
-// (written to a staging dataset first: MEM up to 1 GiB, else a tiled DEFLATE GeoTIFF beside the
-// destination, removed afterwards). GTiff gets TILED=YES, COMPRESS=DEFLATE (with ZLEVEL=1),
+// Streaming: the writer holds one strip of rows at a time (RasterOptions::strip_bytes, 64 MiB by
+// default: the strip's pixels and its cells' labels) and asks its CellLabelSource for the labels of
+// that strip only: the QTM-coded raster's strip of pixel rows is one range of codes (row
+// octant * 2^L + i holds codes [o * 4^L + i^2, o * 4^L + (i + 1)^2)); a lon/lat strip the sorted,
+// de-duplicated codes of its pixels' centres. After each strip that ends a row of the driver's
+// blocks those blocks are flushed from GDAL's cache, so the cache holds at most one row of blocks.
+//
+// Drivers: any GDAL raster driver that can Create (written strip by strip) or only CreateCopy,
+// such as COG (written to a staging dataset first: MEM when the whole raster fits one strip's
+// budget, else a tiled DEFLATE GeoTIFF beside the destination, removed afterwards). GTiff gets TILED=YES, COMPRESS=DEFLATE (with ZLEVEL=1),
 // BIGTIFF=IF_SAFER, INTERLEAVE=BAND and NUM_THREADS=ALL_CPUS unless creation_options name them
 // (5.6x faster than GDAL's DEFLATE defaults at level 11, and no larger). A driver that cannot create the band type (PNG: Byte/UInt16 only)
 // is a WriteError, never a silent truncation.
 #pragma once
 
+#include <cstdint>
 #include <string>
 
 #include "sites/site_table.hpp"
@@ -45,15 +62,35 @@
 
 namespace qtmv::write {
 
-/// Nodata value of every band of the rasters written.
-constexpr double kRasterNodata = -1.0;
+/// Buffers of one strip (bytes) when RasterOptions::strip_bytes is 0.
+constexpr std::uint64_t kDefaultStripBytes = std::uint64_t{64} << 20;
 
-/// Writes the raster to `path` with options.driver. Throws WriteError naming the destination,
-/// the band and GDAL's message on any failure (after removing what it had written), and
-/// Interrupted when options.progress returns false. FIDs must lie in
-/// [0, 2^31 - 1]; a site id outside the table is an error.
+/// The bands' data type for these options (RasterGrid::data_type or the default above), as
+/// GDAL names it ("Float32"). Throws WriteError naming -ot for an unknown type, and naming -ot
+/// (or the default) and the FID when a FID does not fit the type exactly.
+std::string raster_data_type(const RasterOptions& options, bool with_distance, const sites::SiteTable& table);
+
+/// Throws WriteError when `data_type` (-ot) is not one of the types above (empty is fine).
+void check_raster_data_type(const std::string& data_type);
+
+/// Nodata value of every band for the data type `data_type` (a GDAL name): -1, or the largest
+/// value of an unsigned integer type.
+double raster_nodata(const std::string& data_type);
+
+/// Writes the raster to `path` with options.driver, strip by strip, asking `labels` for each
+/// strip's labels. Throws WriteError naming the destination, the band and GDAL's message on any
+/// failure (after removing what it had written), and Interrupted when options.progress returns
+/// false. A site id outside the table is an error.
+void write_raster(const std::string& path, const CellLabelSource& labels, const sites::SiteTable& table,
+                  const RasterOptions& options);
+
+/// The same from every cell's labels in arrays.
 void write_raster(const std::string& path, const CellLabels& labels, const sites::SiteTable& table,
                   const RasterOptions& options);
+
+/// Host bytes the writer's buffers take at most for these options: one strip, or one row of
+/// 256-row blocks in GDAL's cache where that is larger (bands x 8 bytes a pixel at most).
+std::uint64_t raster_buffer_bytes(int level, const RasterOptions& options, bool with_distance);
 
 /// The raster's size (pixels) for these options and level, as write_raster would make it.
 /// Throws WriteError for bad -tr / -ts values or a size beyond GDAL's int.

@@ -16,16 +16,23 @@ TEST(OutputSize, RasterIsPixelsTimesBandsTimesBytes) {
   o.layout = RasterOptions::Layout::lonlat;
   o.width = o.height = 1000000;
   const OutputSize big = estimate_raster_size(4, o, true);
-  EXPECT_EQ(big.bytes, 24000000000000ull);  // 10^12 pixels, 3 bands of 8 bytes
-  EXPECT_EQ(big.what, "1000000 x 1000000 pixels, 3 bands of Float64");
+  EXPECT_EQ(big.bytes, 12000000000000ull);  // 10^12 pixels, 3 bands of 4 bytes (Float32 by default)
+  EXPECT_EQ(big.what, "1000000 x 1000000 pixels, 3 bands of Float32");
   EXPECT_EQ(big.smaller, "fewer pixels (-tr, -ts)");
   const OutputSize ints = estimate_raster_size(4, o, false);
   EXPECT_EQ(ints.bytes, 8000000000000ull);  // 2 bands of Int32
   EXPECT_EQ(ints.what, "1000000 x 1000000 pixels, 2 bands of Int32");
   // The QTM-coded raster: (2^(L+1) - 1) x 8 * 2^L pixels.
   const OutputSize qtm = estimate_raster_size(9, RasterOptions{}, true);
-  EXPECT_EQ(qtm.bytes, 1023ull * 4096 * 24);
+  EXPECT_EQ(qtm.bytes, 1023ull * 4096 * 12);
   EXPECT_EQ(qtm.smaller, "a lower -level");
+  // -ot: the named type.
+  o.data_type = "float64";
+  EXPECT_EQ(estimate_raster_size(4, o, true).bytes, 24000000000000ull);
+  o.data_type = "Byte";
+  EXPECT_EQ(estimate_raster_size(4, o, true).what, "1000000 x 1000000 pixels, 3 bands of Byte");
+  o.data_type = "Int8";
+  EXPECT_THROW(estimate_raster_size(4, o, true), WriteError);
 }
 
 TEST(OutputSize, VectorCountsTheCellsLayerOnly) {

@@ -18,6 +18,7 @@
 
 #include "qtmv_version.hpp"
 #include "qtmvoronoi_usage.hpp"  // generated from man/qtmvoronoi.pod
+#include "write/raster_writer.hpp"
 #include "write/vector_writer.hpp"
 
 namespace qtmv::qtmvoronoi {
@@ -192,6 +193,13 @@ Options parse_command_line(const std::vector<std::string>& args) {
       run.vector.dataset_options.push_back(name_value(arg, value()));
     } else if (name == "-co") {
       run.raster.creation_options.push_back(name_value(arg, value()));
+    } else if (name == "-ot") {
+      run.raster.data_type = value();
+      try {
+        write::check_raster_data_type(run.raster.data_type);
+      } catch (const std::exception& e) {
+        throw UsageError(e.what());
+      }
     } else if (name == "-overwrite") {
       run.overwrite = true;
     } else if (name == "-q" || name == "-quiet") {

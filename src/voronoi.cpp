@@ -65,7 +65,8 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
 
   t0 = now_seconds();
   // A raster's labels are made strip by strip as it is written: that time counts as labelling.
-  const double strip_label_seconds = pipeline::write_stage(output.begin(), destination, labels, sites, plan, progress);
+  const double strip_label_seconds = pipeline::write_stage(output.begin(), destination, labels, sites, plan,
+                                                                  progress, options.messages, &summary.sites_without_cell);
   summary.label_seconds += strip_label_seconds;
   output.commit();
   summary.write_seconds = now_seconds() - t0 - strip_label_seconds;

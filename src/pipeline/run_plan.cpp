@@ -96,17 +96,15 @@ std::uint64_t estimate_run_memory(const RunPlan& plan, std::uint64_t sites) {
                           std::ldexp(1.0, level + 1) / 3.14159265358979;
   const double outline = static_cast<double>(label::row_end_count(level)) + std::min(boundary, double(dense.cells));
   if (plan.format.raster) {
-    // The label stage holds the outline cells (not traced: their own bytes only) and the
-    // labeller's tiles; the write stage the session's tree (its jump table grows with the level,
-    // up to 256 MiB) and the writer's strip, never every cell's labels.
-    const std::uint64_t label_stage = static_cast<std::uint64_t>(outline) * sizeof(label::OutlineCell) + tile_bytes;
+    // The labelling session's tree (its jump table grows with the level, up to 256 MiB) and the
+    // writer's strip: never every cell's labels.
     std::uint64_t strip = 0;
     try {
       strip = write::raster_buffer_bytes(level, plan.raster, plan.label.want_distance);
     } catch (const write::WriteError&) {
       strip = write::kDefaultStripBytes;  // bad sizes are reported by plan_run
     }
-    return std::max(label_stage, label::session_jump_table_bytes(level) + strip);
+    return label::session_jump_table_bytes(level) + strip;
   }
   return static_cast<std::uint64_t>(outline) * kBytesPerOutlineCell + tile_bytes;
 }
@@ -118,8 +116,7 @@ void check_run_memory(const RunPlan& plan, std::uint64_t memory_limit_bytes, std
   if (need <= allowed) return;
   throw VoronoiError("level " + std::to_string(plan.level) + (sites ? " with " + std::to_string(sites) + " sites" : "") +
                      " needs about " + format_gib(double(need)) + " for " +
-                     (plan.format.raster ? std::string("its outline cells, the labeller's tree and tiles, and the raster's "
-                                                       "strips")
+                     (plan.format.raster ? std::string("the labeller's tree and the raster's strips")
                                          : std::string("its outline cells and the labeller's tiles")) +
                      ", more than the " + format_gib(double(allowed)) + " allowed" +
                      (memory_limit_bytes ? "" : " (80% of this host's " + format_gib(double(ram)) + " of RAM)") +

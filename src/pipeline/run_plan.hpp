@@ -34,10 +34,11 @@ RunPlan plan_run(const std::string& destination, const VoronoiOptions& options);
 /// read (the estimate then takes one).
 void check_run_memory(const RunPlan& plan, std::uint64_t memory_limit_bytes, std::uint64_t sites);
 
-/// Host memory (bytes) the run's largest products take: the outline cells (an estimate from the
-/// site count: they grow 2x per level) and the labeller's tiles; for a raster, the larger of
-/// that (the label stage) and the session's jump table with the writer's strip (the write
-/// stage), which follow the strip size, not the cells.
+/// Host memory (bytes) the run's largest products take: for vector output the outline cells (an
+/// estimate from the site count: they grow 2x per level) and the labeller's tiles; for a raster
+/// the labelling session's jump table and the writer's strip, which follow the strip size, not
+/// the cells (the candidates and the rest of the tree, which grow with the sites, are not
+/// counted, as for vector output).
 std::uint64_t estimate_run_memory(const RunPlan& plan, std::uint64_t sites);
 
 }  // namespace qtmv::pipeline

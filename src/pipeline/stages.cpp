@@ -74,34 +74,22 @@ LabelledLevel label_stage(sites::SiteSet& sites, const VoronoiOptions& options, 
   label::LabelStats stats;
   std::vector<std::uint64_t> count;
   as_stage(progress, "labelling failed: ", [&] {
-    // The outline cells' counts tell which sites got no cell, for a raster too (cheaply: the work
-    // follows the outlines); a raster's labels come later, strip by strip, from the session.
-    label::LabelOptions outline_options = label_options;
     if (plan.format.raster) {
-      outline_options.progress = [&](double f, const char* stage) {
-        return progress.report(plan.read_end, plan.label_end, 0.6 * f, stage);
-      };
-    }
-    stats = label::label_outlines(sites.geometry.input(), outline_options, &out.outlines);
-    count = out.outlines.cells_per_site;
-    if (plan.format.raster) {
-      out.outlines = {};
+      // A raster's labels come strip by strip from the session as it is written (which sites
+      // got a cell is known then, from the pixels).
       label::LabelOptions session_options = label_options;
       session_options.want_distance = true;
       session_options.want_boundary = true;
-      session_options.progress = [&](double f, const char* stage) {
-        return progress.report(plan.read_end, plan.label_end, 0.6 + 0.4 * f, stage);
-      };
       out.session = std::make_unique<label::LabelSession>(sites.geometry.input(), session_options);
+      stats = out.session->stats();
+    } else {
+      stats = label::label_outlines(sites.geometry.input(), label_options, &out.outlines);
+      count = out.outlines.cells_per_site;
     }
   });
   out.device = stats.device;
   out.prepare_seconds = stats.prepare_seconds;
-  if (out.session) {
-    const label::LabelStats& raster = out.session->stats();
-    if (raster.device != out.device) out.device += ", raster labels on " + raster.device;
-    out.prepare_seconds += raster.prepare_seconds;
-  }
+  if (plan.format.raster) return out;
 
   // Sites left without a cell still get their row; say which.
   sites::FidList missing;
@@ -113,7 +101,7 @@ LabelledLevel label_stage(sites::SiteSet& sites, const VoronoiOptions& options, 
   if (missing.count() > 0) {
     tell(options.messages, Severity::warning,
          std::to_string(missing.count()) + " site(s) got no cell of their own at level " + std::to_string(plan.level) +
-             " (FIDs " + missing.text() + ")" + (plan.format.raster ? "" : "; they keep their row, with an empty geometry"));
+             " (FIDs " + missing.text() + "); they keep their row, with an empty geometry");
   }
   return out;
 }
@@ -147,7 +135,8 @@ class SessionSource : public write::CellLabelSource {
 }  // namespace
 
 double write_stage(const std::string& path, const std::string& destination, const LabelledLevel& labels,
-                   const sites::SiteSet& sites, const RunPlan& plan, RunProgress& progress) {
+                   const sites::SiteSet& sites, const RunPlan& plan, RunProgress& progress, const MessageSink& messages,
+                   std::uint64_t* without_cell) {
   const write::ProgressFunc write_progress = [&](double f, const char* stage) {
     return progress.report(plan.label_end, 1.0, f, stage);
   };
@@ -160,13 +149,30 @@ double write_stage(const std::string& path, const std::string& destination, cons
       raster_options.progress = write_progress;
       if (!labels.session) throw VoronoiError(destination + ": no labelling session for the raster");
       const SessionSource source(*labels.session);
+      write::RasterWritten written;
       try {
-        write::write_raster(path, source, sites.table, raster_options);
+        written = write::write_raster(path, source, sites.table, raster_options);
       } catch (...) {
         label_seconds = source.seconds;
         throw;
       }
       label_seconds = source.seconds;
+      // Sites that no pixel shows; say which (the QTM-coded raster has a pixel per cell).
+      sites::FidList missing;
+      for (std::size_t s = 0; s < written.site_seen.size(); ++s) {
+        if (!written.site_seen[s]) missing.add(sites.table.sites[s].fid);
+      }
+      *without_cell = missing.count();
+      if (missing.count() > 0) {
+        const std::string fids = " (FIDs " + missing.text() + ")";
+        tell(messages, Severity::warning,
+             std::to_string(missing.count()) +
+                 (plan.raster.layout == write::RasterOptions::Layout::qtm
+                      ? " site(s) got no cell of their own at level " + std::to_string(plan.level) + fids
+                      : " site(s) hold no pixel of the raster" + fids + ": their cells of level " +
+                            std::to_string(plan.level) + ", if any, hold no pixel's centre (a finer -tr or -ts may "
+                            "show them)"));
+      }
     } else {
       write::VectorOptions vector_options = plan.vector;
       vector_options.progress = write_progress;

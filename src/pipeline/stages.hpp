@@ -32,13 +32,12 @@ class RunProgress {
 };
 
 /// What the label stage hands the write stage: outlines for vector output; for a raster, the
-/// labelling session the writer streams from (the outlines' cells per site only told which
-/// sites got no cell, and are gone).
+/// labelling session the writer streams from.
 struct LabelledLevel {
   label::Outlines outlines;
   std::unique_ptr<label::LabelSession> session;
   std::string device;           ///< where the labelling ran
-  double prepare_seconds = 0;   ///< the labeller's candidates and tree (both trees for a raster)
+  double prepare_seconds = 0;   ///< the labeller's candidates and tree
 };
 
 /// Reads and rasterises the sites (progress in [0, plan.read_end]). Throws VoronoiError naming
@@ -48,16 +47,19 @@ sites::SiteSet read_stage(const std::string& source, const VoronoiOptions& optio
 
 /// Labels the level (progress in [plan.read_end, plan.label_end]) and marks the sites that got
 /// no cell (SiteRecord::has_own_cell), with one warning naming them; their count goes to
-/// *without_cell. Throws VoronoiError, or Interrupted.
+/// *without_cell. For a raster it only prepares the labelling session (the write stage then
+/// counts and names the sites without a pixel). Throws VoronoiError, or Interrupted.
 LabelledLevel label_stage(sites::SiteSet& sites, const VoronoiOptions& options, const RunPlan& plan,
                           RunProgress& progress, std::uint64_t* without_cell);
 
 /// Writes the destination from the labels (progress in [plan.label_end, 1]): into the staged
 /// output's temporary path, named as the destination in every message. For the cells layer the
 /// level is labelled again, tile by tile; a raster asks the session for each strip's labels.
-/// Returns the seconds spent labelling strips (part of the stage's time). Throws VoronoiError, or
-/// Interrupted.
+/// A raster's sites that no pixel holds are named in one warning to `messages`, and counted in
+/// *without_cell (the QTM-coded raster: sites without a cell). Returns the seconds spent
+/// labelling strips (part of the stage's time). Throws VoronoiError, or Interrupted.
 double write_stage(const std::string& path, const std::string& destination, const LabelledLevel& labels,
-                   const sites::SiteSet& sites, const RunPlan& plan, RunProgress& progress);
+                   const sites::SiteSet& sites, const RunPlan& plan, RunProgress& progress, const MessageSink& messages,
+                   std::uint64_t* without_cell);
 
 }  // namespace qtmv::pipeline

@@ -14,12 +14,14 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <functional>
 #include <limits>
 #include <string>
 #include <vector>
 
 #include "gdal/error_capture.hpp"
+#include "common/host_info.hpp"
 #include "common/openmp_threads.hpp"
 #include "common/parallel_sort.hpp"
 #include "grid/qtm.hpp"
@@ -106,6 +108,7 @@ struct Filler {
   double nodata;
   const CellLabelSource& source;
   const std::vector<std::int64_t>& fid_of;
+  std::vector<std::atomic<std::uint8_t>>& seen;  // per site: some pixel holds it
   int threads;
   StripLabels labels;
   std::atomic<std::int64_t> bad_site{-1};      // first site id outside the table, if any
@@ -195,6 +198,7 @@ struct Filler {
       put_nodata(out, x, band_space);
       return;
     }
+    if (seen[s].load(std::memory_order_relaxed) == 0) seen[s].store(1, std::memory_order_relaxed);
     out[x] = static_cast<T>(fid_of[s]);  // exact: checked against the type before writing
     out[band_space + x] = static_cast<T>(labels.boundary[k]);
     if (bands == 3) {
@@ -387,14 +391,14 @@ std::uint64_t raster_buffer_bytes(int level, const RasterOptions& options, bool 
   return std::max({strip, row, block_row});
 }
 
-void write_raster(const std::string& path, const CellLabels& labels, const sites::SiteTable& table,
-                  const RasterOptions& options) {
+RasterWritten write_raster(const std::string& path, const CellLabels& labels, const sites::SiteTable& table,
+                           const RasterOptions& options) {
   if (labels.site == nullptr) throw WriteError(path + ": no labels to write");
-  write_raster(path, DenseLabelSource(labels), table, options);
+  return write_raster(path, DenseLabelSource(labels), table, options);
 }
 
-void write_raster(const std::string& path, const CellLabelSource& labels, const sites::SiteTable& table,
-                  const RasterOptions& options) {
+RasterWritten write_raster(const std::string& path, const CellLabelSource& labels, const sites::SiteTable& table,
+                           const RasterOptions& options) {
   const int level = labels.level();
   RasterSize size;
   try {
@@ -456,6 +460,7 @@ void write_raster(const std::string& path, const CellLabelSource& labels, const 
   };
   const auto band_label = [](int b) { return "band " + std::to_string(b + 1) + " (" + kBandNames[b] + ")"; };
 
+  RasterWritten written;
   Output out;
   out.driver = driver;
   out.path = path;
@@ -529,14 +534,24 @@ void write_raster(const std::string& path, const CellLabelSource& labels, const 
     strip = std::min<std::uint64_t>(strip, static_cast<std::uint64_t>(size.height));
     const int strip_rows = static_cast<int>(strip);
 
-    Filler filler{level, options.layout, size, bands, type, nodata, labels, fid_of, thread_count(0), {}, {-1}, {-1}, 0};
+    std::vector<std::atomic<std::uint8_t>> seen(fid_of.size());
+    for (auto& flag : seen) flag.store(0, std::memory_order_relaxed);
+    Filler filler{level, options.layout, size, bands, type, nodata, labels, fid_of, seen, thread_count(0), {}, {-1}, {-1}, 0};
     StripBuffer buffer{type, {}};
     buffer.bytes.resize(strip * size.width * bands * type_bytes);
     const double write_share = can_create ? 1.0 : 0.5;
     if (options.progress && !options.progress(0.0, kStage)) throw Interrupted();
+    // QTMV_WRITE_TRACE set: the strips' totals on stderr (labels and pixels, GDAL's writes).
+    const bool trace = std::getenv("QTMV_WRITE_TRACE") != nullptr;
+    double fill_seconds = 0, io_seconds = 0;
+    int strips = 0;
     for (int y0 = 0; y0 < size.height; y0 += strip_rows) {
       const int rows = std::min(strip_rows, size.height - y0);
+      double t = now_seconds();
       buffer.fill(filler, y0, rows);
+      fill_seconds += now_seconds() - t;
+      t = now_seconds();
+      ++strips;
       if (filler.bad_site >= 0) {
         throw WriteError(path + ": band 1 (site_fid): site id " + std::to_string(filler.bad_site.load()) +
                          " is not in the site table (" + std::to_string(fid_of.size()) + " sites)");
@@ -567,9 +582,16 @@ void write_raster(const std::string& path, const CellLabelSource& labels, const 
           }
         }
       }
+      io_seconds += now_seconds() - t;
       if (options.progress && !options.progress(write_share * (y0 + rows) / size.height, kStage)) {
         throw Interrupted();
       }
+    }
+    written.site_seen.resize(seen.size());
+    for (std::size_t k = 0; k < seen.size(); ++k) written.site_seen[k] = seen[k].load(std::memory_order_relaxed);
+    if (trace) {
+      std::fprintf(stderr, "trace: raster %d strips of %d rows: labels and pixels %.3f s, GDAL writes %.3f s\n", strips,
+                   strip_rows, fill_seconds, io_seconds);
     }
 
     // --- close (GDAL 3.6's GDALClose returns nothing: the error state tells) --------------------
@@ -606,6 +628,7 @@ void write_raster(const std::string& path, const CellLabelSource& labels, const 
     errors.take();  // what the clean-up said would only confuse
     throw;
   }
+  return written;
 }
 
 }  // namespace qtmv::write

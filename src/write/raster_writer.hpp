@@ -56,6 +56,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "sites/site_table.hpp"
 #include "write/cell_labels.hpp"
@@ -77,15 +78,21 @@ void check_raster_data_type(const std::string& data_type);
 /// value of an unsigned integer type.
 double raster_nodata(const std::string& data_type);
 
+/// What write_raster wrote.
+struct RasterWritten {
+  /// Per site id: 1 when some pixel holds the site (the QTM-coded raster: some cell), else 0.
+  std::vector<std::uint8_t> site_seen;
+};
+
 /// Writes the raster to `path` with options.driver, strip by strip, asking `labels` for each
 /// strip's labels. Throws WriteError naming the destination, the band and GDAL's message on any
 /// failure (after removing what it had written), and Interrupted when options.progress returns
 /// false. A site id outside the table is an error.
-void write_raster(const std::string& path, const CellLabelSource& labels, const sites::SiteTable& table,
-                  const RasterOptions& options);
+RasterWritten write_raster(const std::string& path, const CellLabelSource& labels, const sites::SiteTable& table,
+                           const RasterOptions& options);
 
 /// The same from every cell's labels in arrays.
-void write_raster(const std::string& path, const CellLabels& labels, const sites::SiteTable& table,
+RasterWritten write_raster(const std::string& path, const CellLabels& labels, const sites::SiteTable& table,
                   const RasterOptions& options);
 
 /// Host bytes the writer's buffers take at most for these options: one strip, or one row of

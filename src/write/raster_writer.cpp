@@ -147,6 +147,54 @@ struct Filler {
         codes[x] = grid::lonlat_to_code(lon, lat, level);  // invalid past latitude -90
       }
     }
+    // Where pixels are about as fine as cells, the strip's rows of cells (a band of latitude: up
+    // to one range of codes in each octant) are labelled whole, faster per cell than a list;
+    // coarser pixels label the list of their cells only.
+    std::uint64_t lo[8], hi[8];  // rows of each octant that the strip's pixels fall in
+    for (int o = 0; o < 8; ++o) lo[o] = ~std::uint64_t{0}, hi[o] = 0;
+    for (const Code code : labels.pixel_code) {
+      if (code == grid::kInvalidCode) continue;
+      const grid::Cell c = grid::cell_of(code, level);
+      lo[c.octant] = std::min<std::uint64_t>(lo[c.octant], c.row);
+      hi[c.octant] = std::max<std::uint64_t>(hi[c.octant], c.row);
+    }
+    std::uint64_t range_cells = 0;
+    for (int o = 0; o < 8; ++o) {
+      if (lo[o] <= hi[o]) range_cells += (hi[o] + 1) * (hi[o] + 1) - lo[o] * lo[o];
+    }
+    if (range_cells <= 2 * band_space) {
+      Code start[8];
+      std::size_t offset[8];
+      std::size_t total = 0;
+      for (int o = 0; o < 8; ++o) {
+        start[o] = static_cast<Code>(o) * grid::cells_per_octant(level) + (lo[o] <= hi[o] ? lo[o] * lo[o] : 0);
+        offset[o] = total;
+        if (lo[o] <= hi[o]) total += static_cast<std::size_t>((hi[o] + 1) * (hi[o] + 1) - lo[o] * lo[o]);
+      }
+      resize(total, with_distance);
+      for (int o = 0; o < 8; ++o) {
+        if (lo[o] > hi[o]) continue;
+        const std::size_t count = static_cast<std::size_t>((hi[o] + 1) * (hi[o] + 1) - lo[o] * lo[o]);
+        source.label_range(start[o], count, labels.site.data() + offset[o],
+                           with_distance ? labels.distance_m.data() + offset[o] : nullptr,
+                           labels.boundary.data() + offset[o]);
+      }
+      const Code octant_cells = grid::cells_per_octant(level);
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 4)
+      for (int r = 0; r < rows; ++r) {
+        T* out = buffer + static_cast<std::size_t>(r) * size.width;
+        const Code* codes = labels.pixel_code.data() + static_cast<std::size_t>(r) * size.width;
+        for (std::size_t x = 0; x < static_cast<std::size_t>(size.width); ++x) {
+          if (codes[x] == grid::kInvalidCode) {
+            put_nodata(out, x, band_space);
+            continue;
+          }
+          const int o = static_cast<int>(codes[x] / octant_cells);
+          put(offset[o] + static_cast<std::size_t>(codes[x] - start[o]), codes[x], out, x, band_space);
+        }
+      }
+      return;
+    }
     labels.codes = labels.pixel_code;
     parallel_sort(labels.codes.begin(), labels.codes.end(), std::less<Code>());
     labels.codes.erase(std::unique(labels.codes.begin(), labels.codes.end()), labels.codes.end());
@@ -244,11 +292,12 @@ struct StripBuffer {
 };
 
 /// Bytes a pixel of a strip takes in the writer's buffers: its bands, and its cell's labels (the
-/// lon/lat layout also keeps the pixel's code and the strip's sorted codes).
+/// lon/lat layout also keeps the pixel's code, the strip's sorted codes, and the labels of up to
+/// two cells a pixel when it labels the strip's rows of cells whole).
 std::uint64_t strip_bytes_per_pixel(RasterOptions::Layout layout, int bands, int type_bytes) {
   const std::uint64_t labels = sizeof(std::int32_t) + sizeof(float) + 1;
-  return static_cast<std::uint64_t>(bands) * type_bytes + labels +
-         (layout == RasterOptions::Layout::lonlat ? 2 * sizeof(grid::Code) : 0);
+  return static_cast<std::uint64_t>(bands) * type_bytes +
+         (layout == RasterOptions::Layout::lonlat ? 2 * sizeof(grid::Code) + 2 * labels : labels);
 }
 
 struct CopyProgress {
@@ -530,7 +579,11 @@ RasterWritten write_raster(const std::string& path, const CellLabelSource& label
     block_h = std::max(1, block_h);
     const std::uint64_t row_bytes = static_cast<std::uint64_t>(size.width) * strip_bytes_per_pixel(options.layout, bands, type_bytes);
     std::uint64_t strip = std::max<std::uint64_t>(1, strip_budget / row_bytes);
-    if (strip >= static_cast<std::uint64_t>(block_h)) strip = strip / block_h * block_h;
+    if (strip >= static_cast<std::uint64_t>(block_h)) {
+      strip = strip / block_h * block_h;
+    } else {
+      while (block_h % strip != 0) --strip;  // strips that end where rows of blocks end
+    }
     strip = std::min<std::uint64_t>(strip, static_cast<std::uint64_t>(size.height));
     const int strip_rows = static_cast<int>(strip);
 

@@ -8,16 +8,19 @@
 #include <gdal.h>
 #include <ogr_srs_api.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdint>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "../test_temp_dir.hpp"
 #include "grid/qtm.hpp"
 #include "label/synthetic_sites.hpp"
+#include "label/label_session.hpp"
 #include "label/labeller.hpp"
 #include "write/raster_writer.hpp"
 
@@ -120,7 +123,8 @@ void check_qtm_raster(GDALDatasetH ds, const Fixture& f, bool with_distance) {
     int has_nodata = 0;
     EXPECT_EQ(GDALGetRasterNoDataValue(band, &has_nodata), -1.0);
     EXPECT_TRUE(has_nodata);
-    EXPECT_EQ(GDALGetRasterDataType(band), with_distance ? GDT_Float64 : GDT_Int32);
+    // The default types: Float32 with distances (these FIDs are exact in it), else Int32.
+    EXPECT_EQ(GDALGetRasterDataType(band), with_distance ? GDT_Float32 : GDT_Int32);
   }
   const std::vector<double> fid = read_band(ds, 1), boundary = read_band(ds, 2);
   const std::vector<double> distance = with_distance ? read_band(ds, 3) : std::vector<double>{};
@@ -372,25 +376,367 @@ TEST_F(RasterWriter, FailuresAreClearWriteErrors) {
     options.driver = "PNG";  // Byte and UInt16 only: the FIDs would be truncated
     const std::string path = temp_path("x.png");
     const std::string m = message_of(path, options);
-    EXPECT_NE(m.find("PNG cannot hold Float64"), std::string::npos) << m;
-    EXPECT_NE(m.find("Int32"), std::string::npos) << m;
+    EXPECT_NE(m.find("PNG cannot hold Float32"), std::string::npos) << m;
+    EXPECT_NE(m.find("-ot"), std::string::npos) << m;
     EXPECT_FALSE(exists(path));
   }
   {
-    sites::SiteTable big;
-    big.sites.resize(f.table.sites.size());
-    for (std::size_t s = 0; s < big.sites.size(); ++s) big.sites[s].fid = std::int64_t{1} << 31;
+    sites::SiteTable negative;
+    negative.sites.resize(f.table.sites.size());
+    for (std::size_t s = 0; s < negative.sites.size(); ++s) negative.sites[s].fid = f.table.sites[s].fid;
+    negative.sites[1].fid = -5;
     try {
-      write_raster(temp_path("bigfid.tif"), f.labels(), big, RasterOptions{});
-      ADD_FAILURE() << "no WriteError for a FID beyond Int32";
+      write_raster(temp_path("negfid.tif"), f.labels(), negative, RasterOptions{});
+      ADD_FAILURE() << "no WriteError for a negative FID";
     } catch (const WriteError& e) {
-      EXPECT_NE(std::string(e.what()).find("band 1 (site_fid)"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("band 1 (site_fid): site 1 has FID -5"), std::string::npos) << e.what();
     }
+    EXPECT_FALSE(exists(temp_path("negfid.tif")));
   }
   {
     RasterOptions options;
     options.width = 100;  // -ts with the qtm layout
     EXPECT_NE(message_of(temp_path("ts_qtm.tif"), options).find("lonlat only"), std::string::npos);
+  }
+}
+
+// --- streaming, band types ----------------------------------------------------------------------
+
+/// The labeller's session as a CellLabelSource: the writer streams from the labeller itself.
+class SessionSource : public CellLabelSource {
+ public:
+  SessionSource(const label::SiteGeometry& g, bool with_distance) : session_(g.input(), options(with_distance)) {}
+  int level() const override { return session_.level(); }
+  bool has_distance() const override { return session_.has_distance(); }
+  void label_range(Code first, std::uint64_t count, std::int32_t* site, float* distance_m,
+                   std::uint8_t* boundary) const override {
+    ++calls;
+    session_.label_range(first, count, site, distance_m, boundary);
+  }
+  void label_codes(const Code* codes, std::size_t count, std::int32_t* site, float* distance_m,
+                   std::uint8_t* boundary) const override {
+    ++calls;
+    session_.label_codes(codes, count, site, distance_m, boundary);
+  }
+  mutable int calls = 0;
+
+ private:
+  static label::LabelOptions options(bool with_distance) {
+    label::LabelOptions o;
+    o.device = "cpu";
+    o.want_distance = with_distance;
+    return o;
+  }
+  label::LabelSession session_;
+};
+
+/// The cell a pixel shows (kInvalidCode: nodata), from the raster's layout and geotransform.
+Code pixel_code(const double* gt, int level, bool qtm, int x, int y) {
+  if (qtm) {
+    const int I = 1 << level;
+    const int octant = y / I, i = y % I;
+    if (x > 2 * i) return grid::kInvalidCode;
+    return grid::code_of({octant, static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(x)}, level);
+  }
+  return grid::lonlat_to_code(gt[0] + (x + 0.5) * gt[1], gt[3] + (y + 0.5) * gt[5], level);
+}
+
+std::vector<double> geotransform(GDALDatasetH ds) {
+  std::vector<double> gt(6, 0.0);
+  GDALGetGeoTransform(ds, gt.data());
+  return gt;
+}
+
+/// Every pixel against the whole-globe labels of the fixture; returns the mismatches (and
+/// reports the first few).
+std::uint64_t compare_with_dense(GDALDatasetH ds, const Fixture& f, bool qtm) {
+  if (ds == nullptr) {
+    ADD_FAILURE() << "no dataset";
+    return 1;
+  }
+  const int w = GDALGetRasterXSize(ds), h = GDALGetRasterYSize(ds);
+  const std::vector<double> fid = read_band(ds, 1), boundary = read_band(ds, 2), distance = read_band(ds, 3);
+  const std::vector<double> gt = geotransform(ds);
+  std::uint64_t bad = 0;
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const std::size_t p = static_cast<std::size_t>(y) * w + x;
+      const Code code = pixel_code(gt.data(), f.level, qtm, x, y);
+      bool ok;
+      if (code == grid::kInvalidCode) {
+        ok = fid[p] == -1 && boundary[p] == -1 && distance[p] == -1;
+      } else {
+        ok = fid[p] == static_cast<double>(Fixture::fid_of(f.result.site[code])) &&
+             boundary[p] == f.result.boundary[code] && distance[p] == static_cast<double>(f.result.distance_m[code]);
+      }
+      if (!ok && ++bad <= 3) ADD_FAILURE() << "pixel " << x << "," << y << " (cell " << code << ")";
+    }
+  }
+  return bad;
+}
+
+TEST_F(RasterWriter, StreamedStripsEqualTheWholeGlobeAtLevels3To7) {
+  struct Grid {
+    const char* name;
+    bool qtm;
+    int width, height;
+    double xres, yres;
+  };
+  for (int level = 3; level <= 7; ++level) {
+    const Fixture f(level, 4 + 6 * level, 300 + level);
+    label::SiteGeometry g;  // the fixture's sites again, for a session
+    g.level = level;
+    {
+      std::mt19937_64 rng(300 + level);
+      std::uniform_real_distribution<double> lon(-180.0, 180.0), z(-1.0, 1.0);
+      for (int s = 0; s < 4 + 6 * level; ++s) add_point(g, lon(rng), std::asin(z(rng)) * 180.0 / M_PI, s);
+    }
+    const SessionSource session(g, true);
+    const int I = 1 << level;
+    const Grid grids[] = {
+        {"qtm", true, 0, 0, 0, 0},
+        {"lonlat default", false, 0, 0, 0, 0},
+        {"lonlat -ts 500 200", false, 500, 200, 0, 0},     // coarse at 6-7: the strips' code lists
+        {"lonlat -ts 8I 4I", false, 8 * I, 4 * I, 0, 0},  // finer than the cells: rows of cells
+        {"lonlat -tr 0.7 2", false, 0, 0, 0.7, 2.0},
+    };
+    for (const Grid& grid_options : grids) {
+      // One row a strip (up to level 5), a few rows, and the default (the whole raster here).
+      for (const std::uint64_t strip_bytes : {std::uint64_t{1}, std::uint64_t{20000}, std::uint64_t{0}}) {
+        if (strip_bytes == 1 && level > 5) continue;
+        SCOPED_TRACE("level " + std::to_string(level) + ", " + grid_options.name + ", strip budget " +
+                     std::to_string(strip_bytes));
+        RasterOptions options;
+        options.layout = grid_options.qtm ? RasterOptions::Layout::qtm : RasterOptions::Layout::lonlat;
+        options.width = grid_options.width;
+        options.height = grid_options.height;
+        options.x_resolution = grid_options.xres;
+        options.y_resolution = grid_options.yres;
+        options.strip_bytes = strip_bytes;
+        int strips = 0;
+        options.progress = [&](double, const char*) {
+          ++strips;
+          return true;
+        };
+        const std::string dense_path = temp_path("dense.tif"), streamed_path = temp_path("streamed.tif");
+        write_raster(dense_path, f.labels(), f.table, options);
+        const int calls_before = session.calls;
+        strips = 0;
+        write_raster(streamed_path, session, f.table, options);
+        const RasterSize size = raster_size(level, options);
+        if (strip_bytes == 1) EXPECT_EQ(strips, size.height + 1);  // one row a strip, and 0%
+        EXPECT_GE(session.calls - calls_before, strips - 1);       // asked strip by strip
+        Opened dense(dense_path), streamed(streamed_path);
+        EXPECT_EQ(compare_with_dense(dense.ds, f, grid_options.qtm), 0u);
+        EXPECT_EQ(compare_with_dense(streamed.ds, f, grid_options.qtm), 0u);
+      }
+    }
+  }
+}
+
+/// Chosen values for the band types: site = code % sites (FIDs 10 s + 3), distances with
+/// quarters of a metre (rounded to even by integer types), boundary = code % 2.
+class ChosenValues : public CellLabelSource {
+ public:
+  ChosenValues(int level, int sites, float metres_scale) : level_(level), sites_(sites), scale_(metres_scale) {}
+  int level() const override { return level_; }
+  bool has_distance() const override { return true; }
+  void label_range(Code first, std::uint64_t count, std::int32_t* site, float* distance_m,
+                   std::uint8_t* boundary) const override {
+    for (std::uint64_t k = 0; k < count; ++k) put(first + k, k, site, distance_m, boundary);
+  }
+  void label_codes(const Code* codes, std::size_t count, std::int32_t* site, float* distance_m,
+                   std::uint8_t* boundary) const override {
+    for (std::size_t k = 0; k < count; ++k) put(codes[k], k, site, distance_m, boundary);
+  }
+  std::int32_t site_of(Code c) const { return static_cast<std::int32_t>(c % sites_); }
+  float metres_of(Code c) const { return static_cast<float>(c % 200) * scale_ + static_cast<float>(c % 4) * 0.25f; }
+  sites::SiteTable table() const {
+    sites::SiteTable t;
+    t.sites.resize(static_cast<std::size_t>(sites_));
+    for (int s = 0; s < sites_; ++s) t.sites[s].fid = 10 * s + 3;
+    return t;
+  }
+
+ private:
+  void put(Code c, std::size_t k, std::int32_t* site, float* distance_m, std::uint8_t* boundary) const {
+    site[k] = site_of(c);
+    if (distance_m) distance_m[k] = metres_of(c);
+    boundary[k] = static_cast<std::uint8_t>(c % 2);
+  }
+  int level_, sites_;
+  float scale_;
+};
+
+TEST_F(RasterWriter, EveryOtTypeRoundTrips) {
+  const ChosenValues values(4, 7, 1.0f);  // FIDs 3..63, distances 0..199.75 m: every type holds them
+  const sites::SiteTable table = values.table();
+  const struct {
+    const char* name;
+    GDALDataType type;
+    double nodata;
+  } types[] = {{"Byte", GDT_Byte, 255},      {"uint16", GDT_UInt16, 65535}, {"Int16", GDT_Int16, -1},
+               {"UInt32", GDT_UInt32, 4294967295.0}, {"INT32", GDT_Int32, -1}, {"Float32", GDT_Float32, -1},
+               {"Float64", GDT_Float64, -1}};
+  for (const auto& t : types) {
+    SCOPED_TRACE(t.name);
+    EXPECT_EQ(raster_nodata(GDALGetDataTypeName(t.type)), t.nodata);
+    for (const bool qtm : {true, false}) {
+      RasterOptions options;
+      options.data_type = t.name;
+      options.layout = qtm ? RasterOptions::Layout::qtm : RasterOptions::Layout::lonlat;
+      options.strip_bytes = 5000;
+      EXPECT_EQ(raster_data_type(options, true, table), GDALGetDataTypeName(t.type));
+      const std::string path = temp_path(std::string("ot_") + t.name + ".tif");
+      write_raster(path, values, table, options);
+      Opened opened(path);
+      ASSERT_NE(opened.ds, nullptr);
+      const int w = GDALGetRasterXSize(opened.ds), h = GDALGetRasterYSize(opened.ds);
+      std::vector<double> band[3];
+      for (int b = 0; b < 3; ++b) {
+        GDALRasterBandH hb = GDALGetRasterBand(opened.ds, b + 1);
+        EXPECT_EQ(GDALGetRasterDataType(hb), t.type);
+        int has = 0;
+        EXPECT_EQ(GDALGetRasterNoDataValue(hb, &has), t.nodata);
+        EXPECT_TRUE(has);
+        band[b] = read_band(opened.ds, b + 1);
+      }
+      const std::vector<double> gt = geotransform(opened.ds);
+      int bad = 0;
+      for (int y = 0; y < h && bad < 5; ++y) {
+        for (int x = 0; x < w && bad < 5; ++x) {
+          const std::size_t p = static_cast<std::size_t>(y) * w + x;
+          const Code code = pixel_code(gt.data(), 4, qtm, x, y);
+          double fid = t.nodata, flag = t.nodata, metres = t.nodata;
+          if (code != grid::kInvalidCode) {
+            fid = static_cast<double>(table.sites[values.site_of(code)].fid);
+            flag = static_cast<double>(code % 2);
+            const double d = values.metres_of(code);
+            metres = t.type == GDT_Float32 || t.type == GDT_Float64 ? d : std::nearbyint(d);
+          }
+          if (band[0][p] != fid || band[1][p] != flag || band[2][p] != metres) {
+            ADD_FAILURE() << "pixel " << x << "," << y << ": " << band[0][p] << " " << band[1][p] << " " << band[2][p]
+                          << " vs " << fid << " " << flag << " " << metres;
+            ++bad;
+          }
+        }
+      }
+    }
+  }
+}
+
+TEST_F(RasterWriter, DefaultTypeKeepsEveryFidExact) {
+  const ChosenValues values(3, 4, 1.0f);
+  sites::SiteTable table = values.table();
+  RasterOptions options;
+  EXPECT_EQ(raster_data_type(options, true, table), "Float32");
+  EXPECT_EQ(raster_data_type(options, false, table), "Int32");
+  table.sites[2].fid = (std::int64_t{1} << 24) + 1;  // not a float
+  EXPECT_EQ(raster_data_type(options, true, table), "Float64");
+  EXPECT_EQ(raster_data_type(options, false, table), "Int32");
+  table.sites[2].fid = std::int64_t{1} << 31;  // beyond Int32, but a float
+  EXPECT_EQ(raster_data_type(options, true, table), "Float32");
+  EXPECT_EQ(raster_data_type(options, false, table), "Float64");
+  table.sites[2].fid = (std::int64_t{1} << 40) + 1;
+  const std::string path = temp_path("default_f64.tif");
+  write_raster(path, values, table, options);
+  Opened opened(path);
+  ASSERT_NE(opened.ds, nullptr);
+  EXPECT_EQ(GDALGetRasterDataType(GDALGetRasterBand(opened.ds, 1)), GDT_Float64);
+  const std::vector<double> fid = read_band(opened.ds, 1);
+  EXPECT_NE(std::find(fid.begin(), fid.end(), static_cast<double>((std::int64_t{1} << 40) + 1)), fid.end());
+}
+
+TEST_F(RasterWriter, ValuesOutsideTheOtTypeFailNamingItAndLeaveNoFile) {
+  auto message_of = [&](const CellLabelSource& source, const sites::SiteTable& table, const std::string& type) {
+    RasterOptions options;
+    options.data_type = type;
+    options.strip_bytes = 3000;
+    const std::string path = temp_path("range_" + type + ".tif");
+    std::string message;
+    try {
+      write_raster(path, source, table, options);
+      ADD_FAILURE() << "no WriteError for -ot " << type;
+    } catch (const WriteError& e) {
+      message = e.what();
+    }
+    EXPECT_FALSE(exists(path)) << path;
+    EXPECT_NE(message.find(path), std::string::npos) << message;
+    return message;
+  };
+  const ChosenValues values(4, 5, 1.0f);
+  for (const auto& [type, fid] : std::vector<std::pair<std::string, std::int64_t>>{
+           {"Byte", 300}, {"Byte", 255}, {"UInt16", 65535}, {"Int16", 40000}, {"UInt32", 4294967295}, {"Int32", 2147483648},
+           {"Float32", 16777217}}) {
+    SCOPED_TRACE(type + " " + std::to_string(fid));
+    sites::SiteTable table = values.table();
+    table.sites[3].fid = fid;
+    const std::string m = message_of(values, table, type);
+    EXPECT_NE(m.find("band 1 (site_fid): site 3 has FID " + std::to_string(fid)), std::string::npos) << m;
+    EXPECT_NE(m.find("-ot"), std::string::npos) << m;
+    EXPECT_NE(m.find(type), std::string::npos) << m;
+  }
+  {
+    // Largest FIDs that fit.
+    sites::SiteTable table = values.table();
+    table.sites[3].fid = 254;
+    RasterOptions options;
+    options.data_type = "Byte";
+    EXPECT_EQ(raster_data_type(options, true, table), "Byte");
+  }
+  // Distances beyond the type, found while writing: the output is removed.
+  const ChosenValues far(4, 5, 400.0f);  // up to 79600 m
+  for (const std::string type : {"Byte", "UInt16", "Int16"}) {
+    SCOPED_TRACE(type);
+    const std::string m = message_of(far, far.table(), type);
+    EXPECT_NE(m.find("band 3 (distance_m): cell "), std::string::npos) << m;
+    EXPECT_NE(m.find(" m from its site, outside " + type), std::string::npos) << m;
+    EXPECT_NE(m.find("-ot"), std::string::npos) << m;
+  }
+  EXPECT_NO_THROW(check_raster_data_type("float32"));
+  EXPECT_NO_THROW(check_raster_data_type(""));
+  try {
+    check_raster_data_type("Int8");
+    ADD_FAILURE() << "Int8 accepted";
+  } catch (const WriteError& e) {
+    EXPECT_NE(std::string(e.what()).find("-ot: 'Int8' is not one of Byte, UInt16, Int16, UInt32, Int32, Float32, Float64"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
+TEST_F(RasterWriter, StreamedStopAndCogStagingLeaveNothingBehind) {
+  const Fixture f(7, 25, 11);
+  label::SiteGeometry g;
+  g.level = 7;
+  {
+    std::mt19937_64 rng(11);
+    std::uniform_real_distribution<double> lon(-180.0, 180.0), z(-1.0, 1.0);
+    for (int s = 0; s < 25; ++s) add_point(g, lon(rng), std::asin(z(rng)) * 180.0 / M_PI, s);
+  }
+  const SessionSource session(g, true);
+  for (const char* driver : {"GTiff", "COG"}) {
+    if (GDALGetDriverByName(driver) == nullptr) continue;
+    SCOPED_TRACE(driver);
+    RasterOptions options;
+    options.driver = driver;
+    options.strip_bytes = 30000;  // many strips; COG stages on disk (larger than a strip)
+    const std::string path = temp_path(std::string("stream_stop_") + driver + ".tif");
+    options.progress = [&](double fraction, const char*) {
+      // No staging file in memory: the staging GeoTIFF is on disk while the strips are written.
+      if (std::string(driver) == "COG" && fraction > 0.1 && fraction < 0.5) EXPECT_TRUE(exists(path + ".staging.tif"));
+      return fraction < 0.3;
+    };
+    EXPECT_THROW(write_raster(path, session, f.table, options), Interrupted);
+    EXPECT_FALSE(exists(path));
+    EXPECT_FALSE(exists(path + ".staging.tif"));
+    // Written through to the end, it equals the whole-globe labels; the staging copy is gone.
+    options.progress = {};
+    write_raster(path, session, f.table, options);
+    EXPECT_FALSE(exists(path + ".staging.tif"));
+    Opened opened(path);
+    EXPECT_EQ(compare_with_dense(opened.ds, f, true), 0u);
+    if (std::string(driver) == "COG") EXPECT_EQ(metadata(opened.ds, "LAYOUT", "IMAGE_STRUCTURE"), "COG");
   }
 }
 

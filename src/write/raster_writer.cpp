@@ -435,8 +435,12 @@ std::uint64_t raster_buffer_bytes(int level, const RasterOptions& options, bool 
   const int bands = with_distance ? 3 : 2;
   const std::uint64_t strip = options.strip_bytes ? options.strip_bytes : kDefaultStripBytes;
   const std::uint64_t row = static_cast<std::uint64_t>(size.width) * strip_bytes_per_pixel(options.layout, bands, 8);
-  const std::uint64_t block_row = static_cast<std::uint64_t>(size.width) * bands * 8 *
-                                  std::min<std::uint64_t>(kAssumedBlockRows, static_cast<std::uint64_t>(size.height));
+  // Blocks wait in GDAL's cache until their row of blocks is complete; the cache writes them
+  // out early (and reads them back) beyond its limit, GDAL_CACHEMAX.
+  const std::uint64_t block_row = std::min<std::uint64_t>(
+      static_cast<std::uint64_t>(size.width) * bands * 8 *
+          std::min<std::uint64_t>(kAssumedBlockRows, static_cast<std::uint64_t>(size.height)),
+      static_cast<std::uint64_t>(std::max<GIntBig>(0, GDALGetCacheMax64())));
   return std::max({strip, row, block_row});
 }
 

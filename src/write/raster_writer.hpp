@@ -96,7 +96,8 @@ RasterWritten write_raster(const std::string& path, const CellLabels& labels, co
                   const RasterOptions& options);
 
 /// Host bytes the writer's buffers take at most for these options: one strip, or one row of
-/// 256-row blocks in GDAL's cache where that is larger (bands x 8 bytes a pixel at most).
+/// 256-row blocks in GDAL's cache (bands x 8 bytes a pixel at most, and at most GDAL_CACHEMAX)
+/// where that is larger.
 std::uint64_t raster_buffer_bytes(int level, const RasterOptions& options, bool with_distance);
 
 /// The raster's size (pixels) for these options and level, as write_raster would make it.

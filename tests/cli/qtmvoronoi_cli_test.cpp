@@ -102,6 +102,8 @@ TEST(QtmvoronoiCli, UsageErrorsExit2WithTheUsage) {
       {"-tr", "1", "1", "-ts", "10", "10", "a.csv", "b.tif"},
       {"-raster", "qtm", "-tr", "1", "1", "a.csv", "b.tif"},
       {"-raster", "hex", "a.csv", "b.tif"},
+      {"-ot", "Int8", "a.csv", "b.tif"},
+      {"-ot", "CFloat32", "a.csv", "b.tif"},
       {"-layers", "regions,nope", "a.csv", "b.gpkg"},
       {"-device", "gpu", "a.csv", "b.gpkg"},
       {"-oo", "novalue", "a.csv", "b.gpkg"},
@@ -159,6 +161,11 @@ TEST(QtmvoronoiCore, ParsesOptions) {
   EXPECT_EQ(t.run.raster.layout, qtmv::write::RasterOptions::Layout::lonlat);
   EXPECT_EQ(t.run.raster.x_resolution, 0.5);
   EXPECT_EQ(t.run.raster.y_resolution, 0.25);
+
+  const auto ot = parse_command_line({"-ot", "uint16", "in.csv", "out.tif"});
+  EXPECT_EQ(ot.run.raster.data_type, "uint16");
+  EXPECT_TRUE(parse_command_line({"in.csv", "out.tif"}).run.raster.data_type.empty());
+  EXPECT_THROW(parse_command_line({"-ot", "Int64", "a", "b"}), UsageError);
 
   EXPECT_THROW(parse_command_line({"-layers", "regions", "-raster", "qtm", "a", "b"}), UsageError);
   EXPECT_THROW(parse_command_line({"-tr", "0", "1", "a", "b"}), UsageError);
@@ -335,6 +342,58 @@ TEST(QtmvoronoiCli, LonLatRasterAgreesWithPointLocation) {
     mismatches += fid[std::size_t(y) * w + x] != double(ref.sites.table.sites[s].fid);
   }
   EXPECT_EQ(mismatches, 0);
+}
+
+TEST(QtmvoronoiCli, OtChoosesTheBandTypeAndRefusesValuesItCannotHold) {
+  const std::string dir = test_dir();
+  const int level = 5;
+  const Reference ref = reference(kCentres, level, {"X_POSSIBLE_NAMES=lon", "Y_POSSIBLE_NAMES=lat"});
+  // The default: Float32 (the FIDs are small); -ot Int32: the same FIDs, distances rounded.
+  for (const std::string type : {"", "Int32"}) {
+    SCOPED_TRACE(type);
+    const std::string dst = dir + "/ot" + type + ".tif";
+    std::vector<std::string> args{"-q", "-level", std::to_string(level), "-device", "cpu", kCentres, dst};
+    if (!type.empty()) args.insert(args.begin(), {"-ot", type});
+    const Result r = run(concat(args, kCsvOptions));
+    ASSERT_EQ(r.status, 0) << r.err;
+    const auto ds = open(dst, GDAL_OF_RASTER);
+    ASSERT_TRUE(ds);
+    EXPECT_EQ(ds->GetRasterBand(1)->GetRasterDataType(), type.empty() ? GDT_Float32 : GDT_Int32);
+    EXPECT_EQ(ds->GetRasterBand(3)->GetNoDataValue(), -1.0);
+    const int w = ds->GetRasterXSize(), h = ds->GetRasterYSize();
+    std::vector<double> fid(std::size_t(w) * h), metres(fid.size());
+    ASSERT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, w, h, fid.data(), w, h, GDT_Float64, 0, 0), CE_None);
+    ASSERT_EQ(ds->GetRasterBand(3)->RasterIO(GF_Read, 0, 0, w, h, metres.data(), w, h, GDT_Float64, 0, 0), CE_None);
+    const int n = 1 << level;
+    std::uint64_t mismatches = 0;
+    for (int y = 0; y < h; ++y) {
+      const int o = y / n, i = y % n;
+      for (int j = 0; j <= 2 * i; ++j) {
+        const grid::Code code = grid::Code(o) * n * n + grid::Code(i) * i + j;
+        const std::size_t p = std::size_t(y) * w + j;
+        const double d = ref.labels.distance_m[code];
+        mismatches += fid[p] != double(ref.sites.table.sites[std::size_t(ref.labels.site[code])].fid) ||
+                      metres[p] != (type.empty() ? d : std::nearbyint(d));
+      }
+    }
+    EXPECT_EQ(mismatches, 0u);
+  }
+  // UInt16 holds the FIDs, not the distances of up to thousands of kilometres: a failure naming
+  // -ot, found while writing, and nothing left.
+  const std::string dst = dir + "/uint16.tif";
+  const Result r = run(concat({"-ot", "UInt16", "-level", "4", "-device", "cpu", kCentres, dst}, kCsvOptions));
+  EXPECT_EQ(r.status, 1) << r.err;
+  EXPECT_NE(r.err.find(dst + ": band 3 (distance_m): cell "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("outside UInt16 (0..65534, 65535 being nodata; distances are rounded to whole metres): "
+                       "choose a wider -ot"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(fs::exists(dst));
+  EXPECT_TRUE(hidden_entries(dir).empty());
+  // Vector output has no band type.
+  const Result v = run(concat({"-ot", "Int32", "-level", "2", kCentres, dir + "/v.gpkg"}, kCsvOptions));
+  EXPECT_EQ(v.status, 1) << v.err;
+  EXPECT_NE(v.err.find("-ot is for raster output"), std::string::npos) << v.err;
 }
 
 TEST(QtmvoronoiCli, ShapefileSidecarsMoveTogether) {
@@ -549,6 +608,84 @@ TEST(QtmvoronoiLibrary, RunsIntoVsimemWithProgressAndMessages) {
   EXPECT_THROW(qtmv::run_voronoi(kCentres, stopped, options), qtmv::Interrupted);
   EXPECT_NE(VSIStatL(stopped.c_str(), &stat), 0);
   VSIUnlink(dst.c_str());
+}
+
+TEST(QtmvoronoiLibrary, RasterUnderASmallMemoryLimitIsWrittenInManyStripsAndEqualsTheWholeRun) {
+  for (const auto layout : {qtmv::write::RasterOptions::Layout::qtm, qtmv::write::RasterOptions::Layout::lonlat}) {
+    const bool qtm = layout == qtmv::write::RasterOptions::Layout::qtm;
+    SCOPED_TRACE(qtm ? "qtm" : "lonlat");
+    qtmv::VoronoiOptions options;
+    options.level = 6;
+    options.read.open_options = {"X_POSSIBLE_NAMES=lon", "Y_POSSIBLE_NAMES=lat"};
+    options.device = "cpu";
+    options.raster.layout = layout;
+    const std::string whole = std::string("/vsimem/qtmv_whole_") + (qtm ? "qtm" : "lonlat") + ".tif";
+    const std::string strips = std::string("/vsimem/qtmv_strips_") + (qtm ? "qtm" : "lonlat") + ".tif";
+    const qtmv::VoronoiSummary a = qtmv::run_voronoi(kCentres, whole, options);
+    EXPECT_TRUE(a.raster);
+    // 1 MiB for the whole run: strips of 256 KiB, and progress reported after each.
+    options.memory_limit_bytes = 1 << 20;
+    int reports = 0;
+    options.progress = [&](double, const char* stage) {
+      reports += std::string(stage) == "write";
+      return true;
+    };
+    const qtmv::VoronoiSummary b = qtmv::run_voronoi(kCentres, strips, options);
+    EXPECT_GT(reports, 10);
+    EXPECT_EQ(a.sites_without_cell, b.sites_without_cell);
+    const auto da = open(whole, GDAL_OF_RASTER), db = open(strips, GDAL_OF_RASTER);
+    ASSERT_TRUE(da && db);
+    const int w = da->GetRasterXSize(), h = da->GetRasterYSize();
+    ASSERT_EQ(db->GetRasterXSize(), w);
+    ASSERT_EQ(db->GetRasterYSize(), h);
+    for (int band = 1; band <= 3; ++band) {
+      std::vector<double> va(std::size_t(w) * h), vb(va.size());
+      ASSERT_EQ(da->GetRasterBand(band)->RasterIO(GF_Read, 0, 0, w, h, va.data(), w, h, GDT_Float64, 0, 0), CE_None);
+      ASSERT_EQ(db->GetRasterBand(band)->RasterIO(GF_Read, 0, 0, w, h, vb.data(), w, h, GDT_Float64, 0, 0), CE_None);
+      EXPECT_TRUE(va == vb) << "band " << band;
+    }
+    VSIUnlink(whole.c_str());
+    VSIUnlink(strips.c_str());
+    // Too little for even the strips and the tree: refused before any work, saying what for.
+    options.memory_limit_bytes = 100000;
+    try {
+      qtmv::run_voronoi(kCentres, strips, options);
+      ADD_FAILURE() << "no refusal";
+    } catch (const qtmv::VoronoiError& e) {
+      EXPECT_NE(std::string(e.what()).find("level 6 needs about "), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("for the labeller's tree and the raster's strips"), std::string::npos)
+          << e.what();
+    }
+    VSIStatBufL stat;
+    EXPECT_NE(VSIStatL(strips.c_str(), &stat), 0);
+  }
+}
+
+TEST(QtmvoronoiLibrary, RasterStoppedMidStreamLeavesNothing) {
+  const std::string dir = test_dir();
+  for (const char* format : {"GTiff", "COG"}) {
+    SCOPED_TRACE(format);
+    qtmv::VoronoiOptions options;
+    options.level = 7;
+    options.read.open_options = {"X_POSSIBLE_NAMES=lon", "Y_POSSIBLE_NAMES=lat"};
+    options.device = "cpu";
+    options.format = format;
+    options.memory_limit_bytes = 4 << 20;  // many strips
+    bool writing = false;
+    options.progress = [&](double, const char* stage) {
+      if (std::string(stage) == "write") {
+        if (writing) return false;  // the second strip's report: stop
+        writing = true;
+      }
+      return true;
+    };
+    const std::string dst = dir + "/stopped_" + format + ".tif";
+    EXPECT_THROW(qtmv::run_voronoi(kCentres, dst, options), qtmv::Interrupted);
+    EXPECT_TRUE(writing);
+    EXPECT_FALSE(fs::exists(dst));
+    EXPECT_TRUE(hidden_entries(dir).empty());
+    EXPECT_TRUE(fs::is_empty(dir)) << dir;
+  }
 }
 
 }  // namespace

@@ -44,8 +44,9 @@ struct VoronoiOptions {
   /// (write/output_size.hpp); the GDAL configuration option CHECK_DISK_FREE_SPACE=NO also
   /// turns this off.
   bool check_disk_space = true;
-  /// Host memory (bytes) the run may use for its products (a raster's labels of every cell, vector
-  /// output's outline cells) and the labeller's tiles; 0: 80% of physical RAM.
+  /// Host memory (bytes) the run may use for its products (vector output's outline cells, a
+  /// raster's strips: a quarter of it, at most 64 MiB, per strip) and the labeller's tiles; 0: 80%
+  /// of physical RAM.
   std::uint64_t memory_limit_bytes = 0;
   ProgressFunc progress;   ///< may be empty
   MessageSink messages;    ///< warnings, informative lines and the closing summary; may be empty
@@ -67,8 +68,8 @@ struct VoronoiSummary {
   double read_seconds = 0;         ///< reading and rasterising the sites (s)
   double rasterise_seconds = 0;    ///< of read_seconds, tracing and filling the sites' cells (s)
   double prepare_seconds = 0;      ///< the labeller's candidates and tree (s)
-  double label_seconds = 0;        ///< labelling every cell, boundaries included (s)
-  double write_seconds = 0;        ///< regions/rasters, the dataset, its close and rename (s)
+  double label_seconds = 0;        ///< labelling every cell, boundaries included (s); a raster's strips too
+  double write_seconds = 0;        ///< regions/rasters, the dataset, its close and rename (s), less that
   double total_seconds = 0;        ///< the whole run (s)
   /// One line: sites read and skipped (and invalid polygons), level, cells, device, time per stage.
   std::string line() const;

@@ -456,7 +456,8 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   std::string line = where_from + ": " + std::to_string(summary.features) + " features, " +
                      std::to_string(summary.sites) + " sites, " + std::to_string(out.geometry.pieces.size()) +
                      " pieces, " + std::to_string(out.geometry.site_cells.size()) + " site cells, " +
-                     std::to_string(out.geometry.fixed_cells.size()) + " fixed cells at level " +
+                     std::to_string(out.geometry.fixed_cells.size()) + " fixed cells and " +
+                     std::to_string(out.geometry.fixed_nodes.size()) + " fixed nodes at level " +
                      std::to_string(options.level);
   line += validity.summary_text();
   if (summary.skipped > 0) {

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "grid/qtm_key_ranges.hpp"
+
 namespace qtmv::sites {
 
 void append_site_cells(std::vector<CellHit>& hits, std::int32_t site, std::vector<SiteCell>& out) {
@@ -30,9 +32,20 @@ SiteCellCounts resolve_claims(SiteGeometry& g, DistanceRule rule) {
   g.fixed_cells.erase(std::unique(g.fixed_cells.begin(), g.fixed_cells.end(),
                                   [](const FixedCell& a, const FixedCell& b) { return a.code == b.code; }),
                       g.fixed_cells.end());
+  // The cells claimed, cells and nodes alike, each given to its lowest claimant.
+  std::vector<grid::KeyRange> ranges;
+  ranges.reserve(g.fixed_cells.size() + g.fixed_nodes.size());
   for (const FixedCell& f : g.fixed_cells) {
-    ++counts.fixed_cells[f.site];
-    counts.has_own_cell[f.site] = true;
+    const std::uint64_t key = grid::quadtree_key(grid::cell_of(f.code, g.level), g.level);
+    ranges.push_back({key, key, f.site});
+  }
+  for (const FixedNode& n : g.fixed_nodes) {
+    ranges.push_back(grid::node_key_range(grid::cell_of(n.code, n.level), n.level, g.level, n.site));
+  }
+  const std::vector<grid::KeyRange> held = grid::lowest_owner_partition(std::move(ranges));
+  for (const grid::KeyRange& r : held) {
+    counts.fixed_cells[r.owner] += r.last - r.first + 1;
+    counts.has_own_cell[r.owner] = true;
   }
 
   if (rule == DistanceRule::cell) {
@@ -54,9 +67,10 @@ SiteCellCounts resolve_claims(SiteGeometry& g, DistanceRule rule) {
   for (const auto& [site, code] : site_codes) {
     ++counts.site_cells[site];
     if (counts.has_own_cell[site]) continue;
-    auto f = std::lower_bound(g.fixed_cells.begin(), g.fixed_cells.end(), code,
-                              [](const FixedCell& a, grid::Code c) { return a.code < c; });
-    if (f == g.fixed_cells.end() || f->code != code || f->site == site) counts.has_own_cell[site] = true;
+    const std::uint64_t key = grid::quadtree_key(grid::cell_of(code, g.level), g.level);
+    auto r = std::upper_bound(held.begin(), held.end(), key,
+                              [](std::uint64_t k, const grid::KeyRange& range) { return k < range.first; });
+    if (r == held.begin() || (r - 1)->last < key || (r - 1)->owner == site) counts.has_own_cell[site] = true;
   }
   return counts;
 }

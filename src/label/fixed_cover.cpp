@@ -1,0 +1,89 @@
+#include "label/fixed_cover.hpp"
+
+#include "common/openmp_threads.hpp"
+#include "common/parallel_sort.hpp"
+#include "grid/qtm_key_ranges.hpp"
+
+#include <algorithm>
+#include <functional>
+
+namespace qtmv::label {
+
+FixedCover make_fixed_cover(const LabelInput& input, int threads_requested) {
+  const int threads = thread_count(threads_requested);
+  FixedCover cover;
+  cover.level = input.level;
+  const auto cells = static_cast<std::int64_t>(input.fixed_cell_count);
+  const auto nodes = static_cast<std::int64_t>(input.fixed_node_count);
+  if (cells + nodes == 0) return cover;
+  std::vector<grid::KeyRange> ranges(static_cast<std::size_t>(cells + nodes));
+#pragma omp parallel for schedule(static) num_threads(threads)
+  for (std::int64_t k = 0; k < cells; ++k) {
+    const FixedCell& f = input.fixed_cells[k];
+    const std::uint64_t key = grid::quadtree_key(grid::cell_of(f.code, input.level), input.level);
+    ranges[k] = {key, key, f.site};
+  }
+  for (std::int64_t k = 0; k < nodes; ++k) {
+    const FixedNode& n = input.fixed_nodes[k];
+    ranges[cells + k] = grid::node_key_range(grid::cell_of(n.code, n.level), n.level, input.level, n.site);
+  }
+  parallel_sort(ranges.begin(), ranges.end(), grid::key_range_before);
+  const std::vector<grid::KeyRange> parts = grid::lowest_owner_partition_of_sorted(ranges);
+  cover.first.reserve(parts.size());
+  cover.last.reserve(parts.size());
+  cover.site.reserve(parts.size());
+  for (const grid::KeyRange& r : parts) {
+    cover.first.push_back(r.first);
+    cover.last.push_back(r.last);
+    cover.site.push_back(r.owner);
+  }
+  return cover;
+}
+
+std::vector<FixedCell> fixed_points_for_tree(const LabelInput& input, const FixedCover& cover, int list_level) {
+  std::vector<FixedCell> out(input.fixed_cells, input.fixed_cells + input.fixed_cell_count);
+  if (input.fixed_node_count == 0) return out;
+  std::vector<std::uint64_t> given(out.size());
+  for (std::size_t k = 0; k < out.size(); ++k) given[k] = grid::quadtree_key(grid::cell_of(out[k].code, input.level), input.level);
+  parallel_sort(given.begin(), given.end(), std::less<std::uint64_t>());
+  for (std::size_t r = 0; r < cover.site.size(); ++r) {
+    grid::for_each_node_of_range(cover.first[r], cover.last[r], input.level, [&](const grid::Cell& node, int level) {
+      if (level <= list_level) return;  // a uniform leaf of the tree at once
+      const std::uint64_t first = grid::quadtree_key(node, level) << (2 * (input.level - level));
+      const std::uint64_t last = first + ((std::uint64_t{1} << (2 * (input.level - level))) - 1);
+      for (std::uint64_t key = first; key <= last; ++key) {
+        if (std::binary_search(given.begin(), given.end(), key)) continue;
+        out.push_back({grid::code_of(grid::cell_of_quadtree_key(key, input.level), input.level), cover.site[r]});
+      }
+    });
+  }
+  return out;
+}
+
+std::uint64_t fixed_node_cells(const LabelInput& input, int from_level) {
+  std::uint64_t n = 0;
+  for (std::size_t k = 0; k < input.fixed_node_count; ++k) {
+    const FixedNode& node = input.fixed_nodes[k];
+    if (node.level >= from_level) n += std::uint64_t{1} << (2 * (input.level - node.level));
+  }
+  return n;
+}
+
+std::vector<FixedCell> fixed_cells_with_nodes(const LabelInput& input, int from_level) {
+  std::vector<FixedCell> out;
+  out.reserve(input.fixed_cell_count + fixed_node_cells(input, from_level));
+  out.assign(input.fixed_cells, input.fixed_cells + input.fixed_cell_count);
+  for (std::size_t k = 0; k < input.fixed_node_count; ++k) {
+    const FixedNode& node = input.fixed_nodes[k];
+    if (node.level < from_level) continue;
+    const grid::Cell cell = grid::cell_of(node.code, node.level);
+    const int depth = input.level - node.level;
+    for (std::uint32_t r = 0; r < (1u << depth); ++r) {
+      const grid::RowCodes row = grid::row_codes_below(cell, depth, r, input.level);
+      for (grid::Code code = row.first; code <= row.last; ++code) out.push_back({code, node.site});
+    }
+  }
+  return out;
+}
+
+}  // namespace qtmv::label

@@ -1,0 +1,39 @@
+// The input's fixed cells and fixed nodes (label_input.hpp) as the labeller uses them: the cover
+// that both tree builds look nodes up in, and the fixed cells that become candidate points.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "label/label_input.hpp"
+#include "label/tree_node_rule.hpp"
+
+namespace qtmv::label {
+
+/// The cells that the input's fixed cells and fixed nodes claim, as CoverView's key ranges.
+struct FixedCover {
+  int level = 0;
+  std::vector<std::uint64_t> first, last;
+  std::vector<std::int32_t> site;
+  bool empty() const { return site.empty(); }
+  CoverView view() const { return {first.data(), last.data(), site.data(), site.size(), level}; }
+};
+
+/// The cover of all of the input's fixed cells and fixed nodes. `threads`: as
+/// LabelOptions::threads.
+FixedCover make_fixed_cover(const LabelInput& input, int threads);
+
+/// The input's fixed cells, then every cell of its fixed nodes of level >= from_level (code
+/// order within a node). from_level 0: all the cells that the input claims.
+std::vector<FixedCell> fixed_cells_with_nodes(const LabelInput& input, int from_level);
+
+/// The fixed points the tree needs (build_tree's candidates) when the input has fixed nodes: the
+/// input's fixed cells, and the cells of the cover that no node of level <= list_level within
+/// one site's range holds (near rings, and where a lower site claims part of a node), each once.
+/// Without fixed nodes: the input's fixed cells.
+std::vector<FixedCell> fixed_points_for_tree(const LabelInput& input, const FixedCover& cover, int list_level);
+
+/// Number of cells below the input's fixed nodes of level >= from_level.
+std::uint64_t fixed_node_cells(const LabelInput& input, int from_level);
+
+}  // namespace qtmv::label

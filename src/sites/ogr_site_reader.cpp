@@ -19,6 +19,8 @@
 
 #include "gdal/error_capture.hpp"
 #include "grid/qtm_checks.hpp"
+#include "common/first_exception.hpp"
+#include "common/openmp_threads.hpp"
 #include "sites/fid_list.hpp"
 #include "sites/polygon_validity.hpp"
 #include "sites/site_builder.hpp"
@@ -141,6 +143,57 @@ CoordinateRange coordinate_range(const OGRSpatialReference& srs) {
   return range;
 }
 
+/// One feature's site, to be traced and filled: its coordinates (lon/lat) and parts.
+struct SiteJob {
+  GIntBig fid = 0;
+  std::vector<grid::LonLat> lonlat;
+  std::vector<FeatureParts::Part> parts;
+};
+/// Sites and coordinates per batch: enough work for every thread, memory bounded.
+constexpr std::size_t kBatchSites = 4096;
+constexpr std::size_t kBatchVertices = std::size_t{1} << 22;
+
+/// Traces and fills one site with `builder` (a polygon's rings together).
+void build_site(SiteBuilder& builder, const SiteJob& job) {
+  builder.begin_site();
+  for (std::size_t p = 0; p < job.parts.size();) {
+    const FeatureParts::Part& part = job.parts[p];
+    if (part.kind == FeatureParts::kPoint) {
+      builder.add_point(job.lonlat[part.begin]);
+      ++p;
+    } else if (part.kind == FeatureParts::kLine) {
+      builder.add_line(job.lonlat.data() + part.begin, part.end - part.begin);
+      ++p;
+    } else {
+      std::vector<LonLatPath> rings;
+      const int polygon = part.polygon;
+      for (; p < job.parts.size() && job.parts[p].kind == FeatureParts::kRing && job.parts[p].polygon == polygon; ++p) {
+        rings.emplace_back(job.lonlat.begin() + job.parts[p].begin, job.lonlat.begin() + job.parts[p].end);
+      }
+      builder.add_polygon(rings);
+    }
+  }
+  builder.end_site();
+}
+
+/// Appends one site's geometry (site id 0 in `site`) to `out` as site `id`.
+void append_site(SiteGeometry& out, const SiteGeometry& site, std::int32_t id) {
+  const auto piece_offset = static_cast<std::uint32_t>(out.pieces.size());
+  for (SitePiece p : site.pieces) {
+    p.site = id;
+    out.pieces.push_back(p);
+  }
+  for (SiteCell c : site.site_cells) {
+    c.site = id;
+    c.piece_begin += piece_offset;
+    c.piece_end += piece_offset;
+    out.site_cells.push_back(c);
+  }
+  for (FixedCell f : site.fixed_cells) out.fixed_cells.push_back({f.code, id});
+  for (FixedNode n : site.fixed_nodes) out.fixed_nodes.push_back({n.code, n.level, id});
+  out.site_count = id + 1;
+}
+
 std::string format_coordinate(double x, double y) {
   std::ostringstream s;
   s.precision(15);
@@ -260,7 +313,6 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   SiteSet out;
   out.table.set_source(layer->GetLayerDefn(), dataset_name, layer_name);
   ReadSummary& summary = out.summary;
-  SiteBuilder builder(options.level, options.edges, options.wrap);
   PolygonValidityCheck validity(options, source, where_from);
   const GIntBig feature_count = layer->GetFeatureCount(FALSE);
   report_progress(options.progress, 0.0, "reading sites");
@@ -279,6 +331,41 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   std::vector<int> transformed_ok;
   FidList wrapped;  // the features -wrap auto changed
   std::chrono::steady_clock::duration rasterise{};  // tracing, filling and claims, within the read
+
+  // Sites are traced and filled in batches on all threads, each by one thread's builder, and
+  // appended in feature order: the same geometry whatever the thread count.
+  const int threads = thread_count(options.threads);
+  std::vector<std::unique_ptr<SiteBuilder>> builders(static_cast<std::size_t>(threads));
+  std::vector<SiteJob> batch;
+  std::size_t batch_vertices = 0;
+  SiteGeometry& geometry = out.geometry;
+  geometry.level = options.level;
+  auto build_batch = [&] {
+    if (batch.empty()) return;
+    const auto start = std::chrono::steady_clock::now();
+    const auto n = static_cast<std::int64_t>(batch.size());
+    std::vector<SiteGeometry> built(batch.size());
+    std::vector<std::size_t> short_way(batch.size(), 0);
+    FirstException failure;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+    for (std::int64_t k = 0; k < n; ++k) {
+      failure.run([&] {
+        std::unique_ptr<SiteBuilder>& builder = builders[static_cast<std::size_t>(thread_index())];
+        if (!builder) builder = std::make_unique<SiteBuilder>(options.level, options.edges, options.wrap);
+        build_site(*builder, batch[static_cast<std::size_t>(k)]);
+        short_way[k] = builder->short_way_edges();
+        built[k] = builder->take_geometry();
+      });
+    }
+    failure.rethrow();
+    for (std::size_t k = 0; k < batch.size(); ++k) {
+      append_site(geometry, built[k], geometry.site_count);
+      if (short_way[k] > 0) wrapped.add(batch[k].fid);
+    }
+    batch.clear();
+    batch_vertices = 0;
+    rasterise += std::chrono::steady_clock::now() - start;
+  };
   errors.take();
   layer->ResetReading();
   for (OGRFeatureUniquePtr feature(layer->GetNextFeature()); feature; feature.reset(layer->GetNextFeature())) {
@@ -366,38 +453,26 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
     }
     if (!usable) continue;
 
-    // --- one site ---
-    const auto rasterise_start = std::chrono::steady_clock::now();
-    builder.begin_site();
+    // --- one site, built with the next batch ---
+    SiteJob job;
+    job.fid = fid;
+    job.lonlat = std::move(lonlat);
+    lonlat = {};
+    job.parts = std::move(parts.parts);
     SiteRecord record;
     record.fid = fid;
-    for (std::size_t p = 0; p < parts.parts.size();) {
-      const FeatureParts::Part& part = parts.parts[p];
-      if (part.kind == FeatureParts::kPoint) {
-        builder.add_point(lonlat[part.begin]);
-        record.kind |= kPointSite;
-        ++p;
-      } else if (part.kind == FeatureParts::kLine) {
-        builder.add_line(lonlat.data() + part.begin, part.end - part.begin);
-        record.kind |= kLineSite;
-        ++p;
-      } else {
-        std::vector<LonLatPath> rings;
-        const int polygon = part.polygon;
-        for (; p < parts.parts.size() && parts.parts[p].kind == FeatureParts::kRing && parts.parts[p].polygon == polygon; ++p) {
-          rings.emplace_back(lonlat.begin() + parts.parts[p].begin, lonlat.begin() + parts.parts[p].end);
-        }
-        builder.add_polygon(rings);
-        record.kind |= kPolygonSite;
-      }
+    for (const FeatureParts::Part& part : job.parts) {
+      record.kind |= part.kind == FeatureParts::kPoint ? kPointSite : part.kind == FeatureParts::kLine ? kLineSite
+                                                                                                       : kPolygonSite;
     }
-    builder.end_site();
-    if (builder.short_way_edges() > 0) wrapped.add(fid);
-    rasterise += std::chrono::steady_clock::now() - rasterise_start;
     record.attributes.reset(feature.release());
     out.table.sites.push_back(std::move(record));
     ++summary.sites;
+    batch_vertices += job.lonlat.size();
+    batch.push_back(std::move(job));
+    if (batch.size() >= kBatchSites || batch_vertices >= kBatchVertices) build_batch();
   }
+  build_batch();
   validity.finish();
   if (summary.skipped > PolygonValidityCheck::kMostListed) {
     say(Severity::warning, where_from + ": " + std::to_string(summary.skipped - PolygonValidityCheck::kMostListed) +
@@ -433,9 +508,8 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   }
 
   // --- claims, counts, summary --------------------------------------------------------------------
-  summary.vertex_steps = builder.vertex_steps();
+  for (const auto& builder : builders) summary.vertex_steps += builder ? builder->vertex_steps() : 0;
   const auto claims_start = std::chrono::steady_clock::now();
-  out.geometry = builder.take_geometry();
   const SiteCellCounts counts = resolve_claims(out.geometry, options.distance);
   rasterise += std::chrono::steady_clock::now() - claims_start;
   summary.rasterise_seconds = std::chrono::duration<double>(rasterise).count();

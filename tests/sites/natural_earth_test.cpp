@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstring>
 #include <set>
 #include <vector>
 
@@ -99,6 +100,67 @@ TEST(NaturalEarth, UncutCountriesGiveTheCellsOfTheCutOnes) {
   for (const auto& cells : test::fixed_cells_by_site(flat.geometry)) flat_total += cells.size();
   for (const auto& cells : fixed_uncut) auto_total += cells.size();
   EXPECT_NE(flat_total, auto_total);
+}
+
+}  // namespace
+}  // namespace qtmv::sites
+
+namespace qtmv::sites {
+namespace {
+
+// The readers build sites on all threads: the same pieces, site cells, fixed cells and nodes,
+// table and summary with one thread as with several (the countries at level 8, and as lines).
+TEST(NaturalEarth, OneThreadAndSeveralReadTheSame) {
+  for (const bool as_lines : {false, true}) {
+    SiteSet got[2];
+    for (int k = 0; k < 2; ++k) {
+      ReadOptions o = test::options_at(kLevel, nullptr);
+      o.layer = "countries_110m";
+      o.threads = k == 0 ? 1 : 4;
+      if (as_lines) o.sql = "SELECT ST_Boundary(geom) AS geom, name FROM countries_110m";
+      if (as_lines) o.layer.clear();
+      got[k] = read_sites(kCountries, o);
+    }
+    const SiteGeometry& a = got[0].geometry;
+    const SiteGeometry& b = got[1].geometry;
+    SCOPED_TRACE(as_lines ? "lines" : "polygons");
+    ASSERT_EQ(a.site_count, b.site_count);
+    ASSERT_EQ(a.pieces.size(), b.pieces.size());
+    std::size_t differ = 0;
+    for (std::size_t k = 0; k < a.pieces.size(); ++k) {
+      const SitePiece &p = a.pieces[k], &q = b.pieces[k];
+      differ += p.site != q.site || std::memcmp(&p.a, &q.a, sizeof p.a) != 0 || std::memcmp(&p.b, &q.b, sizeof p.b) != 0;
+    }
+    EXPECT_EQ(differ, 0u) << "pieces differ";
+    ASSERT_EQ(a.site_cells.size(), b.site_cells.size());
+    differ = 0;
+    for (std::size_t k = 0; k < a.site_cells.size(); ++k) {
+      const SiteCell &p = a.site_cells[k], &q = b.site_cells[k];
+      differ += p.code != q.code || p.site != q.site || p.piece_begin != q.piece_begin || p.piece_end != q.piece_end;
+    }
+    EXPECT_EQ(differ, 0u) << "site cells differ";
+    ASSERT_EQ(a.fixed_cells.size(), b.fixed_cells.size());
+    differ = 0;
+    for (std::size_t k = 0; k < a.fixed_cells.size(); ++k) {
+      differ += a.fixed_cells[k].code != b.fixed_cells[k].code || a.fixed_cells[k].site != b.fixed_cells[k].site;
+    }
+    EXPECT_EQ(differ, 0u) << "fixed cells differ";
+    ASSERT_EQ(a.fixed_nodes.size(), b.fixed_nodes.size());
+    differ = 0;
+    for (std::size_t k = 0; k < a.fixed_nodes.size(); ++k) {
+      const FixedNode &p = a.fixed_nodes[k], &q = b.fixed_nodes[k];
+      differ += p.code != q.code || p.level != q.level || p.site != q.site;
+    }
+    EXPECT_EQ(differ, 0u) << "fixed nodes differ";
+    EXPECT_EQ(as_lines, a.fixed_cells.empty() && a.fixed_nodes.empty());
+    ASSERT_EQ(got[0].table.sites.size(), got[1].table.sites.size());
+    for (std::size_t s = 0; s < got[0].table.sites.size(); ++s) {
+      EXPECT_EQ(got[0].table.sites[s].fid, got[1].table.sites[s].fid);
+      EXPECT_EQ(got[0].table.sites[s].fixed_cells, got[1].table.sites[s].fixed_cells);
+    }
+    EXPECT_EQ(got[0].summary.wrapped_features, got[1].summary.wrapped_features);
+    EXPECT_EQ(got[0].summary.vertex_steps, got[1].summary.vertex_steps);
+  }
 }
 
 }  // namespace

@@ -64,6 +64,21 @@ std::vector<FixedCell> fixed_points_for_tree(const LabelInput& input, const Fixe
   return out;
 }
 
+PreparedInput prepare_input(const LabelInput& given, bool hier, int threads) {
+  PreparedInput out;
+  out.input = given;
+  if (hier) out.cover = make_fixed_cover(given, threads);
+  if (given.fixed_node_count > 0) {
+    out.fixed_cells = hier ? fixed_points_for_tree(given, out.cover, tree_list_level(given.level))
+                           : fixed_cells_with_nodes(given, 0);
+    out.input.fixed_cells = out.fixed_cells.data();
+    out.input.fixed_cell_count = out.fixed_cells.size();
+    out.input.fixed_nodes = nullptr;
+    out.input.fixed_node_count = 0;
+  }
+  return out;
+}
+
 std::uint64_t fixed_node_cells(const LabelInput& input, int from_level) {
   std::uint64_t n = 0;
   for (std::size_t k = 0; k < input.fixed_node_count; ++k) {

@@ -33,6 +33,16 @@ std::vector<FixedCell> fixed_cells_with_nodes(const LabelInput& input, int from_
 /// Without fixed nodes: the input's fixed cells.
 std::vector<FixedCell> fixed_points_for_tree(const LabelInput& input, const FixedCover& cover, int list_level);
 
+/// The input as a labelling takes it: for the tree (`hier`), the cover of its claims and, with
+/// fixed nodes, fixed_points_for_tree as its fixed cells; for brute force, every claimed cell as
+/// a fixed cell (no cover). `input` points into this object's own arrays or the caller's.
+struct PreparedInput {
+  LabelInput input;
+  FixedCover cover;
+  std::vector<FixedCell> fixed_cells;
+};
+PreparedInput prepare_input(const LabelInput& given, bool hier, int threads);
+
 /// Number of cells below the input's fixed nodes of level >= from_level.
 std::uint64_t fixed_node_cells(const LabelInput& input, int from_level);
 

@@ -235,19 +235,9 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
   // Fixed nodes: the tree takes them as its cover (a node of its list level or above is a
   // uniform leaf at once) and fixed points only where a list leaf may meet claimed cells; brute
   // force takes every claimed cell as a fixed point.
-  LabelInput input = given;
-  std::vector<FixedCell> fixed_cells;
-  FixedCover cover;
-  if (hier) cover = make_fixed_cover(given, threads);
-  if (given.fixed_node_count > 0) {
-    fixed_cells = hier ? fixed_points_for_tree(given, cover, tree_list_level(given.level))
-                       : fixed_cells_with_nodes(given, 0);
-    input.fixed_cells = fixed_cells.data();
-    input.fixed_cell_count = fixed_cells.size();
-    input.fixed_nodes = nullptr;
-    input.fixed_node_count = 0;
-  }
-  const CoverView cover_view = cover.view();
+  const PreparedInput prepared = prepare_input(given, hier, threads);
+  const LabelInput& input = prepared.input;
+  const CoverView cover_view = prepared.cover.view();
   // The host's candidates, made when the host needs them: the exact rule's device build makes
   // its own from the input.
   std::vector<Piece> candidates;

@@ -450,9 +450,11 @@ TEST(LabelTree, FixedNodesLabelAsTheirCells) {
       EXPECT_TRUE(a.site == b.site);
       EXPECT_TRUE(a.distance_m == b.distance_m);
       EXPECT_TRUE(a.boundary == b.boundary);
-      options.algorithm = Algorithm::brute;
-      const LabelResult c = label_all(nodes.input(), options);
-      EXPECT_TRUE(c.site == b.site);
+      if (level <= 6) {  // brute force takes every claimed cell
+        options.algorithm = Algorithm::brute;
+        const LabelResult c = label_all(nodes.input(), options);
+        EXPECT_TRUE(c.site == b.site);
+      }
       std::uint64_t fixed_zero = 0;
       for (const FixedCell& f : all) fixed_zero += a.distance_m[f.code] == 0.0f;
       EXPECT_EQ(fixed_zero, all.size());

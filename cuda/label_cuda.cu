@@ -809,16 +809,16 @@ __global__ void level_decide_kernel(const DevPending* pending, std::int32_t n, i
   if (q >= n) return;
   NodeDecision d;
   std::int32_t c;
+  const CoverLookup covered = cover_lookup(cover, pending[q].cell, l);
   if (last) {
     c = with_distance ? 1 : 0;
     d = decide_node(true, with_distance, list_level_reached, static_cast<std::uint32_t>(c), true,
-                    static_cast<std::int32_t>(key[q] >> 32), -1);
+                    static_cast<std::int32_t>(key[q] >> 32), covered.site);
   } else {
     c = static_cast<std::int32_t>(keep_pos[start[q + 1]] - keep_pos[start[q]]);
     const bool one_site = c == 0 || site_min[q] == site_max[q];
-    const CoverLookup covered = cover_lookup(cover, pending[q].cell, l);
     d = decide_node(false, with_distance, list_level_reached, static_cast<std::uint32_t>(c), one_site,
-                    c == 0 ? -1 : site_min[q], covered.site, covered.partly);
+                    c == 0 ? -1 : site_min[q], covered.site, covered.partly, cover.split_partly);
   }
   const std::int32_t k = d.kind;
   kind[q] = k;
@@ -990,7 +990,8 @@ struct DeviceCover {
   DeviceArray<std::int32_t> site;
   std::uint64_t count = 0;
   int level = 0;
-  CoverView view() const { return {first.get(), last.get(), site.get(), count, level}; }
+  bool split_partly = false;
+  CoverView view() const { return {first.get(), last.get(), site.get(), count, level, split_partly}; }
 };
 
 DeviceCover copy_cover(const CoverView* cover, int level, std::size_t* bytes, FaultStep injected) {
@@ -1005,6 +1006,7 @@ DeviceCover copy_cover(const CoverView* cover, int level, std::size_t* bytes, Fa
   QTMV_CUDA_CHECK(cudaMemcpy(out.last.get(), cover->last, n * sizeof(std::uint64_t), cudaMemcpyHostToDevice));
   QTMV_CUDA_CHECK(cudaMemcpy(out.site.get(), cover->site, n * sizeof(std::int32_t), cudaMemcpyHostToDevice));
   out.count = n;
+  out.split_partly = cover->split_partly;
   return out;
 }
 

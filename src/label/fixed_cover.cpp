@@ -4,8 +4,6 @@
 #include "common/parallel_sort.hpp"
 #include "grid/qtm_key_ranges.hpp"
 
-#include <algorithm>
-#include <functional>
 
 namespace qtmv::label {
 
@@ -40,37 +38,16 @@ FixedCover make_fixed_cover(const LabelInput& input, int threads_requested) {
   return cover;
 }
 
-std::vector<FixedCell> fixed_points_for_tree(const LabelInput& input, const FixedCover& cover, int list_level) {
-  std::vector<FixedCell> out(input.fixed_cells, input.fixed_cells + input.fixed_cell_count);
-  if (input.fixed_node_count == 0) return out;
-  // The given fixed cells by key and site: a cell needs its holder's point, whoever else claims it.
-  std::vector<std::pair<std::uint64_t, std::int32_t>> given(out.size());
-  for (std::size_t k = 0; k < out.size(); ++k) {
-    given[k] = {grid::quadtree_key(grid::cell_of(out[k].code, input.level), input.level), out[k].site};
-  }
-  parallel_sort(given.begin(), given.end(), std::less<std::pair<std::uint64_t, std::int32_t>>());
-  for (std::size_t r = 0; r < cover.site.size(); ++r) {
-    const std::int32_t site = cover.site[r];
-    grid::for_each_node_of_range(cover.first[r], cover.last[r], input.level, [&](const grid::Cell& node, int level) {
-      if (level <= list_level) return;  // a uniform leaf of the tree at once
-      const std::uint64_t first = grid::quadtree_key(node, level) << (2 * (input.level - level));
-      const std::uint64_t last = first + ((std::uint64_t{1} << (2 * (input.level - level))) - 1);
-      for (std::uint64_t key = first; key <= last; ++key) {
-        if (std::binary_search(given.begin(), given.end(), std::make_pair(key, site))) continue;
-        out.push_back({grid::code_of(grid::cell_of_quadtree_key(key, input.level), input.level), site});
-      }
-    });
-  }
-  return out;
-}
-
 PreparedInput prepare_input(const LabelInput& given, bool hier, int threads) {
   PreparedInput out;
   out.input = given;
   if (hier) out.cover = make_fixed_cover(given, threads);
   if (given.fixed_node_count > 0) {
-    out.fixed_cells = hier ? fixed_points_for_tree(given, out.cover, tree_list_level(given.level))
-                           : fixed_cells_with_nodes(given, 0);
+    if (hier) {
+      out.cover.split_partly = true;
+    } else {
+      out.fixed_cells = fixed_cells_with_nodes(given, 0);
+    }
     out.input.fixed_cells = out.fixed_cells.data();
     out.input.fixed_cell_count = out.fixed_cells.size();
     out.input.fixed_nodes = nullptr;

@@ -15,8 +15,9 @@ struct FixedCover {
   int level = 0;
   std::vector<std::uint64_t> first, last;
   std::vector<std::int32_t> site;
+  bool split_partly = false;  ///< as CoverView's
   bool empty() const { return site.empty(); }
-  CoverView view() const { return {first.data(), last.data(), site.data(), site.size(), level}; }
+  CoverView view() const { return {first.data(), last.data(), site.data(), site.size(), level, split_partly}; }
 };
 
 /// The cover of all of the input's fixed cells and fixed nodes. `threads`: as
@@ -27,15 +28,11 @@ FixedCover make_fixed_cover(const LabelInput& input, int threads);
 /// order within a node). from_level 0: all the cells that the input claims.
 std::vector<FixedCell> fixed_cells_with_nodes(const LabelInput& input, int from_level);
 
-/// The fixed points the tree needs (build_tree's candidates) when the input has fixed nodes: the
-/// input's fixed cells, and the cells of the cover that no node of level <= list_level within
-/// one site's range holds (near rings, and where a lower site claims part of a node), each once.
-/// Without fixed nodes: the input's fixed cells.
-std::vector<FixedCell> fixed_points_for_tree(const LabelInput& input, const FixedCover& cover, int list_level);
-
-/// The input as a labelling takes it: for the tree (`hier`), the cover of its claims and, with
-/// fixed nodes, fixed_points_for_tree as its fixed cells; for brute force, every claimed cell as
-/// a fixed cell (no cover). `input` points into this object's own arrays or the caller's.
+/// The input as a labelling takes it. For the tree (`hier`): the cover of its claims; with fixed
+/// nodes, no fixed cells at all (claims have no candidate points; the tree splits partly claimed
+/// nodes down to the level, CoverView::split_partly, so every claimed cell lies in a covered
+/// leaf), without them the input's fixed cells as fixed points. For brute force: every claimed
+/// cell as a fixed cell (no cover). `input` points into this object's arrays or the caller's.
 struct PreparedInput {
   LabelInput input;
   FixedCover cover;

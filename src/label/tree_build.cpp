@@ -53,7 +53,7 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
 
   // QTMV_LABEL_TRACE set: each step's time and size on stderr (for tuning).
   const bool trace = std::getenv("QTMV_LABEL_TRACE") != nullptr;
-  const CoverView cover = cover_given ? *cover_given : CoverView{nullptr, nullptr, nullptr, 0, level};
+  const CoverView cover = cover_given ? *cover_given : CoverView{nullptr, nullptr, nullptr, 0, level, false};
   double t_level = now_seconds();
   // Line runs become groups; the octants start with the runs' top items.
   GroupPlan plan = plan_groups(candidates, threads);
@@ -109,17 +109,15 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
         const std::int32_t* list = parent_lists.data() + p.parent_offset;
         Decision dec{0, -1, out.size(), 0};
         bool one_site = true;  // the kept candidates all have site dec.site
-        CoverLookup covered{-1, false};
-        if (l == level) {
+        // A node all of whose cells one site claims needs no filtering (decide_node).
+        const CoverLookup covered = cover_lookup(cover, p.cell, l);
+        if (l == level && covered.site < 0) {
           // The node is one cell of the level: its label is the best candidate at its centre,
           // settled here once rather than by every look-up.
           std::int32_t winner = -1;
           dec.site = best_of_items(c, list, static_cast<std::int32_t>(p.parent_count), candidates.data(), groups,
                                    &winner).site;
           if (with_distance) out.push_back(winner);
-        } else {
-          // A node all of whose cells are one site's fixed cells needs no filtering (decide_node).
-          covered = cover_lookup(cover, p.cell, l);
         }
         if (l < level && covered.site < 0) {
           bounds.resize(p.parent_count);
@@ -148,7 +146,7 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
         dec.count = static_cast<std::uint32_t>(out.size() - dec.offset);
         const NodeDecision rule =
             decide_node(l == level, with_distance, l >= list_level, dec.count, one_site, dec.site, covered.site,
-                        covered.partly);
+                        covered.partly, cover.split_partly);
         dec.kind = rule.kind;
         dec.site = rule.site;
         if (dec.kind == kUniform) {

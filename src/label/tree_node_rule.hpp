@@ -28,17 +28,19 @@ struct NodeDecision {
 ///   one_site: the kept candidates all have site `site` (true when none were kept).
 ///   covering_site: the site whose fixed cells are all the node's cells, or -1 (only asked
 ///     above the labelling level; the filtering may then be skipped).
-///   partly_covered: some of the node's cells are fixed cells, not all of one site. Above the
-///     list level such a node is split: the fixed nodes of the cover have no candidate points,
-///     so its candidates need not name their site; its children are covered or not.
+///     At the labelling level: the site that claims the cell, or -1.
+///   partly_covered: some of the node's cells are claimed, not all by one site. Such a node is
+///     split while `split_partly` (CoverView), else above the list level: claims without
+///     candidate points are then reached through covered nodes only.
 QTMV_HD inline NodeDecision decide_node(bool at_level, bool with_distance, bool list_level_reached,
                                         std::uint32_t kept_count, bool one_site, std::int32_t site,
-                                        std::int32_t covering_site, bool partly_covered = false) {
+                                        std::int32_t covering_site, bool partly_covered = false,
+                                        bool split_partly = false) {
+  // A claimed cell is its site's at distance 0: no candidate is needed below.
+  if (covering_site >= 0) return {kUniform, covering_site};
   // The cell's winner is settled in the build; with distances its list is the winner.
   if (at_level) return {with_distance ? kListLeaf : kUniform, site};
-  // Each fixed cell is its site's at distance 0: no candidate is needed below.
-  if (covering_site >= 0) return {kUniform, covering_site};
-  if (partly_covered && !list_level_reached) return {kInternal, site};
+  if (partly_covered && (split_partly || !list_level_reached)) return {kInternal, site};
   if (one_site && !with_distance) return {kUniform, site};
   if ((one_site && kept_count == 1) || (list_level_reached && kept_count <= kMaxLeafList)) {
     return {kListLeaf, site};
@@ -55,6 +57,10 @@ struct CoverView {
   const std::int32_t* site;
   std::uint64_t count;
   int level;  ///< the labelling level L
+  /// The claims have no fixed points among the candidates (the readers' fixed nodes): a partly
+  /// claimed node is split down to the level, so that every claimed cell lies in a covered leaf.
+  /// Otherwise (fixed cells only, each its own fixed point) only above the list level.
+  bool split_partly;
 };
 
 /// What the cover says of a node.
@@ -67,7 +73,7 @@ struct CoverLookup {
 /// k = L - l. The range with the last start at or before the node's last key is the only one
 /// that can hold its first key; any range meeting the node starts there or before.
 QTMV_HD inline CoverLookup cover_lookup(const CoverView& c, const grid::Cell& cell, int l) {
-  if (c.count == 0) return {-1, false};
+  if (c.count == 0 || c.first == nullptr) return {-1, false};
   const int shift = 2 * (c.level - l);
   const std::uint64_t first = grid::quadtree_key(cell, l) << shift;
   const std::uint64_t last = first + ((std::uint64_t{1} << shift) - 1);

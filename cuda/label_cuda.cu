@@ -818,7 +818,7 @@ __global__ void level_decide_kernel(const DevPending* pending, std::int32_t n, i
     c = static_cast<std::int32_t>(keep_pos[start[q + 1]] - keep_pos[start[q]]);
     const bool one_site = c == 0 || site_min[q] == site_max[q];
     d = decide_node(false, with_distance, list_level_reached, static_cast<std::uint32_t>(c), one_site,
-                    c == 0 ? -1 : site_min[q], covered.site, covered.partly, cover.split_partly);
+                    c == 0 ? -1 : site_min[q], covered.site, covered.partly, cover.split_partly, covered.claim_site);
   }
   const std::int32_t k = d.kind;
   kind[q] = k;
@@ -987,11 +987,13 @@ unsigned int blocks_of(std::uint64_t count) { return static_cast<unsigned int>((
 /// The cover (fixed_cover.hpp) copied to the device, as the device build looks it up.
 struct DeviceCover {
   DeviceArray<std::uint64_t> first, last;
-  DeviceArray<std::int32_t> site;
+  DeviceArray<std::int32_t> site, owner_run;
   std::uint64_t count = 0;
   int level = 0;
   bool split_partly = false;
-  CoverView view() const { return {first.get(), last.get(), site.get(), count, level, split_partly}; }
+  CoverView view() const {
+    return {first.get(), last.get(), site.get(), owner_run.get(), count, level, split_partly};
+  }
 };
 
 DeviceCover copy_cover(const CoverView* cover, int level, std::size_t* bytes, FaultStep injected) {
@@ -1002,9 +1004,12 @@ DeviceCover copy_cover(const CoverView* cover, int level, std::size_t* bytes, Fa
   out.first = device_alloc<std::uint64_t>(n, bytes, injected);
   out.last = device_alloc<std::uint64_t>(n, bytes, injected);
   out.site = device_alloc<std::int32_t>(n, bytes, injected);
+  out.owner_run = device_alloc<std::int32_t>(n, bytes, injected);
   QTMV_CUDA_CHECK(cudaMemcpy(out.first.get(), cover->first, n * sizeof(std::uint64_t), cudaMemcpyHostToDevice));
   QTMV_CUDA_CHECK(cudaMemcpy(out.last.get(), cover->last, n * sizeof(std::uint64_t), cudaMemcpyHostToDevice));
   QTMV_CUDA_CHECK(cudaMemcpy(out.site.get(), cover->site, n * sizeof(std::int32_t), cudaMemcpyHostToDevice));
+  QTMV_CUDA_CHECK(
+      cudaMemcpy(out.owner_run.get(), cover->owner_run, n * sizeof(std::int32_t), cudaMemcpyHostToDevice));
   out.count = n;
   out.split_partly = cover->split_partly;
   return out;

@@ -30,7 +30,10 @@ FixedCover make_fixed_cover(const LabelInput& input, int threads_requested) {
   cover.first.reserve(parts.size());
   cover.last.reserve(parts.size());
   cover.site.reserve(parts.size());
+  cover.owner_run.reserve(parts.size());
   for (const grid::KeyRange& r : parts) {
+    const bool same_owner = !cover.site.empty() && cover.site.back() == r.owner;
+    cover.owner_run.push_back(cover.owner_run.empty() ? 0 : cover.owner_run.back() + (same_owner ? 0 : 1));
     cover.first.push_back(r.first);
     cover.last.push_back(r.last);
     cover.site.push_back(r.owner);

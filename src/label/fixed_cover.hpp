@@ -14,10 +14,12 @@ namespace qtmv::label {
 struct FixedCover {
   int level = 0;
   std::vector<std::uint64_t> first, last;
-  std::vector<std::int32_t> site;
+  std::vector<std::int32_t> site, owner_run;
   bool split_partly = false;  ///< as CoverView's
   bool empty() const { return site.empty(); }
-  CoverView view() const { return {first.data(), last.data(), site.data(), site.size(), level, split_partly}; }
+  CoverView view() const {
+    return {first.data(), last.data(), site.data(), owner_run.data(), site.size(), level, split_partly};
+  }
 };
 
 /// The cover of all of the input's fixed cells and fixed nodes. `threads`: as

@@ -53,7 +53,7 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
 
   // QTMV_LABEL_TRACE set: each step's time and size on stderr (for tuning).
   const bool trace = std::getenv("QTMV_LABEL_TRACE") != nullptr;
-  const CoverView cover = cover_given ? *cover_given : CoverView{nullptr, nullptr, nullptr, 0, level, false};
+  const CoverView cover = cover_given ? *cover_given : CoverView{nullptr, nullptr, nullptr, nullptr, 0, level, false};
   double t_level = now_seconds();
   // Line runs become groups; the octants start with the runs' top items.
   GroupPlan plan = plan_groups(candidates, threads);
@@ -146,7 +146,7 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
         dec.count = static_cast<std::uint32_t>(out.size() - dec.offset);
         const NodeDecision rule =
             decide_node(l == level, with_distance, l >= list_level, dec.count, one_site, dec.site, covered.site,
-                        covered.partly, cover.split_partly);
+                        covered.partly, cover.split_partly, covered.claim_site);
         dec.kind = rule.kind;
         dec.site = rule.site;
         if (dec.kind == kUniform) {

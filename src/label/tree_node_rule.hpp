@@ -31,16 +31,21 @@ struct NodeDecision {
 ///     At the labelling level: the site that claims the cell, or -1.
 ///   partly_covered: some of the node's cells are claimed, not all by one site. Such a node is
 ///     split while `split_partly` (CoverView), else above the list level: claims without
-///     candidate points are then reached through covered nodes only.
+///     candidate points are then reached through covered nodes only. Unless, without distances,
+///     its claims and its candidates all have one site (claim_site == site): then it is that
+///     site's whole.
 QTMV_HD inline NodeDecision decide_node(bool at_level, bool with_distance, bool list_level_reached,
                                         std::uint32_t kept_count, bool one_site, std::int32_t site,
                                         std::int32_t covering_site, bool partly_covered = false,
-                                        bool split_partly = false) {
+                                        bool split_partly = false, std::int32_t claim_site = -1) {
   // A claimed cell is its site's at distance 0: no candidate is needed below.
   if (covering_site >= 0) return {kUniform, covering_site};
   // The cell's winner is settled in the build; with distances its list is the winner.
   if (at_level) return {with_distance ? kListLeaf : kUniform, site};
-  if (partly_covered && (split_partly || !list_level_reached)) return {kInternal, site};
+  if (partly_covered && (split_partly || !list_level_reached) &&
+      !(one_site && !with_distance && claim_site >= 0 && claim_site == site)) {
+    return {kInternal, site};
+  }
   if (one_site && !with_distance) return {kUniform, site};
   if ((one_site && kept_count == 1) || (list_level_reached && kept_count <= kMaxLeafList)) {
     return {kListLeaf, site};
@@ -55,6 +60,7 @@ struct CoverView {
   const std::uint64_t* first;
   const std::uint64_t* last;
   const std::int32_t* site;
+  const std::int32_t* owner_run;  ///< per range: the id of its run of ranges of one site (gaps allowed)
   std::uint64_t count;
   int level;  ///< the labelling level L
   /// The claims have no fixed points among the candidates (the readers' fixed nodes): a partly
@@ -67,13 +73,14 @@ struct CoverView {
 struct CoverLookup {
   std::int32_t site;  ///< the site whose fixed cells are all the node's cells, or -1
   bool partly;        ///< some but not all of the node's cells are fixed cells of one site
+  std::int32_t claim_site;  ///< the one site that claims the node's claimed cells, or -1
 };
 
 /// The cover of `cell` (of level l <= L): its cells are the keys [key << 2k, (key + 1) << 2k),
 /// k = L - l. The range with the last start at or before the node's last key is the only one
 /// that can hold its first key; any range meeting the node starts there or before.
 QTMV_HD inline CoverLookup cover_lookup(const CoverView& c, const grid::Cell& cell, int l) {
-  if (c.count == 0 || c.first == nullptr) return {-1, false};
+  if (c.count == 0 || c.first == nullptr) return {-1, false, -1};
   const int shift = 2 * (c.level - l);
   const std::uint64_t first = grid::quadtree_key(cell, l) << shift;
   const std::uint64_t last = first + ((std::uint64_t{1} << shift) - 1);
@@ -86,10 +93,20 @@ QTMV_HD inline CoverLookup cover_lookup(const CoverView& c, const grid::Cell& ce
       hi = mid;
     }
   }
-  if (lo == 0 || c.last[lo - 1] < first) return {-1, false};
+  if (lo == 0 || c.last[lo - 1] < first) return {-1, false, -1};
   const std::uint64_t r = lo - 1;
-  if (c.first[r] <= first && c.last[r] >= last) return {c.site[r], false};
-  return {-1, true};
+  if (c.first[r] <= first && c.last[r] >= last) return {c.site[r], false, c.site[r]};
+  // The first range meeting the node: the first ending at or after `first` (ends ascend too).
+  std::uint64_t a = 0, b = r;
+  while (a < b) {
+    const std::uint64_t mid = a + (b - a) / 2;
+    if (c.last[mid] < first) {
+      a = mid + 1;
+    } else {
+      b = mid;
+    }
+  }
+  return {-1, true, c.owner_run[a] == c.owner_run[r] ? c.site[r] : -1};
 }
 
 }  // namespace qtmv::label

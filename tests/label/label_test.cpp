@@ -385,15 +385,17 @@ TEST(LabelTree, CoverLookupMatchesEveryNode) {
     for (Code code = 0; code < grid::cell_count(l); ++code) {
       const Cell c = grid::cell_of(code, l);
       const std::uint64_t first = grid::quadtree_key(c, l) << (2 * k);
-      std::int32_t want = lowest[first];
+      std::int32_t want = lowest[first], claimant = -2;  // -2: none yet
       bool any = false;
       for (std::uint64_t q = first; q < first + (std::uint64_t{1} << (2 * k)); ++q) {
         any = any || lowest[q] >= 0;
         if (lowest[q] != want) want = -1;
+        if (lowest[q] >= 0) claimant = claimant == -2 || claimant == lowest[q] ? lowest[q] : -1;
       }
       const CoverLookup got = cover_lookup(view, c, l);
       ASSERT_EQ(got.site, want) << "level " << l << " code " << code;
       ASSERT_EQ(got.partly, any && want < 0) << "level " << l << " code " << code;
+      ASSERT_EQ(got.claim_site, any ? claimant : -1) << "level " << l << " code " << code;
       covered_nodes += want >= 0 && l < level;
       partly_nodes += got.partly;
     }

@@ -143,15 +143,41 @@ CoordinateRange coordinate_range(const OGRSpatialReference& srs) {
   return range;
 }
 
-/// One feature's site, to be traced and filled: its coordinates (lon/lat) and parts.
+/// A feature's site, or a share of its parts, to be traced and filled: its coordinates (lon/lat,
+/// shared by the shares) and parts.
 struct SiteJob {
   GIntBig fid = 0;
-  std::vector<grid::LonLat> lonlat;
+  bool starts_site = true;  ///< the first share of its feature (the others add to its site)
+  std::shared_ptr<const std::vector<grid::LonLat>> lonlat;
   std::vector<FeatureParts::Part> parts;
 };
-/// Sites and coordinates per batch: enough work for every thread, memory bounded.
+/// Jobs and coordinates per batch: enough work for every thread, memory bounded.
 constexpr std::size_t kBatchSites = 4096;
 constexpr std::size_t kBatchVertices = std::size_t{1} << 22;
+/// A feature with more vertices than this is shared out by its parts (whole polygons), so that
+/// one large multipolygon (a continent's coasts) keeps several threads busy.
+constexpr std::size_t kShareVertices = std::size_t{1} << 15;
+
+/// The feature's parts as jobs: one, or shares of about kShareVertices vertices, split between
+/// polygons (a polygon's rings stay together). The split depends on the feature only.
+void make_jobs(GIntBig fid, std::vector<grid::LonLat>&& lonlat, std::vector<FeatureParts::Part>&& parts,
+               std::vector<SiteJob>& out) {
+  auto shared = std::make_shared<const std::vector<grid::LonLat>>(std::move(lonlat));
+  SiteJob job{fid, true, shared, {}};
+  std::size_t vertices = 0;
+  for (std::size_t p = 0; p < parts.size(); ++p) {
+    const bool polygon_starts = parts[p].kind != FeatureParts::kRing || p == 0 ||
+                                parts[p - 1].kind != FeatureParts::kRing || parts[p - 1].polygon != parts[p].polygon;
+    if (polygon_starts && vertices >= kShareVertices) {
+      out.push_back(std::move(job));
+      job = SiteJob{fid, false, shared, {}};
+      vertices = 0;
+    }
+    job.parts.push_back(parts[p]);
+    vertices += parts[p].end - parts[p].begin;
+  }
+  out.push_back(std::move(job));
+}
 
 /// Traces and fills one site with `builder` (a polygon's rings together).
 void build_site(SiteBuilder& builder, const SiteJob& job) {
@@ -159,16 +185,16 @@ void build_site(SiteBuilder& builder, const SiteJob& job) {
   for (std::size_t p = 0; p < job.parts.size();) {
     const FeatureParts::Part& part = job.parts[p];
     if (part.kind == FeatureParts::kPoint) {
-      builder.add_point(job.lonlat[part.begin]);
+      builder.add_point((*job.lonlat)[part.begin]);
       ++p;
     } else if (part.kind == FeatureParts::kLine) {
-      builder.add_line(job.lonlat.data() + part.begin, part.end - part.begin);
+      builder.add_line(job.lonlat->data() + part.begin, part.end - part.begin);
       ++p;
     } else {
       std::vector<LonLatPath> rings;
       const int polygon = part.polygon;
       for (; p < job.parts.size() && job.parts[p].kind == FeatureParts::kRing && job.parts[p].polygon == polygon; ++p) {
-        rings.emplace_back(job.lonlat.begin() + job.parts[p].begin, job.lonlat.begin() + job.parts[p].end);
+        rings.emplace_back(job.lonlat->begin() + job.parts[p].begin, job.lonlat->begin() + job.parts[p].end);
       }
       builder.add_polygon(rings);
     }
@@ -332,12 +358,14 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   FidList wrapped;  // the features -wrap auto changed
   std::chrono::steady_clock::duration rasterise{};  // tracing, filling and claims, within the read
 
-  // Sites are traced and filled in batches on all threads, each by one thread's builder, and
-  // appended in feature order: the same geometry whatever the thread count.
+  // Sites are traced and filled in batches on all threads, each job (a feature, or a share of a
+  // large one's parts) by one thread's builder, and appended in feature order: the same geometry
+  // whatever the thread count.
   const int threads = thread_count(options.threads);
   std::vector<std::unique_ptr<SiteBuilder>> builders(static_cast<std::size_t>(threads));
   std::vector<SiteJob> batch;
   std::size_t batch_vertices = 0;
+  GIntBig wrapped_fid = -1;  // the last feature named in `wrapped`
   SiteGeometry& geometry = out.geometry;
   geometry.level = options.level;
   auto build_batch = [&] {
@@ -359,8 +387,13 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
     }
     failure.rethrow();
     for (std::size_t k = 0; k < batch.size(); ++k) {
-      append_site(geometry, built[k], geometry.site_count);
-      if (short_way[k] > 0) wrapped.add(batch[k].fid);
+      // A feature's shares come one after another: its first starts the site, the others add to it.
+      append_site(geometry, built[k], batch[k].starts_site ? geometry.site_count : geometry.site_count - 1);
+      const bool named = !batch[k].starts_site && wrapped_fid == batch[k].fid;
+      if (short_way[k] > 0 && !named) {
+        wrapped.add(batch[k].fid);
+        wrapped_fid = batch[k].fid;
+      }
     }
     batch.clear();
     batch_vertices = 0;
@@ -454,22 +487,18 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
     if (!usable) continue;
 
     // --- one site, built with the next batch ---
-    SiteJob job;
-    job.fid = fid;
-    job.lonlat = std::move(lonlat);
-    lonlat = {};
-    job.parts = std::move(parts.parts);
     SiteRecord record;
     record.fid = fid;
-    for (const FeatureParts::Part& part : job.parts) {
+    for (const FeatureParts::Part& part : parts.parts) {
       record.kind |= part.kind == FeatureParts::kPoint ? kPointSite : part.kind == FeatureParts::kLine ? kLineSite
                                                                                                        : kPolygonSite;
     }
     record.attributes.reset(feature.release());
     out.table.sites.push_back(std::move(record));
     ++summary.sites;
-    batch_vertices += job.lonlat.size();
-    batch.push_back(std::move(job));
+    batch_vertices += lonlat.size();
+    make_jobs(fid, std::move(lonlat), std::move(parts.parts), batch);
+    lonlat = {};
     if (batch.size() >= kBatchSites || batch_vertices >= kBatchVertices) build_batch();
   }
   build_batch();

@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <set>
 #include <vector>
@@ -110,8 +112,29 @@ namespace {
 
 // The readers build sites on all threads: the same pieces, site cells, fixed cells and nodes,
 // table and summary with one thread as with several (the countries at level 8, and as lines).
+/// A CSV with one large multipolygon (many rings, more vertices than one job takes) between two
+/// small polygons: the large one is traced in shares by several threads.
+std::string large_multipolygon_csv() {
+  const std::string path = ::testing::TempDir() + "/large_multipolygon.csv";
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  std::fputs("WKT,id\n\"POLYGON ((-30 -30,-20 -30,-20 -20,-30 -30))\",0\n\"MULTIPOLYGON (", f);
+  for (int p = 0; p < 120; ++p) {
+    const double lon = -170.0 + 340.0 * (p % 12) / 12.0, lat = -60.0 + 120.0 * (p / 12) / 10.0;
+    std::fputs(p ? ",((" : "((", f);
+    for (int k = 0; k <= 600; ++k) {
+      const double a = 2 * M_PI * (k % 600) / 600.0, r = 4.0 + 1.5 * std::sin(7 * a + p);
+      std::fprintf(f, "%s%.6f %.6f", k ? "," : "", lon + r * std::cos(a), lat + 0.5 * r * std::sin(a));
+    }
+    std::fputs("))", f);
+  }
+  std::fputs(")\",1\n\"POLYGON ((30 30,40 30,40 40,30 30))\",2\n", f);
+  std::fclose(f);
+  return path;
+}
+
 TEST(NaturalEarth, OneThreadAndSeveralReadTheSame) {
-  for (const bool as_lines : {false, true}) {
+  for (const int source : {0, 1, 2}) {  // polygons, lines, a large multipolygon
+    const bool as_lines = source == 1;
     SiteSet got[2];
     for (int k = 0; k < 2; ++k) {
       ReadOptions o = test::options_at(kLevel, nullptr);
@@ -119,11 +142,17 @@ TEST(NaturalEarth, OneThreadAndSeveralReadTheSame) {
       o.threads = k == 0 ? 1 : 4;
       if (as_lines) o.sql = "SELECT ST_Boundary(geom) AS geom, name FROM countries_110m";
       if (as_lines) o.layer.clear();
+      if (source == 2) {
+        o.layer.clear();
+        got[k] = read_sites(large_multipolygon_csv(), o);
+        EXPECT_EQ(got[k].geometry.site_count, 3);
+        continue;
+      }
       got[k] = read_sites(kCountries, o);
     }
     const SiteGeometry& a = got[0].geometry;
     const SiteGeometry& b = got[1].geometry;
-    SCOPED_TRACE(as_lines ? "lines" : "polygons");
+    SCOPED_TRACE(source == 0 ? "polygons" : source == 1 ? "lines" : "large multipolygon");
     ASSERT_EQ(a.site_count, b.site_count);
     ASSERT_EQ(a.pieces.size(), b.pieces.size());
     std::size_t differ = 0;

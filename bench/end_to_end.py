@@ -6,10 +6,13 @@ memory (the child's maximum resident set, from wait4) and the stage times of the
 line (read / label / write). Ratios are taken within one run of this script, on one machine.
 
   bench/end_to_end.py --tool PATH [--device cuda|cpu|both] [--cases NAMES] [--repeat N] [--csv OUT]
+                      [--data DIR]
 
 PATH is the qtmvoronoi binary or the bundle's bin/qtmvoronoi wrapper (scripts/make_bundle.sh).
 The inputs: testdata/country_centres.csv (241 points) and 135 233 points spread evenly over the
-sphere (seeded; written here as CSV, so that no GDAL tool is needed on the machine).
+sphere (seeded; written here as CSV, so that no GDAL tool is needed on the machine); for the
+polygon cases, Natural Earth's 50m countries and 10m land as GeoPackages in --data DIR (made by
+bench/make_natural_earth.sh where GDAL's tools are; copied to the GPU machine with the bundle).
 Standard library only: it runs on the GPU machine too.
 """
 import argparse
@@ -40,7 +43,16 @@ CASES = {
     "centres-L18-regions+edges": ("centres", 18, "regions,voronoi_edges", ("cuda",)),
     "points135k-L13-regions": ("points", 13, "regions", ("cpu", "cuda")),
     "points135k-L15-regions": ("points", 15, "regions", ("cpu", "cuda")),
+    "points135k-L11-tif": ("points", 11, "tif", ("cpu", "cuda")),
+    "points135k-L13-tif": ("points", 13, "tif", ("cpu", "cuda")),
+    "countries50-L10-regions": ("countries50", 10, "regions", ("cpu", "cuda")),
+    "countries50-L12-regions": ("countries50", 12, "regions", ("cpu", "cuda")),
+    "countries50-L14-regions": ("countries50", 14, "regions", ("cuda",)),
+    "land10-L12-regions": ("land10", 12, "regions", ("cpu", "cuda")),
+    "land10-L14-regions": ("land10", 14, "regions", ("cuda",)),
 }
+# Natural Earth inputs in --data: file and layer.
+NATURAL_EARTH = {"countries50": ("countries50.gpkg", "countries"), "land10": ("land10.gpkg", "land")}
 
 SUMMARY = re.compile(r"read ([0-9.]+) s .*label ([0-9.]+) s \(prepare ([0-9.]+) s\), write ([0-9.]+) s; total ([0-9.]+) s")
 
@@ -75,6 +87,8 @@ def main():
     parser.add_argument("--threads", type=int, default=0, help="-threads for the CPU runs (0: all)")
     parser.add_argument("--csv", help="also write the rows here")
     parser.add_argument("--keep", help="directory for the outputs (default: a temporary one)")
+    parser.add_argument("--data", default=os.path.join(HERE, "..", "build", "bench-data"),
+                        help="directory of bench/make_natural_earth.sh's GeoPackages")
     args = parser.parse_args()
 
     work = args.keep or tempfile.mkdtemp(prefix="qtmv_e2e_")
@@ -93,11 +107,18 @@ def main():
         for device in devices:
             if device not in allowed:
                 continue
-            out = os.path.join(work, "%s-%s.gpkg" % (name, device))
-            command = [args.tool, "-overwrite", "-device", device, "-level", str(level), "-layers", layers]
+            raster = layers == "tif"
+            out = os.path.join(work, "%s-%s.%s" % (name, device, "tif" if raster else "gpkg"))
+            command = [args.tool, "-overwrite", "-device", device, "-level", str(level)]
+            if not raster:
+                command += ["-layers", layers]
             if device == "cpu" and args.threads:
                 command += ["-threads", str(args.threads)]
-            command += CSV_OPTIONS + [inputs[source], out]
+            if source in NATURAL_EARTH:
+                file, layer = NATURAL_EARTH[source]
+                command += ["-l", layer, os.path.join(args.data, file), out]
+            else:
+                command += CSV_OPTIONS + [inputs[source], out]
             runs = [run_once(command) for _ in range(args.repeat)]
             failed = [r for r in runs if r[2] != 0]
             if failed:

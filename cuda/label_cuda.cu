@@ -635,7 +635,7 @@ __global__ void brute_codes_kernel(const Piece* pieces, int piece_count, int lev
 // candidate's squared chord (an atomicMin on the float64 bits: the chords are >= 0, so their bit
 // patterns order as the values), then the kept entries (d2 <= prune_threshold) are compacted in
 // list order by a scan, and the nodes' kinds (decide_node, as on the host; a node covered by one
-// site's fixed cells from fixed_cover_site) and offsets and children follow from scans in node
+// site's fixed cells from cover_lookup) and offsets and children follow from scans in node
 // order, as the host's parts do.
 
 /// A node of the level being built (see labeller.cpp's Pending).
@@ -801,7 +801,7 @@ __global__ void level_settle_kernel(const DevPending* pending, std::int32_t n, c
 
 /// Per node: its kind and counts (decide_node, as build_tree; value: the uniform leaf's site).
 __global__ void level_decide_kernel(const DevPending* pending, std::int32_t n, int l, bool last, bool with_distance,
-                                    bool list_level_reached, FixedCoverView cover, const unsigned long long* start,
+                                    bool list_level_reached, CoverView cover, const unsigned long long* start,
                                     const unsigned int* keep_pos, const std::int32_t* site_min,
                                     const std::int32_t* site_max, const unsigned long long* key, std::int32_t* kind,
                                     std::int32_t* count, std::int32_t* value, LevelSums* sums_in) {
@@ -809,16 +809,16 @@ __global__ void level_decide_kernel(const DevPending* pending, std::int32_t n, i
   if (q >= n) return;
   NodeDecision d;
   std::int32_t c;
+  const CoverLookup covered = cover_lookup(cover, pending[q].cell, l);
   if (last) {
     c = with_distance ? 1 : 0;
     d = decide_node(true, with_distance, list_level_reached, static_cast<std::uint32_t>(c), true,
-                    static_cast<std::int32_t>(key[q] >> 32), -1);
+                    static_cast<std::int32_t>(key[q] >> 32), covered.site);
   } else {
     c = static_cast<std::int32_t>(keep_pos[start[q + 1]] - keep_pos[start[q]]);
     const bool one_site = c == 0 || site_min[q] == site_max[q];
-    const std::int32_t covered = cover.count ? fixed_cover_site(cover, pending[q].cell, l) : -1;
     d = decide_node(false, with_distance, list_level_reached, static_cast<std::uint32_t>(c), one_site,
-                    c == 0 ? -1 : site_min[q], covered);
+                    c == 0 ? -1 : site_min[q], covered.site, covered.partly, cover.split_partly, covered.claim_site);
   }
   const std::int32_t k = d.kind;
   kind[q] = k;
@@ -951,23 +951,6 @@ __global__ void gather_fixed_kernel(const FixedCell* fixed, const std::uint32_t*
   if (k < count) out[k] = fixed[index[k]];
 }
 
-/// make_fixed_cover: each fixed cell's quadtree key and site.
-__global__ void fixed_cover_keys_kernel(const FixedCell* fixed, std::uint64_t count, int level, std::uint64_t* key,
-                                        std::int32_t* site) {
-  const std::uint64_t k = static_cast<std::uint64_t>(blockIdx.x) * blockDim.x + threadIdx.x;
-  if (k >= count) return;
-  const FixedCell f = fixed[k];
-  key[k] = grid::quadtree_key(grid::cell_of(f.code, level), level);
-  site[k] = f.site;
-}
-
-/// make_fixed_cover: per entry of the sorted keys, fixed_cover_entry.
-__global__ void fixed_cover_runs_kernel(const std::uint64_t* key, const std::int32_t* site, std::uint64_t count,
-                                        std::int32_t* cover_site, std::int32_t* run_starts) {
-  const std::uint64_t k = static_cast<std::uint64_t>(blockIdx.x) * blockDim.x + threadIdx.x;
-  if (k < count) fixed_cover_entry(key, site, count, k, cover_site + k, run_starts + k);
-}
-
 __global__ void jump_kernel(const TreeNode* nodes, int jump_level, std::uint64_t count, JumpEntry* jump) {
   const std::uint64_t k = static_cast<std::uint64_t>(blockIdx.x) * blockDim.x + threadIdx.x;
   if (k >= count) return;
@@ -1001,56 +984,35 @@ __global__ void gather_outline_kernel(const std::uint32_t* index, std::uint32_t 
 
 unsigned int blocks_of(std::uint64_t count) { return static_cast<unsigned int>((count + kBlock - 1) / kBlock); }
 
-/// The fixed cells as the device build looks them up (FixedCoverView), in arrays of their own.
-struct DeviceFixedCover {
-  DeviceArray<std::uint64_t> key;
-  DeviceArray<std::int32_t> site, run;
+/// The cover (fixed_cover.hpp) copied to the device, as the device build looks it up.
+struct DeviceCover {
+  DeviceArray<std::uint64_t> first, last;
+  DeviceArray<std::int32_t> site, owner_run;
   std::uint64_t count = 0;
   int level = 0;
-  FixedCoverView view() const { return {key.get(), site.get(), run.get(), count, level}; }
+  bool split_partly = false;
+  CoverView view() const {
+    return {first.get(), last.get(), site.get(), owner_run.get(), count, level, split_partly};
+  }
 };
 
-/// The fixed cells `fixed` (device array, any order) sorted by quadtree key, with their runs.
-DeviceFixedCover make_fixed_cover(const FixedCell* fixed, std::uint64_t count, int level, FaultStep injected) {
-  DeviceFixedCover cover;
-  cover.level = level;
-  if (count == 0) return cover;
-  std::size_t scratch = 0;
-  const DeviceArray<std::uint64_t> unsorted_key = device_alloc<std::uint64_t>(count, &scratch, injected);
-  DeviceArray<std::int32_t> unsorted_site = device_alloc<std::int32_t>(count, &scratch, injected);
-  cover.key = device_alloc<std::uint64_t>(count, &scratch, injected);
-  DeviceArray<std::int32_t> sorted_site = device_alloc<std::int32_t>(count, &scratch, injected);
-  fixed_cover_keys_kernel<<<blocks_for(count), kBlock>>>(fixed, count, level, unsorted_key.get(),
-                                                         unsorted_site.get());
-  QTMV_CUDA_CHECK_LAUNCH("fixed_cover_keys_kernel");
-  const int end_bit = 3 + 2 * level;
-  std::size_t temp_bytes = 0;
-  QTMV_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(nullptr, temp_bytes, unsorted_key.get(), cover.key.get(),
-                                                  unsorted_site.get(), sorted_site.get(), count, 0, end_bit));
-  {
-    const DeviceArray<unsigned char> temp =
-        device_alloc<unsigned char>(temp_bytes ? temp_bytes : 1, &scratch, injected);
-    QTMV_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(temp.get(), temp_bytes, unsorted_key.get(), cover.key.get(),
-                                                    unsorted_site.get(), sorted_site.get(), count, 0, end_bit));
-    QTMV_CUDA_CHECK(cudaDeviceSynchronize());  // the sort's errors surface here, named
-  }
-  // The unsorted sites' array takes the run starts.
-  std::int32_t* run_starts = unsorted_site.get();
-  cover.site = device_alloc<std::int32_t>(count, &scratch, injected);
-  cover.run = device_alloc<std::int32_t>(count, &scratch, injected);
-  fixed_cover_runs_kernel<<<blocks_for(count), kBlock>>>(cover.key.get(), sorted_site.get(), count, cover.site.get(),
-                                                         run_starts);
-  QTMV_CUDA_CHECK_LAUNCH("fixed_cover_runs_kernel");
-  temp_bytes = 0;
-  QTMV_CUDA_CHECK(cub::DeviceScan::InclusiveSum(nullptr, temp_bytes, run_starts, cover.run.get(), count));
-  {
-    const DeviceArray<unsigned char> temp =
-        device_alloc<unsigned char>(temp_bytes ? temp_bytes : 1, &scratch, injected);
-    QTMV_CUDA_CHECK(cub::DeviceScan::InclusiveSum(temp.get(), temp_bytes, run_starts, cover.run.get(), count));
-    QTMV_CUDA_CHECK(cudaDeviceSynchronize());
-  }
-  cover.count = count;
-  return cover;
+DeviceCover copy_cover(const CoverView* cover, int level, std::size_t* bytes, FaultStep injected) {
+  DeviceCover out;
+  out.level = level;
+  if (cover == nullptr || cover->count == 0) return out;
+  const std::uint64_t n = cover->count;
+  out.first = device_alloc<std::uint64_t>(n, bytes, injected);
+  out.last = device_alloc<std::uint64_t>(n, bytes, injected);
+  out.site = device_alloc<std::int32_t>(n, bytes, injected);
+  out.owner_run = device_alloc<std::int32_t>(n, bytes, injected);
+  QTMV_CUDA_CHECK(cudaMemcpy(out.first.get(), cover->first, n * sizeof(std::uint64_t), cudaMemcpyHostToDevice));
+  QTMV_CUDA_CHECK(cudaMemcpy(out.last.get(), cover->last, n * sizeof(std::uint64_t), cudaMemcpyHostToDevice));
+  QTMV_CUDA_CHECK(cudaMemcpy(out.site.get(), cover->site, n * sizeof(std::int32_t), cudaMemcpyHostToDevice));
+  QTMV_CUDA_CHECK(
+      cudaMemcpy(out.owner_run.get(), cover->owner_run, n * sizeof(std::int32_t), cudaMemcpyHostToDevice));
+  out.count = n;
+  out.split_partly = cover->split_partly;
+  return out;
 }
 
 /// What build_on_device made: the tree's arrays.
@@ -1063,11 +1025,11 @@ struct DeviceTree {
   double mean_candidates = 0;
 };
 
-/// The tree of build_tree (labeller.cpp), built on the current device; `cover`: its fixed cells
-/// (make_fixed_cover; count 0: none). `injected`: QTMV_FAULT_CUDA_OOM as the Labeller read it.
+/// The tree of build_tree (labeller.cpp), built on the current device; `cover`: the claimed
+/// cells (DeviceCover; count 0: none). `injected`: QTMV_FAULT_CUDA_OOM as the Labeller read it.
 DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* runs,
                            const std::vector<std::int32_t>& top_items, int level, bool with_distance,
-                           const FixedCoverView& cover, FaultStep injected, Trace& trace) {
+                           const CoverView& cover, FaultStep injected, Trace& trace) {
   fail_if_injected(injected, FaultStep::build);
   const int list_level = tree_list_level(level);
   // The scratch comes from the device's default pool and stays there (pool_idle_bytes).
@@ -1336,7 +1298,7 @@ struct Labeller::Impl {
 
   /// The groups of `plan` over the pieces already here, then the tree built here (`cover`: the
   /// fixed cells behind the pieces' fixed points, as build_tree's `fixed`).
-  void build_tree(const GroupPlan& plan, bool with_distance, const FixedCoverView& cover, Trace& trace) {
+  void build_tree(const GroupPlan& plan, bool with_distance, const CoverView& cover, Trace& trace) {
     trace("groups planned", plan.spans.size(), plan.top_items.size());
     if (!plan.spans.empty()) {
       std::size_t span_bytes = 0;
@@ -1414,7 +1376,7 @@ Labeller::Labeller(int device, const std::vector<Piece>& candidates, const Tree*
 }
 
 Labeller::Labeller(int device, const std::vector<Piece>& candidates, int level, bool with_distance,
-                   int threads, const FixedCell* fixed, std::size_t fixed_count)
+                   int threads, const CoverView* cover_given)
     : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
   m.open(device, level, true);
@@ -1424,19 +1386,14 @@ Labeller::Labeller(int device, const std::vector<Piece>& candidates, int level, 
   Trace trace;
   m.pieces = device_copy(candidates, &m.bytes, m.injected_fault);
   trace("pieces to the device", candidates.size());
-  DeviceFixedCover cover;
-  cover.level = level;
-  if (fixed_count > 0) {
-    std::size_t scratch = 0;
-    const DeviceArray<FixedCell> fixed_here = device_alloc<FixedCell>(fixed_count, &scratch, m.injected_fault);
-    QTMV_CUDA_CHECK(cudaMemcpy(fixed_here.get(), fixed, fixed_count * sizeof(FixedCell), cudaMemcpyHostToDevice));
-    cover = make_fixed_cover(fixed_here.get(), fixed_count, level, m.injected_fault);
-    trace("fixed cells sorted for the cover", fixed_count);
-  }
+  std::size_t scratch = 0;
+  const DeviceCover cover = copy_cover(cover_given, level, &scratch, m.injected_fault);
+  trace("cover to the device", cover.count);
   m.build_tree(plan_groups(candidates, host_threads(threads)), with_distance, cover.view(), trace);
 }
 
-Labeller::Labeller(int device, const LabelInput& input, bool with_distance, int threads)
+Labeller::Labeller(int device, const LabelInput& input, bool with_distance, int threads,
+                   const CoverView* cover_given)
     : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
   m.open(device, input.level, true);
@@ -1449,8 +1406,9 @@ Labeller::Labeller(int device, const LabelInput& input, bool with_distance, int 
   // kMaxDeviceOrderLevel).
   Trace trace;
   std::vector<FixedCell> host_ordered;
-  DeviceFixedCover cover;
-  cover.level = input.level;
+  std::size_t cover_bytes = 0;
+  const DeviceCover cover = copy_cover(cover_given, input.level, &cover_bytes, m.injected_fault);
+  trace("cover to the device", cover.count);
   const FixedCell* fixed_input = input.fixed_cells;
   const bool order_here = input.level <= kMaxDeviceOrderLevel;
   if (!order_here) fixed_input = fixed_cells_in_quadtree_order(input, threads, &host_ordered);
@@ -1485,8 +1443,6 @@ Labeller::Labeller(int device, const LabelInput& input, bool with_distance, int 
       fixed = std::move(sorted);
       trace("fixed cells in quadtree order", n);
     }
-    cover = make_fixed_cover(fixed.get(), n, input.level, m.injected_fault);
-    trace("fixed cells sorted for the cover", n);
     m.pieces = device_alloc<Piece>(count, &m.bytes, m.injected_fault);
     make_pieces_kernel<<<blocks_for(count), kBlock>>>(site_pieces.get(), input.piece_count, fixed.get(),
                                                      input.fixed_cell_count, input.level, m.pieces.get());

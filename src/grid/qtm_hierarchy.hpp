@@ -49,6 +49,17 @@ QTMV_HD inline std::uint64_t quadtree_key(const Cell& c, int level) {
   return key;
 }
 
+/// The cell of `level` whose quadtree_key is `key` (its inverse).
+QTMV_HD inline Cell cell_of_quadtree_key(std::uint64_t key, int level) {
+  Cell c{static_cast<int>(key >> (2 * level)), 0, 0};
+  for (int l = level - 1; l >= 0; --l) {
+    Cell ch[4];
+    children(c, ch);
+    c = ch[(key >> (2 * l)) & 3u];
+  }
+  return c;
+}
+
 /// True when all three edge neighbours of cell c (level `level`) lie in c's ancestor at
 /// `leaf_level`, so that a uniform leaf settles c's boundary flag without looking further.
 /// In ancestor()'s terms (local row lr of 2^k, column offset in the block of 2^(k+1)), an up

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <vector>
 
+#include "label/fixed_cover.hpp"
 #include "label/label_engine.hpp"
 #include "common/openmp_threads.hpp"
 
@@ -12,8 +13,18 @@
 
 namespace qtmv::label {
 
-std::vector<Piece> make_candidates(const LabelInput& in, Rule rule, int threads_requested) {
+std::vector<Piece> make_candidates(const LabelInput& given, Rule rule, int threads_requested) {
   const int threads = thread_count(threads_requested);
+  // The cells of fixed nodes are fixed cells here (the reference's view of the input).
+  LabelInput in = given;
+  std::vector<FixedCell> with_nodes;
+  if (given.fixed_node_count > 0) {
+    with_nodes = fixed_cells_with_nodes(given, 0);
+    in.fixed_cells = with_nodes.data();
+    in.fixed_cell_count = with_nodes.size();
+    in.fixed_nodes = nullptr;
+    in.fixed_node_count = 0;
+  }
   std::vector<Piece> out;
   if (rule == Rule::exact) {
     out.reserve(in.piece_count + in.fixed_cell_count);

@@ -14,6 +14,7 @@
 #include "label/label_engine.hpp"
 #include "label/label_math.hpp"
 #include "label/label_tree.hpp"
+#include "label/tree_node_rule.hpp"
 #include "label/outline_cells.hpp"
 
 namespace qtmv::label {
@@ -69,13 +70,15 @@ class Labeller {
   Labeller(int device, const std::vector<Piece>& candidates, const Tree* tree, int level);
   /// `hier` with the tree built on the device, level by level: the tree of build_tree
   /// (labeller.cpp), node for node and entry for entry. host_threads: CPU threads for the host's
-  /// share (the line runs' plan), as LabelOptions::threads (0: all). `fixed` (host array, may be
-  /// null): the fixed cells behind the candidates' fixed points, as build_tree's.
+  /// share (the line runs' plan), as LabelOptions::threads (0: all). `cover` (host arrays, may be
+  /// null): the claimed cells, as build_tree's.
   Labeller(int device, const std::vector<Piece>& candidates, int level, bool with_distance, int host_threads = 0,
-           const FixedCell* fixed = nullptr, std::size_t fixed_count = 0);
+           const CoverView* cover = nullptr);
   /// The same for the exact rule, with the candidates made on the device from the input (the
-  /// pieces of make_candidates(input, Rule::exact), which the host then need not make).
-  Labeller(int device, const LabelInput& input, bool with_distance, int host_threads = 0);
+  /// pieces of make_candidates(input, Rule::exact), which the host then need not make; the
+  /// input's fixed nodes, if any, are not made into pieces: give their cells as fixed cells).
+  Labeller(int device, const LabelInput& input, bool with_distance, int host_threads = 0,
+           const CoverView* cover = nullptr);
   ~Labeller();
   /// Size of the device-built tree (zeros for the other constructor).
   TreeInfo tree_info() const;

@@ -16,10 +16,10 @@ struct Labeller::Impl {};
 Labeller::Labeller(int, const std::vector<Piece>&, const Tree*, int) {
   throw std::runtime_error("qtmvoronoi was built without CUDA");
 }
-Labeller::Labeller(int, const std::vector<Piece>&, int, bool, int, const FixedCell*, std::size_t) {
+Labeller::Labeller(int, const std::vector<Piece>&, int, bool, int, const CoverView*) {
   throw std::runtime_error("qtmvoronoi was built without CUDA");
 }
-Labeller::Labeller(int, const LabelInput&, bool, int) { throw std::runtime_error("qtmvoronoi was built without CUDA"); }
+Labeller::Labeller(int, const LabelInput&, bool, int, const CoverView*) { throw std::runtime_error("qtmvoronoi was built without CUDA"); }
 Labeller::~Labeller() = default;
 TreeInfo Labeller::tree_info() const { return {}; }
 void Labeller::download_tree(std::vector<TreeNode>*, std::vector<std::int32_t>*, std::vector<JumpEntry>*) const {}

@@ -12,6 +12,7 @@
 #include "label/label_input.hpp"
 #include "label/label_math.hpp"
 #include "label/label_tree.hpp"
+#include "label/tree_node_rule.hpp"
 #include "label/labeller.hpp"
 
 namespace qtmv::label {
@@ -35,8 +36,10 @@ QTMV_HD inline Piece candidate_of(const FixedCell& f, int level) {
   return make_point_piece(grid::cell_centre_vector(f.code, level), f.site, kPieceFixed);
 }
 
-/// The candidates of a rule as kernel pieces (fixed cells become fixed point pieces at their
-/// centres in both rules, after the other pieces, in fixed_cells_in_quadtree_order's order).
+/// The candidates of a rule as kernel pieces (fixed cells, and the cells of fixed nodes, become
+/// fixed point pieces at their centres in both rules, after the other pieces, in
+/// fixed_cells_in_quadtree_order's order): with fixed nodes, the float64 reference's candidates;
+/// the tree is given the input's fixed cells and only the cover of its coarse nodes.
 /// `threads`: as LabelOptions::threads.
 std::vector<Piece> make_candidates(const LabelInput& input, Rule rule, int threads = 0);
 
@@ -70,12 +73,14 @@ struct Tree {
 /// where all candidates share one site, so that distances can be computed.
 /// `level_done` (may be empty) is called after each level of the tree with the fraction of the
 /// levels done, outside any parallel region, so that it may throw to stop the build.
-/// `fixed` (may be null): the fixed cells behind the candidates' fixed points; a node all of whose
-/// cells are fixed cells of one site then becomes a uniform leaf even with distances (they are 0),
-/// instead of the tree going on down inside polygons. The device build (cuda::Labeller, given the
-/// same fixed cells) makes the same tree node for node: both apply decide_node (tree_node_rule.hpp).
+/// `cover` (may be null): the cells that fixed cells and fixed nodes claim (fixed_cover.hpp); a
+/// node all of whose cells one site claims then becomes a uniform leaf even with distances (they
+/// are 0), instead of the tree going on down inside polygons, and a node partly claimed above
+/// the list level is split. The candidates must hold the fixed points of every claimed cell that
+/// does not lie in a node of level <= tree_list_level(level) of the cover. The device build
+/// (cuda::Labeller, given the same cover) makes the same tree node for node: both apply
+/// decide_node (tree_node_rule.hpp).
 Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_distance, int threads = 0,
-                const std::function<void(double fraction)>& level_done = {}, const FixedCell* fixed = nullptr,
-                std::size_t fixed_count = 0);
+                const std::function<void(double fraction)>& level_done = {}, const CoverView* cover = nullptr);
 
 }  // namespace qtmv::label

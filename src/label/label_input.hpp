@@ -50,9 +50,19 @@ struct SiteCell {
 };
 
 /// A cell inside a polygon site: it keeps that site at distance 0 (the lower id when two
-/// polygons claim it).
+/// polygons claim it). Its centre is a candidate point of the site for the other cells too, but
+/// one inside the polygon's rings is never nearer to another cell than the rings are.
 struct FixedCell {
   grid::Code code;
+  std::int32_t site;
+};
+
+/// A quadtree node wholly inside a polygon site (a "cover" entry): every cell below it at the
+/// labelling level is a fixed cell of that site. Readers give a polygon's interior as such nodes
+/// plus the fixed cells along its rings, so that the work follows the rings, not the area.
+struct FixedNode {
+  grid::Code code;      ///< the node's code at its own level
+  std::int32_t level;   ///< the node's level (0 .. the labelling level)
   std::int32_t site;
 };
 
@@ -66,15 +76,18 @@ struct LabelInput {
   std::size_t site_cell_count = 0;
   const FixedCell* fixed_cells = nullptr;  ///< both rules
   std::size_t fixed_cell_count = 0;
+  const FixedNode* fixed_nodes = nullptr;  ///< both rules: their cells are fixed cells
+  std::size_t fixed_node_count = 0;
 };
 
-/// Pieces, site cells and fixed cells gathered for one level (what the readers produce).
+/// Pieces, site cells, fixed cells and fixed nodes gathered for one level (what the readers produce).
 struct SiteGeometry {
   int level = 0;
   std::int32_t site_count = 0;
   std::vector<SitePiece> pieces;
   std::vector<SiteCell> site_cells;
   std::vector<FixedCell> fixed_cells;
+  std::vector<FixedNode> fixed_nodes;
   LabelInput input() const {
     LabelInput in;
     in.level = level;
@@ -85,6 +98,8 @@ struct SiteGeometry {
     in.site_cell_count = site_cells.size();
     in.fixed_cells = fixed_cells.data();
     in.fixed_cell_count = fixed_cells.size();
+    in.fixed_nodes = fixed_nodes.data();
+    in.fixed_node_count = fixed_nodes.size();
     return in;
   }
 };

@@ -11,6 +11,7 @@
 #include "common/openmp_threads.hpp"
 #include "grid/qtm_checks.hpp"
 #include "label/cpu_painter.hpp"
+#include "label/fixed_cover.hpp"
 #include "label/label_engine.hpp"
 
 namespace qtmv::label {
@@ -36,10 +37,12 @@ LabelSession::LabelSession(const LabelInput& input, const LabelOptions& options)
   tell(options.messages, Severity::info, "labelling on " + s.stats.device + ", pruned tree (hier), on demand");
   const double t0 = now_seconds();
   report_progress(options.progress, 0.0, "prepare");
-  s.candidates = make_candidates(input, options.rule, s.threads);
+  // As label_cells prepares the tree: polygon interiors' fixed nodes as the tree's cover.
+  const PreparedInput prepared = prepare_input(input, true, s.threads);
+  const CoverView cover = prepared.cover.view();
+  s.candidates = make_candidates(prepared.input, options.rule, s.threads);
   s.tree = build_tree(s.candidates, input.level, options.want_distance, s.threads,
-                      [&](double fraction) { report_progress(options.progress, fraction, "prepare"); },
-                      input.fixed_cells, input.fixed_cell_count);
+                      [&](double fraction) { report_progress(options.progress, fraction, "prepare"); }, &cover);
   s.view = s.tree.view(s.candidates.data());
   s.stats.tree_nodes = s.tree.nodes.size();
   s.stats.tree_list_entries = s.tree.lists.size();

@@ -15,6 +15,7 @@
 #include "common/host_info.hpp"
 #include "grid/qtm_checks.hpp"
 #include "label/cpu_painter.hpp"
+#include "label/fixed_cover.hpp"
 #include "label/label_cuda.hpp"
 #include "label/label_engine.hpp"
 #include "common/openmp_threads.hpp"
@@ -60,10 +61,20 @@ void validate(const LabelInput& in, Rule rule) {
     check_site(in.fixed_cells[k].site, "a fixed cell");
     grid::require_code(in.fixed_cells[k].code, in.level);
   }
-  if (rule == Rule::exact && in.piece_count == 0 && in.fixed_cell_count == 0) {
+  for (std::size_t k = 0; k < in.fixed_node_count; ++k) {
+    const FixedNode& n = in.fixed_nodes[k];
+    check_site(n.site, "a fixed node");
+    if (n.level < 0 || n.level > in.level) {
+      throw std::invalid_argument("fixed node " + std::to_string(k) + " has level " + std::to_string(n.level) +
+                                  ", outside 0.." + std::to_string(in.level));
+    }
+    grid::require_code(n.code, n.level);
+  }
+  const bool fixed = in.fixed_cell_count + in.fixed_node_count > 0;
+  if (rule == Rule::exact && in.piece_count == 0 && !fixed) {
     throw std::invalid_argument("the exact rule needs site pieces (points or arcs) or fixed cells");
   }
-  if (rule == Rule::cell && in.site_cell_count == 0 && in.fixed_cell_count == 0) {
+  if (rule == Rule::cell && in.site_cell_count == 0 && !fixed) {
     throw std::invalid_argument("the cell rule needs site cells or fixed cells");
   }
 }
@@ -195,9 +206,9 @@ bool outline_pass_pays(const Tree& tree) {
 }
 
 /// label_cells, or with `outline` label_outlines' pass (no sink then).
-LabelStats run_labelling(const LabelInput& input, const LabelOptions& options,
+LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
                          const std::function<void(const LabelTile&)>& sink, std::vector<OutlineCell>* outline) {
-  validate(input, options.rule);
+  validate(given, options.rule);
   const int threads = thread_count(options.threads);
   const DeviceChoice device = choose_device(options.device);
   LabelStats stats;
@@ -212,6 +223,23 @@ LabelStats run_labelling(const LabelInput& input, const LabelOptions& options,
 
   const double t0 = now_seconds();
   progress(0.0, "prepare");
+  // Brute force tests every claimed cell's centre; the tree only the fixed cells finer than its
+  // list level (the coarser fixed nodes are its cover's uniform leaves at once).
+  const double brute_candidates =
+      static_cast<double>((options.rule == Rule::exact ? given.piece_count : given.site_cell_count) +
+                          given.fixed_cell_count + fixed_node_cells(given, 0));
+  stats.algorithm = options.algorithm;
+  if (stats.algorithm == Algorithm::automatic) {
+    const double work = static_cast<double>(grid::cell_count(given.level)) * brute_candidates;
+    stats.algorithm = device.cuda && work <= kBruteWorkLimit ? Algorithm::brute : Algorithm::hier;
+  }
+  const bool hier = stats.algorithm == Algorithm::hier;
+  // Fixed nodes: the tree takes them as its cover (a node of its list level or above is a
+  // uniform leaf at once) and fixed points only where a list leaf may meet claimed cells; brute
+  // force takes every claimed cell as a fixed point.
+  const PreparedInput prepared = prepare_input(given, hier, threads);
+  const LabelInput& input = prepared.input;
+  const CoverView cover_view = prepared.cover.view();
   // The host's candidates, made when the host needs them: the exact rule's device build makes
   // its own from the input.
   std::vector<Piece> candidates;
@@ -221,15 +249,6 @@ LabelStats run_labelling(const LabelInput& input, const LabelOptions& options,
     candidates_made = true;
     return candidates;
   };
-  const double candidate_count = options.rule == Rule::exact
-                                     ? static_cast<double>(input.piece_count + input.fixed_cell_count)
-                                     : static_cast<double>(host_candidates().size());
-  stats.algorithm = options.algorithm;
-  if (stats.algorithm == Algorithm::automatic) {
-    const double work = static_cast<double>(grid::cell_count(input.level)) * candidate_count;
-    stats.algorithm = device.cuda && work <= kBruteWorkLimit ? Algorithm::brute : Algorithm::hier;
-  }
-  const bool hier = stats.algorithm == Algorithm::hier;
   say("labelling on " + stats.device + (hier ? ", pruned tree (hier)" : ", brute force"));
   // On a GPU the tree is built there (cuda::Labeller's device constructor), inside prepare.
   const bool device_tree = hier && device.cuda && options.tree_on_device;
@@ -249,10 +268,10 @@ LabelStats run_labelling(const LabelInput& input, const LabelOptions& options,
   if (device_tree) {
     try {
       gpu_built = options.rule == Rule::exact
-                      ? std::make_unique<cuda::Labeller>(device.index, input, options.want_distance, threads)
+                      ? std::make_unique<cuda::Labeller>(device.index, input, options.want_distance, threads,
+                                                         &cover_view)
                       : std::make_unique<cuda::Labeller>(device.index, host_candidates(), input.level,
-                                                         options.want_distance, threads, input.fixed_cells,
-                                                         input.fixed_cell_count);
+                                                         options.want_distance, threads, &cover_view);
     } catch (const std::length_error&) {
       // Too large for the device build's 32-bit work counts: the host builds it (below).
       gpu_built.reset();
@@ -268,13 +287,13 @@ LabelStats run_labelling(const LabelInput& input, const LabelOptions& options,
   } else if (hier) {
     // Progress after each level of the build, so that a caller can stop a long build.
     tree = build_tree(host_candidates(), input.level, options.want_distance, threads,
-                      [&](double fraction) { progress(fraction, "prepare"); }, input.fixed_cells,
-                      input.fixed_cell_count);
+                      [&](double fraction) { progress(fraction, "prepare"); }, &cover_view);
     stats.tree_nodes = tree.nodes.size();
     stats.tree_list_entries = tree.lists.size();
     stats.mean_candidates = tree.mean_candidates;
   } else {
-    stats.mean_candidates = candidate_count;
+    stats.mean_candidates = options.rule == Rule::exact ? static_cast<double>(input.piece_count + input.fixed_cell_count)
+                                                        : static_cast<double>(host_candidates().size());
   }
   stats.prepare_seconds = now_seconds() - t0;
 
@@ -312,8 +331,7 @@ LabelStats run_labelling(const LabelInput& input, const LabelOptions& options,
       leave_gpu(e, done);
     }
     if (hier && tree.nodes.empty()) {
-      tree = build_tree(host_candidates(), input.level, options.want_distance, threads, {}, input.fixed_cells,
-                        input.fixed_cell_count);
+      tree = build_tree(host_candidates(), input.level, options.want_distance, threads, {}, &cover_view);
     }
   }
   const TreeView tv = tree.view(host_candidates().data());

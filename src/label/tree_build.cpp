@@ -26,59 +26,6 @@ struct Pending {
   std::uint32_t parent_count;
 };
 
-/// The fixed cells in code order, for telling a node whose every cell is a fixed cell of one site
-/// (each such cell's own fixed point wins it at distance 0, so the node needs no candidates).
-class FixedCover {
- public:
-  FixedCover(const FixedCell* fixed, std::size_t count, int level) : level_(level) {
-    cells_.assign(fixed, fixed + count);
-    auto before = [](const FixedCell& a, const FixedCell& b) {
-      return a.code != b.code ? a.code < b.code : a.site < b.site;
-    };
-    // The readers give them in code order already (resolve_claims).
-    if (!std::is_sorted(cells_.begin(), cells_.end(), before)) std::sort(cells_.begin(), cells_.end(), before);
-    // run_end_[i]: the last code of the run of consecutive codes, one site, from cells_[i] on; a
-    // code claimed twice (two polygons) ends every run before it.
-    const std::size_t n = cells_.size();
-    run_end_.assign(n, 0);
-    for (std::size_t i = n; i-- > 0;) {
-      const bool twice = (i > 0 && cells_[i - 1].code == cells_[i].code) ||
-                         (i + 1 < n && cells_[i + 1].code == cells_[i].code);
-      if (twice) {
-        run_end_[i] = kNone;
-      } else if (i + 1 < n && run_end_[i + 1] != kNone && cells_[i + 1].code == cells_[i].code + 1 &&
-                 cells_[i + 1].site == cells_[i].site) {
-        run_end_[i] = run_end_[i + 1];
-      } else {
-        run_end_[i] = cells_[i].code;
-      }
-    }
-  }
-  bool empty() const { return cells_.empty(); }
-
-  /// The site whose fixed cells are all the cells below `cell` (of level l), or -1.
-  std::int32_t site_covering(const grid::Cell& cell, int l) const {
-    const int k = level_ - l;
-    std::int32_t site = -1;
-    for (std::uint64_t r = 0; r < (std::uint64_t{1} << k); ++r) {
-      const grid::RowCodes codes = grid::row_codes_below(cell, k, r, level_);
-      const auto at = std::lower_bound(cells_.begin(), cells_.end(), codes.first,
-                                       [](const FixedCell& f, grid::Code c) { return f.code < c; });
-      if (at == cells_.end() || at->code != codes.first) return -1;
-      const std::size_t i = static_cast<std::size_t>(at - cells_.begin());
-      if (run_end_[i] == kNone || run_end_[i] < codes.last || (site >= 0 && at->site != site)) return -1;
-      site = at->site;
-    }
-    return site;
-  }
-
- private:
-  static constexpr grid::Code kNone = ~grid::Code{0};
-  int level_;
-  std::vector<FixedCell> cells_;
-  std::vector<grid::Code> run_end_;
-};
-
 /// What the filter decided for one node.
 struct Decision {
   std::int32_t kind;        // kUniform, kInternal, or 1 for a list leaf
@@ -91,8 +38,7 @@ struct Decision {
 }  // namespace
 
 Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_distance, int threads_requested,
-                const std::function<void(double fraction)>& level_done, const FixedCell* fixed,
-                std::size_t fixed_count) {
+                const std::function<void(double fraction)>& level_done, const CoverView* cover_given) {
   grid::require_level(level);
   if (candidates.empty()) throw std::invalid_argument("build_tree: no candidates");
   if (candidates.size() > 0x7fffffffu) throw std::invalid_argument("build_tree: more than 2^31 candidates");
@@ -107,7 +53,7 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
 
   // QTMV_LABEL_TRACE set: each step's time and size on stderr (for tuning).
   const bool trace = std::getenv("QTMV_LABEL_TRACE") != nullptr;
-  const FixedCover cover(fixed, fixed_count, level);
+  const CoverView cover = cover_given ? *cover_given : CoverView{nullptr, nullptr, nullptr, nullptr, 0, level, false};
   double t_level = now_seconds();
   // Line runs become groups; the octants start with the runs' top items.
   GroupPlan plan = plan_groups(candidates, threads);
@@ -163,19 +109,17 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
         const std::int32_t* list = parent_lists.data() + p.parent_offset;
         Decision dec{0, -1, out.size(), 0};
         bool one_site = true;  // the kept candidates all have site dec.site
-        std::int32_t covered = -1;
-        if (l == level) {
+        // A node all of whose cells one site claims needs no filtering (decide_node).
+        const CoverLookup covered = cover_lookup(cover, p.cell, l);
+        if (l == level && covered.site < 0) {
           // The node is one cell of the level: its label is the best candidate at its centre,
           // settled here once rather than by every look-up.
           std::int32_t winner = -1;
           dec.site = best_of_items(c, list, static_cast<std::int32_t>(p.parent_count), candidates.data(), groups,
                                    &winner).site;
           if (with_distance) out.push_back(winner);
-        } else {
-          // A node all of whose cells are one site's fixed cells needs no filtering (decide_node).
-          covered = cover.empty() ? -1 : cover.site_covering(p.cell, l);
         }
-        if (l < level && covered < 0) {
+        if (l < level && covered.site < 0) {
           bounds.resize(p.parent_count);
           double min_ub2 = 1e300;
           for (std::uint32_t k = 0; k < p.parent_count; ++k) {
@@ -201,7 +145,8 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
         }
         dec.count = static_cast<std::uint32_t>(out.size() - dec.offset);
         const NodeDecision rule =
-            decide_node(l == level, with_distance, l >= list_level, dec.count, one_site, dec.site, covered);
+            decide_node(l == level, with_distance, l >= list_level, dec.count, one_site, dec.site, covered.site,
+                        covered.partly, cover.split_partly, covered.claim_site);
         dec.kind = rule.kind;
         dec.site = rule.site;
         if (dec.kind == kUniform) {

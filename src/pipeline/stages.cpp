@@ -50,6 +50,7 @@ sites::SiteSet read_stage(const std::string& source, const VoronoiOptions& optio
   static_cast<sites::SourceOptions&>(read_options) = options.read;
   read_options.level = plan.level;
   read_options.distance = options.rule;
+  read_options.threads = options.threads;
   read_options.progress = [&](double f, const char* stage) { return progress.report(0.0, plan.read_end, f, stage); };
   // The reader's count of sites without a cell comes before labelling; the label stage reports
   // the final one instead.

@@ -19,6 +19,8 @@
 
 #include "gdal/error_capture.hpp"
 #include "grid/qtm_checks.hpp"
+#include "common/first_exception.hpp"
+#include "common/openmp_threads.hpp"
 #include "sites/fid_list.hpp"
 #include "sites/polygon_validity.hpp"
 #include "sites/site_builder.hpp"
@@ -141,6 +143,83 @@ CoordinateRange coordinate_range(const OGRSpatialReference& srs) {
   return range;
 }
 
+/// A feature's site, or a share of its parts, to be traced and filled: its coordinates (lon/lat,
+/// shared by the shares) and parts.
+struct SiteJob {
+  GIntBig fid = 0;
+  bool starts_site = true;  ///< the first share of its feature (the others add to its site)
+  std::shared_ptr<const std::vector<grid::LonLat>> lonlat;
+  std::vector<FeatureParts::Part> parts;
+};
+/// Jobs and coordinates per batch: enough work for every thread, memory bounded.
+constexpr std::size_t kBatchSites = 4096;
+constexpr std::size_t kBatchVertices = std::size_t{1} << 22;
+/// A feature with more vertices than this is shared out by its parts (whole polygons), so that
+/// one large multipolygon (a continent's coasts) keeps several threads busy.
+constexpr std::size_t kShareVertices = std::size_t{1} << 15;
+
+/// The feature's parts as jobs: one, or shares of about kShareVertices vertices, split between
+/// polygons (a polygon's rings stay together). The split depends on the feature only.
+void make_jobs(GIntBig fid, std::vector<grid::LonLat>&& lonlat, std::vector<FeatureParts::Part>&& parts,
+               std::vector<SiteJob>& out) {
+  auto shared = std::make_shared<const std::vector<grid::LonLat>>(std::move(lonlat));
+  SiteJob job{fid, true, shared, {}};
+  std::size_t vertices = 0;
+  for (std::size_t p = 0; p < parts.size(); ++p) {
+    const bool polygon_starts = parts[p].kind != FeatureParts::kRing || p == 0 ||
+                                parts[p - 1].kind != FeatureParts::kRing || parts[p - 1].polygon != parts[p].polygon;
+    if (polygon_starts && vertices >= kShareVertices) {
+      out.push_back(std::move(job));
+      job = SiteJob{fid, false, shared, {}};
+      vertices = 0;
+    }
+    job.parts.push_back(parts[p]);
+    vertices += parts[p].end - parts[p].begin;
+  }
+  out.push_back(std::move(job));
+}
+
+/// Traces and fills one site with `builder` (a polygon's rings together).
+void build_site(SiteBuilder& builder, const SiteJob& job) {
+  builder.begin_site();
+  for (std::size_t p = 0; p < job.parts.size();) {
+    const FeatureParts::Part& part = job.parts[p];
+    if (part.kind == FeatureParts::kPoint) {
+      builder.add_point((*job.lonlat)[part.begin]);
+      ++p;
+    } else if (part.kind == FeatureParts::kLine) {
+      builder.add_line(job.lonlat->data() + part.begin, part.end - part.begin);
+      ++p;
+    } else {
+      std::vector<LonLatPath> rings;
+      const int polygon = part.polygon;
+      for (; p < job.parts.size() && job.parts[p].kind == FeatureParts::kRing && job.parts[p].polygon == polygon; ++p) {
+        rings.emplace_back(job.lonlat->begin() + job.parts[p].begin, job.lonlat->begin() + job.parts[p].end);
+      }
+      builder.add_polygon(rings);
+    }
+  }
+  builder.end_site();
+}
+
+/// Appends one site's geometry (site id 0 in `site`) to `out` as site `id`.
+void append_site(SiteGeometry& out, const SiteGeometry& site, std::int32_t id) {
+  const auto piece_offset = static_cast<std::uint32_t>(out.pieces.size());
+  for (SitePiece p : site.pieces) {
+    p.site = id;
+    out.pieces.push_back(p);
+  }
+  for (SiteCell c : site.site_cells) {
+    c.site = id;
+    c.piece_begin += piece_offset;
+    c.piece_end += piece_offset;
+    out.site_cells.push_back(c);
+  }
+  for (FixedCell f : site.fixed_cells) out.fixed_cells.push_back({f.code, id});
+  for (FixedNode n : site.fixed_nodes) out.fixed_nodes.push_back({n.code, n.level, id});
+  out.site_count = id + 1;
+}
+
 std::string format_coordinate(double x, double y) {
   std::ostringstream s;
   s.precision(15);
@@ -260,7 +339,6 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   SiteSet out;
   out.table.set_source(layer->GetLayerDefn(), dataset_name, layer_name);
   ReadSummary& summary = out.summary;
-  SiteBuilder builder(options.level, options.edges, options.wrap);
   PolygonValidityCheck validity(options, source, where_from);
   const GIntBig feature_count = layer->GetFeatureCount(FALSE);
   report_progress(options.progress, 0.0, "reading sites");
@@ -279,6 +357,48 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   std::vector<int> transformed_ok;
   FidList wrapped;  // the features -wrap auto changed
   std::chrono::steady_clock::duration rasterise{};  // tracing, filling and claims, within the read
+
+  // Sites are traced and filled in batches on all threads, each job (a feature, or a share of a
+  // large one's parts) by one thread's builder, and appended in feature order: the same geometry
+  // whatever the thread count.
+  const int threads = thread_count(options.threads);
+  std::vector<std::unique_ptr<SiteBuilder>> builders(static_cast<std::size_t>(threads));
+  std::vector<SiteJob> batch;
+  std::size_t batch_vertices = 0;
+  GIntBig wrapped_fid = -1;  // the last feature named in `wrapped`
+  SiteGeometry& geometry = out.geometry;
+  geometry.level = options.level;
+  auto build_batch = [&] {
+    if (batch.empty()) return;
+    const auto start = std::chrono::steady_clock::now();
+    const auto n = static_cast<std::int64_t>(batch.size());
+    std::vector<SiteGeometry> built(batch.size());
+    std::vector<std::size_t> short_way(batch.size(), 0);
+    FirstException failure;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+    for (std::int64_t k = 0; k < n; ++k) {
+      failure.run([&] {
+        std::unique_ptr<SiteBuilder>& builder = builders[static_cast<std::size_t>(thread_index())];
+        if (!builder) builder = std::make_unique<SiteBuilder>(options.level, options.edges, options.wrap);
+        build_site(*builder, batch[static_cast<std::size_t>(k)]);
+        short_way[k] = builder->short_way_edges();
+        built[k] = builder->take_geometry();
+      });
+    }
+    failure.rethrow();
+    for (std::size_t k = 0; k < batch.size(); ++k) {
+      // A feature's shares come one after another: its first starts the site, the others add to it.
+      append_site(geometry, built[k], batch[k].starts_site ? geometry.site_count : geometry.site_count - 1);
+      const bool named = !batch[k].starts_site && wrapped_fid == batch[k].fid;
+      if (short_way[k] > 0 && !named) {
+        wrapped.add(batch[k].fid);
+        wrapped_fid = batch[k].fid;
+      }
+    }
+    batch.clear();
+    batch_vertices = 0;
+    rasterise += std::chrono::steady_clock::now() - start;
+  };
   errors.take();
   layer->ResetReading();
   for (OGRFeatureUniquePtr feature(layer->GetNextFeature()); feature; feature.reset(layer->GetNextFeature())) {
@@ -366,38 +486,22 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
     }
     if (!usable) continue;
 
-    // --- one site ---
-    const auto rasterise_start = std::chrono::steady_clock::now();
-    builder.begin_site();
+    // --- one site, built with the next batch ---
     SiteRecord record;
     record.fid = fid;
-    for (std::size_t p = 0; p < parts.parts.size();) {
-      const FeatureParts::Part& part = parts.parts[p];
-      if (part.kind == FeatureParts::kPoint) {
-        builder.add_point(lonlat[part.begin]);
-        record.kind |= kPointSite;
-        ++p;
-      } else if (part.kind == FeatureParts::kLine) {
-        builder.add_line(lonlat.data() + part.begin, part.end - part.begin);
-        record.kind |= kLineSite;
-        ++p;
-      } else {
-        std::vector<LonLatPath> rings;
-        const int polygon = part.polygon;
-        for (; p < parts.parts.size() && parts.parts[p].kind == FeatureParts::kRing && parts.parts[p].polygon == polygon; ++p) {
-          rings.emplace_back(lonlat.begin() + parts.parts[p].begin, lonlat.begin() + parts.parts[p].end);
-        }
-        builder.add_polygon(rings);
-        record.kind |= kPolygonSite;
-      }
+    for (const FeatureParts::Part& part : parts.parts) {
+      record.kind |= part.kind == FeatureParts::kPoint ? kPointSite : part.kind == FeatureParts::kLine ? kLineSite
+                                                                                                       : kPolygonSite;
     }
-    builder.end_site();
-    if (builder.short_way_edges() > 0) wrapped.add(fid);
-    rasterise += std::chrono::steady_clock::now() - rasterise_start;
     record.attributes.reset(feature.release());
     out.table.sites.push_back(std::move(record));
     ++summary.sites;
+    batch_vertices += lonlat.size();
+    make_jobs(fid, std::move(lonlat), std::move(parts.parts), batch);
+    lonlat = {};
+    if (batch.size() >= kBatchSites || batch_vertices >= kBatchVertices) build_batch();
   }
+  build_batch();
   validity.finish();
   if (summary.skipped > PolygonValidityCheck::kMostListed) {
     say(Severity::warning, where_from + ": " + std::to_string(summary.skipped - PolygonValidityCheck::kMostListed) +
@@ -433,9 +537,8 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   }
 
   // --- claims, counts, summary --------------------------------------------------------------------
-  summary.vertex_steps = builder.vertex_steps();
+  for (const auto& builder : builders) summary.vertex_steps += builder ? builder->vertex_steps() : 0;
   const auto claims_start = std::chrono::steady_clock::now();
-  out.geometry = builder.take_geometry();
   const SiteCellCounts counts = resolve_claims(out.geometry, options.distance);
   rasterise += std::chrono::steady_clock::now() - claims_start;
   summary.rasterise_seconds = std::chrono::duration<double>(rasterise).count();
@@ -456,7 +559,8 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   std::string line = where_from + ": " + std::to_string(summary.features) + " features, " +
                      std::to_string(summary.sites) + " sites, " + std::to_string(out.geometry.pieces.size()) +
                      " pieces, " + std::to_string(out.geometry.site_cells.size()) + " site cells, " +
-                     std::to_string(out.geometry.fixed_cells.size()) + " fixed cells at level " +
+                     std::to_string(out.geometry.fixed_cells.size()) + " fixed cells and " +
+                     std::to_string(out.geometry.fixed_nodes.size()) + " fixed nodes at level " +
                      std::to_string(options.level);
   line += validity.summary_text();
   if (summary.skipped > 0) {

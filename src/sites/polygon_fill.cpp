@@ -23,6 +23,12 @@ PolygonFiller::PolygonFiller(int level) : level_(level) {
   }
   std::sort(scanlines_.begin(), scanlines_.end(), [](const Scanline& a, const Scanline& b) { return a.lat < b.lat; });
   for (const auto& s : scanlines_) scan_lats_.push_back(s.lat);
+  scan_of_.assign(2 * rows * 2, 0);
+  for (std::size_t k = 0; k < scanlines_.size(); ++k) {
+    const Scanline& s = scanlines_[k];
+    scan_of_[(static_cast<std::size_t>(s.first_octant / 4) * rows + s.row) * 2 + (s.up ? 1 : 0)] =
+        static_cast<std::uint32_t>(k);
+  }
 }
 
 namespace {
@@ -73,7 +79,7 @@ void PolygonFiller::emit_interval(const Scanline& line, double lo, double hi, st
   }
 }
 
-void PolygonFiller::fill(const std::vector<FillRing>& rings, std::vector<grid::Code>& cells) const {
+std::vector<PolygonFiller::Interval> PolygonFiller::inside_intervals(const std::vector<FillRing>& rings) const {
   std::vector<Crossing> toggles;    // ends of the rings' inside intervals, longitudes in [-180, 180]
   std::vector<Crossing> crossings;  // one ring's crossings, unwrapped longitudes
   std::vector<grid::LonLat> closed;
@@ -135,12 +141,115 @@ void PolygonFiller::fill(const std::vector<FillRing>& rings, std::vector<grid::C
   }
   // Even-odd over all rings: between the 2k-th and (2k+1)-th toggle of a parallel is inside.
   std::sort(toggles.begin(), toggles.end());
+  std::vector<Interval> inside;
   for (std::size_t k = 0; k + 1 < toggles.size(); k += 2) {
     if (toggles[k + 1].scan != toggles[k].scan) {
       --k;
       continue;
     }
-    if (toggles[k].lon < toggles[k + 1].lon) emit_interval(scanlines_[toggles[k].scan], toggles[k].lon, toggles[k + 1].lon, cells);
+    if (toggles[k].lon < toggles[k + 1].lon) inside.push_back({toggles[k].scan, toggles[k].lon, toggles[k + 1].lon});
+  }
+  return inside;  // by scanline, then longitude; disjoint
+}
+
+void PolygonFiller::fill(const std::vector<FillRing>& rings, std::vector<grid::Code>& cells) const {
+  for (const Interval& in : inside_intervals(rings)) emit_interval(scanlines_[in.scan], in.lo, in.hi, cells);
+}
+
+namespace {
+
+/// The inside intervals of one scanline: [begin, end) of the sorted intervals.
+struct ScanIntervals {
+  const PolygonFiller::Interval* begin;
+  const PolygonFiller::Interval* end;
+  /// Some interval holds every longitude of [m, M] (strictly: centres on an end are outside).
+  bool holds_all(double m, double M) const {
+    // The last interval starting below m is the only one that can hold it.
+    const PolygonFiller::Interval* it =
+        std::lower_bound(begin, end, m, [](const PolygonFiller::Interval& in, double x) { return in.lo < x; });
+    return it != begin && M < (it - 1)->hi;
+  }
+  /// No interval meets the open range around [m, M]: no centre in [m, M] is inside.
+  bool holds_none(double m, double M) const {
+    // The first interval ending above m is the only one that can start below M.
+    const PolygonFiller::Interval* it =
+        std::upper_bound(begin, end, m, [](double x, const PolygonFiller::Interval& in) { return x < in.hi; });
+    return it == end || !(it->lo < M);
+  }
+};
+
+}  // namespace
+
+void PolygonFiller::cover(const std::vector<FillRing>& rings, std::vector<grid::Code>& cells,
+                          std::vector<CoverNode>& nodes) const {
+  const std::vector<Interval> inside = inside_intervals(rings);
+  if (inside.empty()) return;
+  // Per scanline, its intervals; per hemisphere, the rows that have any.
+  const std::uint64_t rows = grid::rows_per_octant(level_);
+  std::vector<std::uint32_t> scan_first(scanlines_.size() + 1, 0);
+  for (const Interval& in : inside) ++scan_first[in.scan + 1];
+  for (std::size_t k = 1; k < scan_first.size(); ++k) scan_first[k] += scan_first[k - 1];
+  std::uint32_t row_lo[2] = {~0u, ~0u}, row_hi[2] = {0, 0};
+  for (const Interval& in : inside) {
+    const Scanline& line = scanlines_[in.scan];
+    const int h = line.first_octant / 4;
+    row_lo[h] = std::min(row_lo[h], line.row);
+    row_hi[h] = std::max(row_hi[h], line.row);
+  }
+  auto intervals_of = [&](int first_octant, std::uint32_t row, bool up) {
+    const std::uint32_t scan = scan_of_[(static_cast<std::size_t>(first_octant / 4) * rows + row) * 2 + (up ? 1 : 0)];
+    return ScanIntervals{inside.data() + scan_first[scan], inside.data() + scan_first[scan + 1]};
+  };
+  enum class Side { inside, outside, mixed };
+  // Whether every centre below `node` (level l) is inside, none is, or some are: row by row, the
+  // up and the down centres of a row run monotonically in longitude, so their ends decide.
+  auto classify = [&](const grid::Cell& node, int l) {
+    const int k = level_ - l;
+    const int h = node.octant / 4;
+    const std::uint64_t top = std::uint64_t{node.row} << k, bottom = top + (std::uint64_t{1} << k) - 1;
+    if (row_lo[h] == ~0u || bottom < row_lo[h] || top > row_hi[h]) return Side::outside;
+    bool all_in = top >= row_lo[h] && bottom <= row_hi[h], none_in = true;
+    const std::uint64_t t0 = std::max<std::uint64_t>(top, row_lo[h]) - top;
+    const std::uint64_t t1 = std::min<std::uint64_t>(bottom, row_hi[h]) - top;
+    for (std::uint64_t t = t0; t <= t1; ++t) {
+      const grid::RowCodes codes = grid::row_codes_below(node, k, t, level_);
+      const auto row = static_cast<std::uint32_t>(top + t);
+      const std::uint64_t jf = codes.first - codes.row_start, jl = codes.last - codes.row_start;
+      for (const bool up : {true, false}) {
+        // Columns of this parity in [jf, jl].
+        const std::uint64_t j0 = (jf % 2 == (up ? 0u : 1u)) ? jf : jf + 1;
+        const std::uint64_t j1 = (jl % 2 == (up ? 0u : 1u)) ? jl : jl - 1;
+        if (j0 > jl || j1 < jf || j0 > j1) continue;
+        const double a = grid::cell_centre(grid::Cell{node.octant, row, static_cast<std::uint32_t>(j0)}, level_).lon;
+        const double b = grid::cell_centre(grid::Cell{node.octant, row, static_cast<std::uint32_t>(j1)}, level_).lon;
+        const ScanIntervals scan = intervals_of(h * 4, row, up);
+        const double m = std::min(a, b), M = std::max(a, b);
+        if (all_in && !scan.holds_all(m, M)) all_in = false;
+        if (none_in && !scan.holds_none(m, M)) none_in = false;
+        if (!all_in && !none_in) return Side::mixed;
+      }
+    }
+    return all_in ? Side::inside : none_in ? Side::outside : Side::mixed;
+  };
+  // Depth first from the octants: a node wholly inside is one entry; a mixed one is split.
+  std::vector<std::pair<grid::Cell, int>> stack;
+  for (int o = grid::kOctants - 1; o >= 0; --o) stack.push_back({grid::Cell{o, 0, 0}, 0});
+  while (!stack.empty()) {
+    const auto [node, l] = stack.back();
+    stack.pop_back();
+    const Side side = classify(node, l);
+    if (side == Side::outside) continue;
+    if (side == Side::inside) {
+      if (l == level_) {
+        cells.push_back(grid::code_of(node, level_));
+      } else {
+        nodes.push_back({grid::code_of(node, l), l});
+      }
+      continue;
+    }
+    grid::Cell children[4];
+    grid::children(node, children);
+    for (int c = 3; c >= 0; --c) stack.push_back({children[c], l + 1});
   }
 }
 

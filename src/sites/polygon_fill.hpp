@@ -36,6 +36,25 @@ class PolygonFiller {
   /// `rings` (outer ring and holes, combined even-odd), each once, in no particular order.
   void fill(const std::vector<FillRing>& rings, std::vector<grid::Code>& cells) const;
 
+  /// A quadtree node: its code at its level.
+  struct CoverNode {
+    grid::Code code;
+    int level;
+  };
+  /// The same cells as fill(), as a cover: the largest quadtree nodes all of whose cells' centres
+  /// are inside (to `nodes`, levels below the filler's) and the single cells left (to `cells`),
+  /// each cell in exactly one of them. Work follows the rings: nodes are split only where their
+  /// centres are mixed, row by row (the ends of a row's up and down centres decide), from the
+  /// octants down; no interior cell is visited.
+  void cover(const std::vector<FillRing>& rings, std::vector<grid::Code>& cells, std::vector<CoverNode>& nodes) const;
+
+  /// An inside interval of one scanline (an index into the filler's scanlines, ascending
+  /// latitude): longitudes (lo, hi), degrees in [-180, 180].
+  struct Interval {
+    std::uint32_t scan;
+    double lo, hi;
+  };
+
   int level() const { return level_; }
 
  private:
@@ -46,10 +65,13 @@ class PolygonFiller {
     bool up;
   };
   void emit_interval(const Scanline& line, double lo, double hi, std::vector<grid::Code>& cells) const;
+  /// The rings' inside intervals, by scanline then longitude, disjoint (even-odd over all rings).
+  std::vector<Interval> inside_intervals(const std::vector<FillRing>& rings) const;
 
   int level_;
   std::vector<Scanline> scanlines_;  // ascending latitude
   std::vector<double> scan_lats_;    // the same latitudes, for binary search
+  std::vector<std::uint32_t> scan_of_;  // [(hemisphere * rows + row) * 2 + up]: the scanline's index
 };
 
 }  // namespace qtmv::sites

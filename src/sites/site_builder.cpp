@@ -58,8 +58,10 @@ void SiteBuilder::add_polygon(const std::vector<LonLatPath>& rings) {
     fill_rings.push_back(std::move(fill_ring));
   }
   fill_cells_.clear();
-  filler_.fill(fill_rings, fill_cells_);
+  fill_nodes_.clear();
+  filler_.cover(fill_rings, fill_cells_, fill_nodes_);
   for (grid::Code code : fill_cells_) geometry_.fixed_cells.push_back({code, current_});
+  for (const PolygonFiller::CoverNode& n : fill_nodes_) geometry_.fixed_nodes.push_back({n.code, n.level, current_});
 }
 
 void SiteBuilder::end_site() {

@@ -1,6 +1,6 @@
 // Builds the labeller's site geometry from WGS84 lon/lat coordinates, one site at a time: points,
 // lines and polygons are unwrapped across +-180, traced onto cells and cut into pieces; polygons
-// are filled. Knows nothing of OGR, so the tests can drive it directly.
+// are filled (as covers: fixed nodes and fixed cells). Knows nothing of OGR, so the tests can drive it directly.
 #pragma once
 
 #include <cstdint>
@@ -52,6 +52,7 @@ class SiteBuilder {
   std::int32_t current_ = -1;
   std::vector<CellHit> hits_;
   std::vector<grid::Code> fill_cells_;
+  std::vector<PolygonFiller::CoverNode> fill_nodes_;
   std::size_t short_way_edges_ = 0;
 };
 

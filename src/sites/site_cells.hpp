@@ -19,14 +19,15 @@ void append_site_cells(std::vector<CellHit>& hits, std::int32_t site, std::vecto
 /// Per site, what it got after resolve_claims.
 struct SiteCellCounts {
   std::vector<std::uint64_t> site_cells;   ///< distinct site cells kept
-  std::vector<std::uint64_t> fixed_cells;  ///< fixed cells kept
+  std::vector<std::uint64_t> fixed_cells;  ///< fixed cells kept (those of its fixed nodes included)
   /// false: every cell of the site went to another site (a lower-id polygon's interior, or
   /// under the cell rule a lower id's site cell); the site cannot win any cell.
   std::vector<bool> has_own_cell;
 };
 
-/// Applies the claim rules to g (whose site_count must be set): a fixed cell claimed by several
-/// polygons goes to the lowest site id; under DistanceRule::cell so does a site cell; under
+/// Applies the claim rules to g (whose site_count must be set): a fixed cell (or a cell of a fixed
+/// node) claimed by several polygons goes to the lowest site id (the labeller applies the same
+/// rule to the nodes); under DistanceRule::cell so does a site cell; under
 /// DistanceRule::exact every site keeps its site cells and pieces (the labeller decides by
 /// distance). Fixed cells come out sorted by code.
 SiteCellCounts resolve_claims(SiteGeometry& g, DistanceRule rule);

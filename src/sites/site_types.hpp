@@ -1,5 +1,5 @@
 // The readers' output types: the labeller's plain input structs (SitePiece, SiteCell, FixedCell,
-// SiteGeometry), taken from its input port so that what the readers produce is what it reads.
+// FixedNode, SiteGeometry), taken from its input port so that what the readers produce is what it reads.
 #pragma once
 
 #include "label/label_input.hpp"
@@ -7,6 +7,7 @@
 namespace qtmv::sites {
 
 using label::FixedCell;
+using label::FixedNode;
 using label::SiteCell;
 using label::SiteGeometry;
 using label::SitePiece;

@@ -8,7 +8,7 @@
 #include <cstdint>
 
 #include "grid/qtm.hpp"
-#include "write/first_exception.hpp"
+#include "common/first_exception.hpp"
 
 namespace qtmv::write {
 

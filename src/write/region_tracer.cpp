@@ -9,7 +9,7 @@
 #include "common/openmp_threads.hpp"
 #include "common/parallel_sort.hpp"
 #include "grid/qtm_checks.hpp"
-#include "write/first_exception.hpp"
+#include "common/first_exception.hpp"
 
 namespace qtmv::write {
 namespace {

@@ -21,7 +21,7 @@
 #include "common/parallel_sort.hpp"
 #include "gdal/error_capture.hpp"
 #include "grid/qtm.hpp"
-#include "write/first_exception.hpp"
+#include "common/first_exception.hpp"
 #include "write/gpkg_rows.hpp"
 #include "write/region_measures.hpp"
 #include "write/region_tracer.hpp"

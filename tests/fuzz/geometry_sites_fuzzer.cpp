@@ -44,6 +44,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     for (const auto& cell : sites.geometry.fixed_cells) {
       if (!qtmv::grid::is_valid_code(cell.code, options.level)) std::abort();
     }
+    for (const auto& node : sites.geometry.fixed_nodes) {
+      if (node.level < 0 || node.level >= options.level || !qtmv::grid::is_valid_code(node.code, node.level)) {
+        std::abort();
+      }
+    }
   } catch (const qtmv::sites::ReadError&) {
   }
   VSIUnlink(path.c_str());

@@ -17,6 +17,8 @@
 #include <vector>
 
 #include "grid/qtm.hpp"
+#include "grid/qtm_key_ranges.hpp"
+#include "label/fixed_cover.hpp"
 #include "label/label_engine.hpp"
 #include "label/synthetic_sites.hpp"
 #include "label/label_cuda.hpp"
@@ -340,73 +342,127 @@ SiteGeometry solid_polygon(int level) {
   return g;
 }
 
-/// The fixed cells as make_fixed_cover (label_cuda.cu) lays them out, built on the host: sorted
-/// by quadtree key, each entry marked (fixed_cover_entry), the run starts summed.
-struct HostFixedCover {
-  std::vector<std::uint64_t> key;
-  std::vector<std::int32_t> site, run;
-  FixedCoverView view{};
-  HostFixedCover(const std::vector<FixedCell>& fixed, int level) {
-    std::vector<std::pair<std::uint64_t, std::int32_t>> sorted;
-    for (const FixedCell& f : fixed) {
-      sorted.push_back({grid::quadtree_key(grid::cell_of(f.code, level), level), f.site});
-    }
-    std::stable_sort(sorted.begin(), sorted.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-    const std::uint64_t n = sorted.size();
-    key.resize(n);
-    std::vector<std::int32_t> sorted_site(n);
-    site.resize(n);
-    run.resize(n);
-    for (std::uint64_t i = 0; i < n; ++i) {
-      key[i] = sorted[i].first;
-      sorted_site[i] = sorted[i].second;
-    }
-    for (std::uint64_t i = 0; i < n; ++i) fixed_cover_entry(key.data(), sorted_site.data(), n, i, &site[i], &run[i]);
-    for (std::uint64_t i = 1; i < n; ++i) run[i] += run[i - 1];
-    view = {key.data(), site.data(), run.data(), n, level};
-  }
-};
-
-// The device's fixed-cover look-up (fixed_cover_site over the sorted quadtree keys and their
-// runs, built here as the device builds them) against the definition, on every node of every
-// level: all the node's cells are fixed cells of one site, none claimed twice.
-TEST(LabelTree, FixedCoverSiteMatchesEveryNode) {
+// The cover look-up both builds use (cover_lookup over make_fixed_cover's key ranges) against
+// the definition, on every node of every level: a node is covered when all its cells are claimed
+// and the lowest claimant of each is one site, partly covered when some but not all are so.
+TEST(LabelTree, CoverLookupMatchesEveryNode) {
   const int level = 5;
-  std::vector<FixedCell> fixed = solid_polygon(level).fixed_cells;
-  for (const FixedCell& f : polygons(level).fixed_cells) fixed.push_back(f);  // overlaps some
-  // A second solid node, one of its cells claimed twice by its own site; and scattered cells.
+  SiteGeometry g = solid_polygon(level);
+  for (const FixedCell& f : polygons(level).fixed_cells) g.fixed_cells.push_back(f);  // overlaps some
+  // A second solid node, one of its cells claimed twice by its own site; scattered cells; and
+  // fixed nodes, overlapping cells and each other.
   const Cell other = grid::cell_of(5, 2);
   std::mt19937_64 rng(13);
   for (Code code = 0; code < grid::cell_count(level); ++code) {
     const Cell a = grid::ancestor(grid::cell_of(code, level), level, 2);
     if (a.octant == other.octant && a.row == other.row && a.col == other.col) {
-      fixed.push_back({code, 4});
-      if (code % 61 == 0) fixed.push_back({code, 4});
+      g.fixed_cells.push_back({code, 4});
+      if (code % 61 == 0) g.fixed_cells.push_back({code, 4});
     } else if (rng() % 7 == 0) {
-      fixed.push_back({code, static_cast<std::int32_t>(rng() % 3)});
+      g.fixed_cells.push_back({code, static_cast<std::int32_t>(rng() % 3)});
     }
   }
-  std::shuffle(fixed.begin(), fixed.end(), rng);
-  const HostFixedCover cover(fixed, level);
-  const FixedCoverView& view = cover.view;
-  // The definition: per cell of the level, its claims.
-  std::vector<std::vector<std::int32_t>> claims(grid::cell_count(level));
-  for (const FixedCell& f : fixed) claims[grid::quadtree_key(grid::cell_of(f.code, level), level)].push_back(f.site);
-  std::uint64_t covered_nodes = 0;
+  for (int k = 0; k < 40; ++k) {
+    const int l = 1 + static_cast<int>(rng() % 4);
+    g.fixed_nodes.push_back({rng() % grid::cell_count(l), l, static_cast<std::int32_t>(rng() % 6)});
+  }
+  std::shuffle(g.fixed_cells.begin(), g.fixed_cells.end(), rng);
+  const FixedCover cover = make_fixed_cover(g.input(), 2);
+  const CoverView view = cover.view();
+  // The definition: per cell of the level, its lowest claimant (-1: none).
+  std::vector<std::int32_t> lowest(grid::cell_count(level), -1);
+  auto claim = [&](std::uint64_t key, std::int32_t site) {
+    if (lowest[key] < 0 || site < lowest[key]) lowest[key] = site;
+  };
+  for (const FixedCell& f : g.fixed_cells) claim(grid::quadtree_key(grid::cell_of(f.code, level), level), f.site);
+  for (const FixedNode& n : g.fixed_nodes) {
+    const grid::KeyRange r = grid::node_key_range(grid::cell_of(n.code, n.level), n.level, level, n.site);
+    for (std::uint64_t q = r.first; q <= r.last; ++q) claim(q, n.site);
+  }
+  std::uint64_t covered_nodes = 0, partly_nodes = 0;
   for (int l = 0; l <= level; ++l) {
     const int k = level - l;
     for (Code code = 0; code < grid::cell_count(l); ++code) {
       const Cell c = grid::cell_of(code, l);
       const std::uint64_t first = grid::quadtree_key(c, l) << (2 * k);
-      std::int32_t want = claims[first].size() == 1 ? claims[first][0] : -1;
-      for (std::uint64_t q = first; q < first + (std::uint64_t{1} << (2 * k)) && want >= 0; ++q) {
-        if (claims[q].size() != 1 || claims[q][0] != want) want = -1;
+      std::int32_t want = lowest[first], claimant = -2;  // -2: none yet
+      bool any = false;
+      for (std::uint64_t q = first; q < first + (std::uint64_t{1} << (2 * k)); ++q) {
+        any = any || lowest[q] >= 0;
+        if (lowest[q] != want) want = -1;
+        if (lowest[q] >= 0) claimant = claimant == -2 || claimant == lowest[q] ? lowest[q] : -1;
       }
-      ASSERT_EQ(fixed_cover_site(view, c, l), want) << "level " << l << " code " << code;
+      const CoverLookup got = cover_lookup(view, c, l);
+      ASSERT_EQ(got.site, want) << "level " << l << " code " << code;
+      ASSERT_EQ(got.partly, any && want < 0) << "level " << l << " code " << code;
+      ASSERT_EQ(got.claim_site, any ? claimant : -1) << "level " << l << " code " << code;
       covered_nodes += want >= 0 && l < level;
+      partly_nodes += got.partly;
     }
   }
   EXPECT_GT(covered_nodes, 4u);
+  EXPECT_GT(partly_nodes, 4u);
+}
+
+// The cells of fixed nodes are fixed cells: labels, distances and flags equal those of the same
+// claims given cell by cell (the float64 reference's view), on the CPU and the GPU, whether the
+// nodes are coarse (the tree's cover) or finer than its list level (made into cells).
+TEST(LabelTree, FixedNodesLabelAsTheirCells) {
+  for (const int level : {4, 6, 8}) {
+    // Node 37 of level 2 for site 12, its rim cells' edges as arcs of the site (tight around
+    // the cells' centres, as the readers' rings are), and points around.
+    SiteGeometry nodes = random_points(level, 10, 23);
+    const Cell node = grid::cell_of(37, 2);
+    const int depth = level - 2;
+    for (std::uint32_t m = 0; m < (1u << (2 * depth)); ++m) {
+      const Cell c = grid::descendant(node, depth, m);
+      Cell nb[3];
+      grid::neighbours(c, level, nb);
+      bool rim = false;
+      for (const Cell& n : nb) {
+        const Cell a = grid::ancestor(n, level, 2);
+        rim = rim || a.octant != node.octant || a.row != node.row || a.col != node.col;
+      }
+      if (!rim) continue;
+      grid::LonLat v[3];
+      grid::cell_vertices(c, level, v);
+      for (int e = 0; e < 3; ++e) add_arc(nodes, v[e].lon, v[e].lat, v[(e + 1) % 3].lon, v[(e + 1) % 3].lat, 12);
+    }
+    nodes.site_count = std::max(nodes.site_count, 14);
+    nodes.fixed_nodes.push_back({37, 2, 12});
+    // A node and single cells of another site inside it (the lower id keeps them), and a node of
+    // a higher id overlapping the first.
+    const Cell inner = grid::descendant(grid::cell_of(37, 2), 1, 2);
+    nodes.fixed_nodes.push_back({grid::code_of(inner, 3), 3, 5});
+    nodes.fixed_nodes.push_back({grid::code_of(grid::descendant(grid::cell_of(37, 2), 1, 0), 3), 3, 13});
+    const Cell deep = grid::descendant(grid::cell_of(37, 2), level - 2, 7);
+    nodes.fixed_cells.push_back({grid::code_of(deep, level), 3});
+    SiteGeometry cells = nodes;
+    const std::vector<FixedCell> all = fixed_cells_with_nodes(nodes.input(), 0);
+    cells.fixed_cells = all;
+    cells.fixed_nodes.clear();
+    for (const char* device : {"cpu", "cuda"}) {
+      if (std::string(device) == "cuda" && cuda_device_count() == 0) continue;
+      LabelOptions options;
+      options.device = device;
+      options.algorithm = Algorithm::hier;
+      const LabelResult a = label_all(nodes.input(), options);
+      const LabelResult b = label_all(cells.input(), options);
+      SCOPED_TRACE(std::string(device) + " level " + std::to_string(level));
+      EXPECT_TRUE(a.site == b.site);
+      EXPECT_TRUE(a.distance_m == b.distance_m);
+      EXPECT_TRUE(a.boundary == b.boundary);
+      if (level <= 6) {  // brute force takes every claimed cell
+        options.algorithm = Algorithm::brute;
+        const LabelResult c = label_all(nodes.input(), options);
+        EXPECT_TRUE(c.site == b.site);
+      }
+      std::uint64_t fixed_zero = 0;
+      for (const FixedCell& f : all) fixed_zero += a.distance_m[f.code] == 0.0f;
+      EXPECT_EQ(fixed_zero, all.size());
+      EXPECT_EQ(a.site[grid::code_of(deep, level)], 3);
+    }
+  }
 }
 
 // The rule both builds apply to a node.
@@ -425,21 +481,21 @@ TEST(LabelTree, NodeRuleKinds) {
   EXPECT_EQ(decide_node(false, true, true, kMaxLeafList + 1, false, 4, -1).kind, kInternal);
 }
 
-// The host's FixedCover (build_tree) and the device's look-up agree on the host tree's leaves:
+// The cover look-up (cover_lookup) agrees with the host tree's leaves:
 // with distances, a leaf above the labelling level is uniform iff its cells are covered by one
 // site's fixed cells, that site (overlapping polygons included).
-TEST(LabelTree, HostCoverLeavesAreTheDeviceLookUps) {
+TEST(LabelTree, CoverLeavesAreTheCoverLookUps) {
   for (const SiteGeometry& g : {polygons(6), solid_polygon(5), solid_polygon(7)}) {
     const LabelInput in = g.input();
-    const HostFixedCover cover(g.fixed_cells, g.level);
+    const FixedCover cover = make_fixed_cover(in, 2);
+    const CoverView view = cover.view();
     for (const Rule rule : {Rule::exact, Rule::cell}) {
-      const Tree tree = build_tree(make_candidates(in, rule), g.level, true, 2, {}, in.fixed_cells,
-                                   in.fixed_cell_count);
+      const Tree tree = build_tree(make_candidates(in, rule), g.level, true, 2, {}, &view);
       std::uint64_t covered = 0;
       for (const TreeLeaf& leaf : tree.leaves) {
         if (leaf.level == g.level) continue;
         const TreeNode node = tree.nodes[leaf.node];
-        const std::int32_t site = fixed_cover_site(cover.view, leaf.cell, leaf.level);
+        const std::int32_t site = cover_lookup(view, leaf.cell, leaf.level).site;
         EXPECT_EQ(node.count == kUniform ? node.value : -1, site) << "level " << leaf.level;
         covered += site >= 0;
       }
@@ -620,7 +676,9 @@ TEST_P(LabelDevice, SolidPolygonInteriorsAreUniformLeaves) {
   const LabelInput in = g.input();
   const std::vector<Piece> candidates = make_candidates(in, Rule::exact);
   const Tree plain = build_tree(candidates, g.level, true, 2);
-  const Tree covered = build_tree(candidates, g.level, true, 2, {}, in.fixed_cells, in.fixed_cell_count);
+  const FixedCover cover = make_fixed_cover(in, 2);
+  const CoverView view = cover.view();
+  const Tree covered = build_tree(candidates, g.level, true, 2, {}, &view);
   std::uint64_t uniform = 0, covered_cells = 0;
   for (const TreeLeaf& leaf : covered.leaves) {
     if (covered.nodes[leaf.node].count != kUniform) continue;
@@ -847,15 +905,16 @@ TEST(LabelDeviceTree, MatchesTheHostTree) {
         SCOPED_TRACE(c.name + " level " + std::to_string(c.g.level) + (rule == Rule::exact ? " exact" : " cell") +
                      (with_distance ? " with distances" : ""));
         // With the fixed cells, as label_cells builds them: nodes inside polygons are uniform.
-        const Tree host = build_tree(candidates, c.g.level, with_distance, 2, {}, in.fixed_cells, in.fixed_cell_count);
+        const FixedCover cover = make_fixed_cover(in, 2);
+        const CoverView view = cover.view();
+        const Tree host = build_tree(candidates, c.g.level, with_distance, 2, {}, &view);
         // From the host's candidates, and (exact rule) from the input, the pieces made there.
         for (const bool from_input : {false, true}) {
           if (from_input && rule != Rule::exact) continue;
           SCOPED_TRACE(from_input ? "device candidates" : "host candidates");
           std::unique_ptr<cuda::Labeller> built =
-              from_input ? std::make_unique<cuda::Labeller>(0, in, with_distance)
-                         : std::make_unique<cuda::Labeller>(0, candidates, c.g.level, with_distance, 0,
-                                                            in.fixed_cells, in.fixed_cell_count);
+              from_input ? std::make_unique<cuda::Labeller>(0, in, with_distance, 0, &view)
+                         : std::make_unique<cuda::Labeller>(0, candidates, c.g.level, with_distance, 0, &view);
           const cuda::Labeller& gpu = *built;
           std::vector<TreeNode> nodes;
           std::vector<std::int32_t> lists;

@@ -5,6 +5,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
 #include <set>
 #include <vector>
 
@@ -95,8 +98,98 @@ TEST(NaturalEarth, UncutCountriesGiveTheCellsOfTheCutOnes) {
   }
   // Read flat (-wrap none), Russia's and Fiji's rings cover the world the other way round.
   const SiteSet flat = read_layer("countries_110m", WrapMode::none);
-  std::size_t flat_total = flat.geometry.fixed_cells.size(), auto_total = uncut.geometry.fixed_cells.size();
+  std::size_t flat_total = 0, auto_total = 0;
+  for (const auto& cells : test::fixed_cells_by_site(flat.geometry)) flat_total += cells.size();
+  for (const auto& cells : fixed_uncut) auto_total += cells.size();
   EXPECT_NE(flat_total, auto_total);
+}
+
+}  // namespace
+}  // namespace qtmv::sites
+
+namespace qtmv::sites {
+namespace {
+
+// The readers build sites on all threads: the same pieces, site cells, fixed cells and nodes,
+// table and summary with one thread as with several (the countries at level 8, and as lines).
+/// A CSV with one large multipolygon (many rings, more vertices than one job takes) between two
+/// small polygons: the large one is traced in shares by several threads.
+std::string large_multipolygon_csv() {
+  const std::string path = ::testing::TempDir() + "/large_multipolygon.csv";
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  std::fputs("WKT,id\n\"POLYGON ((-30 -30,-20 -30,-20 -20,-30 -30))\",0\n\"MULTIPOLYGON (", f);
+  for (int p = 0; p < 120; ++p) {
+    const double lon = -170.0 + 340.0 * (p % 12) / 12.0, lat = -60.0 + 120.0 * (p / 12) / 10.0;
+    std::fputs(p ? ",((" : "((", f);
+    for (int k = 0; k <= 600; ++k) {
+      const double a = 2 * M_PI * (k % 600) / 600.0, r = 4.0 + 1.5 * std::sin(7 * a + p);
+      std::fprintf(f, "%s%.6f %.6f", k ? "," : "", lon + r * std::cos(a), lat + 0.5 * r * std::sin(a));
+    }
+    std::fputs("))", f);
+  }
+  std::fputs(")\",1\n\"POLYGON ((30 30,40 30,40 40,30 30))\",2\n", f);
+  std::fclose(f);
+  return path;
+}
+
+TEST(NaturalEarth, OneThreadAndSeveralReadTheSame) {
+  for (const int source : {0, 1, 2}) {  // polygons, lines, a large multipolygon
+    const bool as_lines = source == 1;
+    SiteSet got[2];
+    for (int k = 0; k < 2; ++k) {
+      ReadOptions o = test::options_at(kLevel, nullptr);
+      o.layer = "countries_110m";
+      o.threads = k == 0 ? 1 : 4;
+      if (as_lines) o.sql = "SELECT ST_Boundary(geom) AS geom, name FROM countries_110m";
+      if (as_lines) o.layer.clear();
+      if (source == 2) {
+        o.layer.clear();
+        got[k] = read_sites(large_multipolygon_csv(), o);
+        EXPECT_EQ(got[k].geometry.site_count, 3);
+        continue;
+      }
+      got[k] = read_sites(kCountries, o);
+    }
+    const SiteGeometry& a = got[0].geometry;
+    const SiteGeometry& b = got[1].geometry;
+    SCOPED_TRACE(source == 0 ? "polygons" : source == 1 ? "lines" : "large multipolygon");
+    ASSERT_EQ(a.site_count, b.site_count);
+    ASSERT_EQ(a.pieces.size(), b.pieces.size());
+    std::size_t differ = 0;
+    for (std::size_t k = 0; k < a.pieces.size(); ++k) {
+      const SitePiece &p = a.pieces[k], &q = b.pieces[k];
+      differ += p.site != q.site || std::memcmp(&p.a, &q.a, sizeof p.a) != 0 || std::memcmp(&p.b, &q.b, sizeof p.b) != 0;
+    }
+    EXPECT_EQ(differ, 0u) << "pieces differ";
+    ASSERT_EQ(a.site_cells.size(), b.site_cells.size());
+    differ = 0;
+    for (std::size_t k = 0; k < a.site_cells.size(); ++k) {
+      const SiteCell &p = a.site_cells[k], &q = b.site_cells[k];
+      differ += p.code != q.code || p.site != q.site || p.piece_begin != q.piece_begin || p.piece_end != q.piece_end;
+    }
+    EXPECT_EQ(differ, 0u) << "site cells differ";
+    ASSERT_EQ(a.fixed_cells.size(), b.fixed_cells.size());
+    differ = 0;
+    for (std::size_t k = 0; k < a.fixed_cells.size(); ++k) {
+      differ += a.fixed_cells[k].code != b.fixed_cells[k].code || a.fixed_cells[k].site != b.fixed_cells[k].site;
+    }
+    EXPECT_EQ(differ, 0u) << "fixed cells differ";
+    ASSERT_EQ(a.fixed_nodes.size(), b.fixed_nodes.size());
+    differ = 0;
+    for (std::size_t k = 0; k < a.fixed_nodes.size(); ++k) {
+      const FixedNode &p = a.fixed_nodes[k], &q = b.fixed_nodes[k];
+      differ += p.code != q.code || p.level != q.level || p.site != q.site;
+    }
+    EXPECT_EQ(differ, 0u) << "fixed nodes differ";
+    EXPECT_EQ(as_lines, a.fixed_cells.empty() && a.fixed_nodes.empty());
+    ASSERT_EQ(got[0].table.sites.size(), got[1].table.sites.size());
+    for (std::size_t s = 0; s < got[0].table.sites.size(); ++s) {
+      EXPECT_EQ(got[0].table.sites[s].fid, got[1].table.sites[s].fid);
+      EXPECT_EQ(got[0].table.sites[s].fixed_cells, got[1].table.sites[s].fixed_cells);
+    }
+    EXPECT_EQ(got[0].summary.wrapped_features, got[1].summary.wrapped_features);
+    EXPECT_EQ(got[0].summary.vertex_steps, got[1].summary.vertex_steps);
+  }
 }
 
 }  // namespace

@@ -3,7 +3,9 @@
 // written without crossing.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <random>
 #include <cstdio>
 #include <set>
 #include <vector>
@@ -35,7 +37,12 @@ std::set<grid::Code> filled(const std::vector<LonLatPath>& rings, int level, Wra
   for (const auto& f : b.geometry().fixed_cells) {
     EXPECT_TRUE(out.insert(f.code).second) << "cell " << f.code << " twice";
   }
-  return out;
+  // The cover's nodes and cells hold each cell once.
+  std::size_t node_cells = 0;
+  for (const auto& n : b.geometry().fixed_nodes) node_cells += std::size_t{1} << (2 * (level - n.level));
+  const std::set<grid::Code> all = test::fixed_cells_by_site(b.geometry())[0];
+  EXPECT_EQ(all.size(), out.size() + node_cells);
+  return all;
 }
 
 std::vector<LonLatPath> rings_of(const OGRGeometry& g) {
@@ -166,6 +173,83 @@ TEST(PolygonFill, GeodesicEdgesStayCloseToLonLatOnesForSmallPolygons) {
   std::set_symmetric_difference(lonlat.begin(), lonlat.end(), geodesic.begin(), geodesic.end(), std::back_inserter(diff));
   EXPECT_LT(diff.size(), lonlat.size() / 10);
   EXPECT_GT(geodesic.size(), 0u);
+}
+
+}  // namespace
+}  // namespace qtmv::sites
+
+namespace qtmv::sites {
+namespace {
+
+/// fill()'s cells, and cover()'s nodes and cells expanded, as sets (each cell once in the cover).
+std::pair<std::set<grid::Code>, std::set<grid::Code>> fill_and_cover(const PolygonFiller& filler,
+                                                                     const std::vector<FillRing>& rings) {
+  std::vector<grid::Code> cells;
+  filler.fill(rings, cells);
+  const std::set<grid::Code> filled(cells.begin(), cells.end());
+  std::vector<grid::Code> cover_cells;
+  std::vector<PolygonFiller::CoverNode> nodes;
+  filler.cover(rings, cover_cells, nodes);
+  std::set<grid::Code> covered;
+  std::size_t count = cover_cells.size();
+  for (grid::Code c : cover_cells) covered.insert(c);
+  for (const auto& n : nodes) {
+    EXPECT_LT(n.level, filler.level());
+    const int k = filler.level() - n.level;
+    count += std::size_t{1} << (2 * k);
+    for (std::uint64_t r = 0; r < (std::uint64_t{1} << k); ++r) {
+      const grid::RowCodes row = grid::row_codes_below(grid::cell_of(n.code, n.level), k, r, filler.level());
+      for (grid::Code code = row.first; code <= row.last; ++code) covered.insert(code);
+    }
+  }
+  EXPECT_EQ(count, covered.size()) << "a cell twice in the cover";
+  return {filled, covered};
+}
+
+// The cover holds exactly fill()'s cells, for random star-shaped rings with holes (some across
+// +-180, some round a pole), at every level up to 9; and it is made of far fewer entries.
+TEST(PolygonCover, HoldsExactlyTheFilledCells) {
+  std::mt19937_64 rng(1515);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  auto star = [&](double lon, double lat, double radius, int n, bool reverse) {
+    FillRing ring;
+    for (int k = 0; k <= n; ++k) {
+      const int kk = k % n;
+      const double angle = 2 * M_PI * (reverse ? n - kk : kk) / n;
+      const double r = radius * (0.5 + 0.5 * unit(rng));
+      ring.vertices.push_back({lon + r * std::cos(angle), std::clamp(lat + 0.5 * r * std::sin(angle), -89.9, 89.9)});
+    }
+    ring.vertices.back() = ring.vertices.front();
+    return ring;
+  };
+  std::size_t entries = 0, cells = 0;
+  for (int level = 1; level <= 9; ++level) {
+    const PolygonFiller filler(level);
+    for (int trial = 0; trial < 12; ++trial) {
+      std::vector<FillRing> rings;
+      const double lon = -200 + 400 * unit(rng), lat = -70 + 140 * unit(rng), radius = 5 + 60 * unit(rng);
+      rings.push_back(star(lon, lat, radius, 5 + static_cast<int>(unit(rng) * 40), false));
+      if (trial % 3 == 0) rings.push_back(star(lon, lat, radius / 3, 7, true));  // a hole
+      if (trial % 4 == 1) {                                                   // a cap round a pole
+        FillRing cap;
+        const double cap_lat = trial % 8 == 1 ? 70 - 10 * unit(rng) : -75 + 10 * unit(rng);
+        for (int k = 0; k <= 36; ++k) cap.vertices.push_back({-180.0 + 10.0 * k, cap_lat + 3 * unit(rng)});
+        cap.vertices.back().lat = cap.vertices.front().lat;
+        cap.winding = 1;
+        rings.push_back(cap);
+      }
+      const auto [filled, covered] = fill_and_cover(filler, rings);
+      ASSERT_EQ(filled, covered) << "level " << level << " trial " << trial;
+      if (level == 9) {
+        std::vector<grid::Code> c;
+        std::vector<PolygonFiller::CoverNode> n;
+        filler.cover(rings, c, n);
+        entries += c.size() + n.size();
+        cells += filled.size();
+      }
+    }
+  }
+  EXPECT_LT(entries * 4, cells);
 }
 
 }  // namespace

@@ -116,9 +116,18 @@ inline std::vector<std::set<grid::Code>> site_cells_by_site(const SiteGeometry& 
 }
 
 /// Fixed-cell codes per site.
+/// Per site, the cells it claims: its fixed cells and the cells of its fixed nodes.
 inline std::vector<std::set<grid::Code>> fixed_cells_by_site(const SiteGeometry& g) {
   std::vector<std::set<grid::Code>> out(g.site_count);
   for (const auto& c : g.fixed_cells) out[c.site].insert(c.code);
+  for (const auto& n : g.fixed_nodes) {
+    const grid::Cell node = grid::cell_of(n.code, n.level);
+    const int k = g.level - n.level;
+    for (std::uint64_t r = 0; r < (std::uint64_t{1} << k); ++r) {
+      const grid::RowCodes row = grid::row_codes_below(node, k, r, g.level);
+      for (grid::Code code = row.first; code <= row.last; ++code) out[n.site].insert(code);
+    }
+  }
   return out;
 }
 

@@ -7,7 +7,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "write/first_exception.hpp"
+#include "common/first_exception.hpp"
 
 namespace qtmv::write {
 namespace {

@@ -1,7 +1,10 @@
-// The readers' benchmark: reading and rasterising sites at a level, on one core (the readers are
-// single-threaded). Wall time of read_sites, median of several runs.
+// The readers' benchmark: reading and rasterising sites at a level. Wall time of read_sites,
+// median of several runs.
 //
-//   sites_bench [--level L] [--points N] [--repeat R] [--edges lonlat|geodesic] [LINES_DATASET [LAYER]]
+//   sites_bench [--level L] [--points N] [--repeat R] [--threads T] [--edges lonlat|geodesic]
+//               [LINES_DATASET [LAYER]]
+//
+// --threads T: threads that trace and fill the sites (0, the default: all).
 //
 // --points N: N points spread uniformly over the sphere (seeded), written to a temporary
 // GeoPackage first (not timed). LINES_DATASET: any OGR dataset, e.g. the Natural Earth 50m
@@ -53,7 +56,7 @@ std::string make_points(int count) {
 
 double median_seconds(const std::string& path, const qtmv::sites::ReadOptions& options, int repeat,
                       qtmv::sites::ReadSummary* summary, std::size_t* pieces, std::size_t* site_cells,
-                      std::size_t* fixed_cells) {
+                      std::size_t* fixed_cells, std::size_t* fixed_nodes) {
   std::vector<double> seconds;
   for (int r = 0; r < repeat; ++r) {
     const auto start = std::chrono::steady_clock::now();
@@ -63,6 +66,7 @@ double median_seconds(const std::string& path, const qtmv::sites::ReadOptions& o
     *pieces = set.geometry.pieces.size();
     *site_cells = set.geometry.site_cells.size();
     *fixed_cells = set.geometry.fixed_cells.size();
+    *fixed_nodes = set.geometry.fixed_nodes.size();
   }
   std::sort(seconds.begin(), seconds.end());
   return seconds[seconds.size() / 2];
@@ -80,26 +84,30 @@ int main(int argc, char** argv) {
     if (a == "--level" && k + 1 < argc) options.level = std::atoi(argv[++k]);
     else if (a == "--points" && k + 1 < argc) points = std::atoi(argv[++k]);
     else if (a == "--repeat" && k + 1 < argc) repeat = std::max(1, std::atoi(argv[++k]));
+    else if (a == "--threads" && k + 1 < argc) options.threads = std::atoi(argv[++k]);
     else if (a == "--edges" && k + 1 < argc) options.edges = qtmv::sites::parse_edge_shape(argv[++k]);
     else if (lines.empty()) lines = a;
     else layer = a;
   }
   try {
     qtmv::sites::ReadSummary summary;
-    std::size_t pieces = 0, site_cells = 0, fixed_cells = 0;
+    std::size_t pieces = 0, site_cells = 0, fixed_cells = 0, fixed_nodes = 0;
     if (points > 0) {
       const std::string path = make_points(points);
-      const double s = median_seconds(path, options, repeat, &summary, &pieces, &site_cells, &fixed_cells);
+      const double s =
+          median_seconds(path, options, repeat, &summary, &pieces, &site_cells, &fixed_cells, &fixed_nodes);
       std::printf("points     level %d: %llu sites, %zu site cells: median %.3f s of %d runs\n", options.level,
                   static_cast<unsigned long long>(summary.sites), site_cells, s, repeat);
       VSIUnlink(path.c_str());
     }
     if (!lines.empty()) {
       options.layer = layer;
-      const double s = median_seconds(lines, options, repeat, &summary, &pieces, &site_cells, &fixed_cells);
-      std::printf("dataset    level %d: %llu sites, %zu pieces, %zu site cells, %zu fixed cells: median %.3f s of %d runs\n",
-                  options.level, static_cast<unsigned long long>(summary.sites), pieces, site_cells, fixed_cells, s,
-                  repeat);
+      const double s =
+          median_seconds(lines, options, repeat, &summary, &pieces, &site_cells, &fixed_cells, &fixed_nodes);
+      std::printf("dataset    level %d, %d thread(s): %llu sites, %zu pieces, %zu site cells, %zu fixed cells, %zu "
+                  "fixed nodes: median %.3f s of %d runs\n",
+                  options.level, options.threads, static_cast<unsigned long long>(summary.sites), pieces, site_cells,
+                  fixed_cells, fixed_nodes, s, repeat);
     }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sites_bench: %s\n", e.what());

@@ -8,7 +8,7 @@
 #include <exception>
 #include <mutex>
 
-namespace qtmv::write {
+namespace qtmv {
 
 class FirstException {
  public:
@@ -36,4 +36,4 @@ class FirstException {
   std::atomic<bool> failed_{false};
 };
 
-}  // namespace qtmv::write
+}  // namespace qtmv

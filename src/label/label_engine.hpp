@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <string>
 #include <vector>
 
 #include "grid/qtm.hpp"
@@ -16,6 +17,14 @@
 #include "label/labeller.hpp"
 
 namespace qtmv::label {
+
+/// The device a run labels on: options.device ("auto", "cpu", "cuda", "cuda:N") resolved against
+/// the CUDA devices present. Throws std::runtime_error for a GPU asked for and missing.
+struct DeviceChoice {
+  bool cuda = false;
+  int index = 0;
+};
+DeviceChoice choose_device(const std::string& name);
 
 /// The input checks of label_cells: throws std::invalid_argument naming the first bad entry.
 void check_label_input(const LabelInput& input, Rule rule);

@@ -1,8 +1,11 @@
-// The labelling session (label_session.hpp): the host's candidates and tree, built once, then
-// ranges through the CPU's painter and lists through the per-cell walk.
+// The labelling session (label_session.hpp): the candidates and the tree, built once, then
+// ranges on the GPU (cuda::Labeller, the device-built tree) or through the CPU's painter, and
+// lists through the per-cell walk of the host's tree.
 #include "label/label_session.hpp"
 
+#include <algorithm>
 #include <atomic>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -12,18 +15,45 @@
 #include "grid/qtm_checks.hpp"
 #include "label/cpu_painter.hpp"
 #include "label/fixed_cover.hpp"
+#include "label/label_cuda.hpp"
 #include "label/label_engine.hpp"
 
 namespace qtmv::label {
+
+/// Cells a GPU session labels per run (and the device buffers it reserves): the writers' strips
+/// are smaller.
+constexpr std::uint64_t kSessionDeviceCells = std::uint64_t{1} << 26;
 
 struct LabelSession::Impl {
   int level = 0;
   int threads = 1;
   bool with_distance = false;
+  Rule rule = Rule::exact;
+  // The input as prepared (its arrays are the caller's, the copies below or `prepared`'s).
+  PreparedInput prepared;
   std::vector<Piece> candidates;
   Tree tree;
   TreeView view{};
   LabelStats stats;
+  std::unique_ptr<cuda::Labeller> gpu;  ///< ranges on the GPU when set
+  std::uint64_t gpu_cells = 0;
+  // The host's tree, built on the first list of codes when the ranges go to the GPU.
+  mutable std::once_flag host_tree;
+  std::vector<FixedCell> fixed_copy;
+  std::vector<FixedNode> nodes_copy;
+  std::vector<SitePiece> pieces_copy;
+  std::vector<SiteCell> site_cells_copy;
+
+  void build_host_tree(const ProgressFunc& progress) {
+    const CoverView cover = prepared.cover.view();
+    candidates = make_candidates(prepared.input, rule, threads);
+    tree = build_tree(candidates, level, with_distance, threads,
+                      [&](double fraction) { report_progress(progress, fraction, "prepare"); }, &cover);
+    view = tree.view(candidates.data());
+    stats.tree_nodes = tree.nodes.size();
+    stats.tree_list_entries = tree.lists.size();
+    stats.mean_candidates = tree.mean_candidates;
+  }
 };
 
 LabelSession::LabelSession(const LabelInput& input, const LabelOptions& options) : impl_(std::make_unique<Impl>()) {
@@ -32,21 +62,52 @@ LabelSession::LabelSession(const LabelInput& input, const LabelOptions& options)
   s.level = input.level;
   s.threads = thread_count(options.threads);
   s.with_distance = options.want_distance;
-  s.stats.device = "cpu (" + std::to_string(s.threads) + " threads)";
-  s.stats.algorithm = Algorithm::hier;
-  tell(options.messages, Severity::info, "labelling on " + s.stats.device + ", pruned tree (hier), on demand");
+  s.rule = options.rule;
   const double t0 = now_seconds();
   report_progress(options.progress, 0.0, "prepare");
+  const DeviceChoice device = choose_device(options.device);
+  LabelInput own = input;
+  if (device.cuda) {
+    // The session keeps its own copy of the input, for a host tree built later (lists).
+    s.pieces_copy.assign(input.pieces, input.pieces + input.piece_count);
+    s.site_cells_copy.assign(input.site_cells, input.site_cells + input.site_cell_count);
+    s.fixed_copy.assign(input.fixed_cells, input.fixed_cells + input.fixed_cell_count);
+    s.nodes_copy.assign(input.fixed_nodes, input.fixed_nodes + input.fixed_node_count);
+    own.pieces = s.pieces_copy.data();
+    own.site_cells = s.site_cells_copy.data();
+    own.fixed_cells = s.fixed_copy.data();
+    own.fixed_nodes = s.nodes_copy.data();
+  }
   // As label_cells prepares the tree: polygon interiors' fixed nodes as the tree's cover.
-  const PreparedInput prepared = prepare_input(input, true, s.threads);
-  const CoverView cover = prepared.cover.view();
-  s.candidates = make_candidates(prepared.input, options.rule, s.threads);
-  s.tree = build_tree(s.candidates, input.level, options.want_distance, s.threads,
-                      [&](double fraction) { report_progress(options.progress, fraction, "prepare"); }, &cover);
-  s.view = s.tree.view(s.candidates.data());
-  s.stats.tree_nodes = s.tree.nodes.size();
-  s.stats.tree_list_entries = s.tree.lists.size();
-  s.stats.mean_candidates = s.tree.mean_candidates;
+  s.prepared = prepare_input(own, true, s.threads);
+  if (device.cuda) {
+    // Ranges on the GPU, with the tree built there; a GPU that cannot hold it leaves the work
+    // to the CPU.
+    try {
+      const CoverView cover = s.prepared.cover.view();
+      s.gpu = s.rule == Rule::exact
+                  ? std::make_unique<cuda::Labeller>(device.index, s.prepared.input, s.with_distance, s.threads, &cover)
+                  : std::make_unique<cuda::Labeller>(device.index, make_candidates(s.prepared.input, s.rule, s.threads),
+                                                     input.level, s.with_distance, s.threads, &cover);
+      s.gpu_cells = std::min<std::uint64_t>(grid::cell_count(input.level), kSessionDeviceCells);
+      s.gpu->reserve(s.gpu_cells, s.with_distance, true);
+      const cuda::TreeInfo info = s.gpu->tree_info();
+      s.stats.tree_nodes = info.nodes;
+      s.stats.tree_list_entries = info.list_entries;
+      s.stats.mean_candidates = info.mean_candidates;
+      s.stats.device = "cuda:" + std::to_string(device.index) + " (" + cuda::device_info(device.index).name + ")";
+    } catch (const std::exception& e) {
+      s.gpu.reset();
+      tell(options.messages, Severity::warning,
+           std::string("the GPU cannot label this raster (") + e.what() + "); labelling on the CPU instead");
+    }
+  }
+  if (!s.gpu) {
+    s.stats.device = "cpu (" + std::to_string(s.threads) + " threads)";
+    s.build_host_tree(options.progress);
+  }
+  s.stats.algorithm = Algorithm::hier;
+  tell(options.messages, Severity::info, "labelling on " + s.stats.device + ", pruned tree (hier), on demand");
   s.stats.prepare_seconds = now_seconds() - t0;
 }
 
@@ -74,12 +135,21 @@ void LabelSession::label_range(grid::Code first, std::uint64_t count, std::int32
                                 " lie outside level " + std::to_string(s.level));
   }
   if (count == 0) return;
+  if (s.gpu) {
+    for (std::uint64_t done = 0; done < count; done += s.gpu_cells) {
+      const std::uint64_t n = std::min(s.gpu_cells, count - done);
+      s.gpu->run(first + done, n, distance_m != nullptr, boundary != nullptr);
+      s.gpu->download(0, n, site + done, distance_m ? distance_m + done : nullptr, boundary ? boundary + done : nullptr);
+    }
+    return;
+  }
   cpu_tree_range(s.tree, s.view, first, count, site, distance_m, boundary, s.threads);
 }
 
 void LabelSession::label_codes(const grid::Code* codes, std::size_t count, std::int32_t* site, float* distance_m,
                                std::uint8_t* boundary) const {
-  const Impl& s = *impl_;
+  Impl& s = *impl_;
+  if (s.gpu) std::call_once(s.host_tree, [&] { s.build_host_tree({}); });
   if (distance_m && !s.with_distance) throw std::invalid_argument("this labelling session has no distances");
   const std::uint64_t cells = grid::cell_count(s.level);
   std::atomic<bool> bad{false};

@@ -79,10 +79,7 @@ void validate(const LabelInput& in, Rule rule) {
   }
 }
 
-struct DeviceChoice {
-  bool cuda = false;
-  int index = 0;
-};
+}  // namespace
 
 DeviceChoice choose_device(const std::string& name) {
   const DeviceSpec spec = parse_device_spec(name);
@@ -96,8 +93,6 @@ DeviceChoice choose_device(const std::string& name) {
   }
   return {true, spec.index};
 }
-
-}  // namespace
 
 void check_label_input(const LabelInput& input, Rule rule) { validate(input, rule); }
 

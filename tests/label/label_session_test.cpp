@@ -40,13 +40,14 @@ SiteGeometry mixed_sites(int level, unsigned seed) {
   return g;
 }
 
-void expect_session_equals_label_all(int level, bool with_distance) {
-  SCOPED_TRACE("level " + std::to_string(level) + (with_distance ? " with distances" : ""));
+void expect_session_equals_label_all(int level, bool with_distance, const char* device = "cpu") {
+  SCOPED_TRACE("level " + std::to_string(level) + (with_distance ? " with distances " : " ") + device);
   const SiteGeometry g = mixed_sites(level, 40 + level);
   LabelOptions options;
   options.device = "cpu";
   options.want_distance = with_distance;
   const LabelResult all = label_all(g.input(), options);
+  options.device = device;
   const LabelSession session(g.input(), options);
   EXPECT_EQ(session.level(), level);
   EXPECT_EQ(session.has_distance(), with_distance);
@@ -99,6 +100,16 @@ TEST(LabelSession, RangesAndListsEqualLabelAllAtLevels3To7) {
   for (int level = 3; level <= 7; ++level) {
     expect_session_equals_label_all(level, true);
     expect_session_equals_label_all(level, false);
+  }
+}
+
+// On a GPU the ranges are labelled there (the device-built tree) and lists on a host tree built
+// on first use: the same labels as the CPU's.
+TEST(LabelSession, OnAGpuRangesAndListsEqualTheCpu) {
+  if (cuda_device_count() == 0) GTEST_SKIP() << "no CUDA device";
+  for (int level = 3; level <= 7; level += 2) {
+    expect_session_equals_label_all(level, true, "cuda");
+    expect_session_equals_label_all(level, false, "cuda");
   }
 }
 

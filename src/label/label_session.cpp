@@ -120,9 +120,14 @@ const LabelStats& LabelSession::stats() const { return impl_->stats; }
 std::uint64_t LabelSession::memory_bytes() const {
   const Impl& s = *impl_;
   const Tree& t = s.tree;
+  const FixedCover& c = s.prepared.cover;
   return s.candidates.capacity() * sizeof(Piece) + t.nodes.capacity() * sizeof(TreeNode) +
          t.lists.capacity() * sizeof(std::int32_t) + t.jump.capacity() * sizeof(JumpEntry) +
-         t.leaves.capacity() * sizeof(TreeLeaf) + t.groups.capacity() * sizeof(PieceGroup);
+         t.leaves.capacity() * sizeof(TreeLeaf) + t.groups.capacity() * sizeof(PieceGroup) +
+         s.pieces_copy.capacity() * sizeof(SitePiece) + s.site_cells_copy.capacity() * sizeof(SiteCell) +
+         (s.fixed_copy.capacity() + s.prepared.fixed_cells.capacity()) * sizeof(FixedCell) +
+         s.nodes_copy.capacity() * sizeof(FixedNode) + (c.first.capacity() + c.last.capacity()) * 8 +
+         (c.site.capacity() + c.owner_run.capacity()) * 4;
 }
 
 void LabelSession::label_range(grid::Code first, std::uint64_t count, std::int32_t* site, float* distance_m,

@@ -35,7 +35,7 @@ class LabelSession {
   bool has_distance() const;
   /// Where and how it labels ("cpu (N threads)"), the build's time and the tree's size.
   const LabelStats& stats() const;
-  /// Host bytes the session holds (candidates and tree).
+  /// Host bytes the session holds (candidates, tree, cover; on a GPU the input's copy).
   std::uint64_t memory_bytes() const;
 
   /// The labels of codes [first, first + count) into site[count], distance_m[count] (metres;

@@ -69,7 +69,9 @@ void expect_session_equals_label_all(int level, bool with_distance, const char* 
       const grid::Code code = first + k;
       ASSERT_EQ(site[k], all.site[code]) << "code " << code;
       ASSERT_EQ(boundary[k], all.boundary[code]) << "code " << code;
-      if (with_distance) ASSERT_EQ(metres[k], all.distance_m[code]) << "code " << code;
+      if (with_distance) {
+        ASSERT_EQ(metres[k], all.distance_m[code]) << "code " << code;
+      }
     }
     first += count;
   }
@@ -91,7 +93,9 @@ void expect_session_equals_label_all(int level, bool with_distance, const char* 
       const grid::Code code = (*list)[k];
       ASSERT_EQ(site[k], all.site[code]) << "code " << code;
       ASSERT_EQ(boundary[k], all.boundary[code]) << "code " << code;
-      if (with_distance) ASSERT_EQ(metres[k], all.distance_m[code]) << "code " << code;
+      if (with_distance) {
+        ASSERT_EQ(metres[k], all.distance_m[code]) << "code " << code;
+      }
     }
   }
 }

@@ -524,7 +524,9 @@ TEST_F(RasterWriter, StreamedStripsEqualTheWholeGlobeAtLevels3To7) {
         strips = 0;
         write_raster(streamed_path, session, f.table, options);
         const RasterSize size = raster_size(level, options);
-        if (strip_bytes == 1) EXPECT_EQ(strips, size.height + 1);  // one row a strip, and 0%
+        if (strip_bytes == 1) {
+          EXPECT_EQ(strips, size.height + 1);  // one row a strip, and 0%
+        }
         EXPECT_GE(session.calls - calls_before, strips - 1);       // asked strip by strip
         Opened dense(dense_path), streamed(streamed_path);
         EXPECT_EQ(compare_with_dense(dense.ds, f, grid_options.qtm), 0u);
@@ -724,7 +726,9 @@ TEST_F(RasterWriter, StreamedStopAndCogStagingLeaveNothingBehind) {
     const std::string path = temp_path(std::string("stream_stop_") + driver + ".tif");
     options.progress = [&](double fraction, const char*) {
       // No staging file in memory: the staging GeoTIFF is on disk while the strips are written.
-      if (std::string(driver) == "COG" && fraction > 0.1 && fraction < 0.5) EXPECT_TRUE(exists(path + ".staging.tif"));
+      if (std::string(driver) == "COG" && fraction > 0.1 && fraction < 0.5) {
+        EXPECT_TRUE(exists(path + ".staging.tif"));
+      }
       return fraction < 0.3;
     };
     EXPECT_THROW(write_raster(path, session, f.table, options), Interrupted);
@@ -736,7 +740,9 @@ TEST_F(RasterWriter, StreamedStopAndCogStagingLeaveNothingBehind) {
     EXPECT_FALSE(exists(path + ".staging.tif"));
     Opened opened(path);
     EXPECT_EQ(compare_with_dense(opened.ds, f, true), 0u);
-    if (std::string(driver) == "COG") EXPECT_EQ(metadata(opened.ds, "LAYOUT", "IMAGE_STRUCTURE"), "COG");
+    if (std::string(driver) == "COG") {
+      EXPECT_EQ(metadata(opened.ds, "LAYOUT", "IMAGE_STRUCTURE"), "COG");
+    }
   }
 }
 

@@ -183,19 +183,10 @@ struct Filler {
                            labels.boundary.data() + offset[o]);
       }
       const Code octant_cells = grid::cells_per_octant(level);
-#pragma omp parallel for num_threads(threads) schedule(dynamic, 4)
-      for (int r = 0; r < rows; ++r) {
-        T* out = buffer + static_cast<std::size_t>(r) * size.width;
-        const Code* codes = labels.pixel_code.data() + static_cast<std::size_t>(r) * size.width;
-        for (std::size_t x = 0; x < static_cast<std::size_t>(size.width); ++x) {
-          if (codes[x] == grid::kInvalidCode) {
-            put_nodata(out, x, band_space);
-            continue;
-          }
-          const int o = static_cast<int>(codes[x] / octant_cells);
-          put(offset[o] + static_cast<std::size_t>(codes[x] - start[o]), codes[x], out, x, band_space);
-        }
-      }
+      put_pixels(buffer, rows, band_space, [&](Code code) {
+        const int o = static_cast<int>(code / octant_cells);
+        return offset[o] + static_cast<std::size_t>(code - start[o]);
+      });
       return;
     }
     labels.codes = labels.pixel_code;
@@ -205,6 +196,16 @@ struct Filler {
     resize(labels.codes.size(), with_distance);
     source.label_codes(labels.codes.data(), labels.codes.size(), labels.site.data(),
                        with_distance ? labels.distance_m.data() : nullptr, labels.boundary.data());
+    put_pixels(buffer, rows, band_space, [&](Code code) {
+      return static_cast<std::size_t>(std::lower_bound(labels.codes.begin(), labels.codes.end(), code) -
+                                      labels.codes.begin());
+    });
+  }
+
+  /// Fills `rows` rows of pixels from the strip's pixel codes, each from the labels at
+  /// index_of(code) (nodata where a pixel has no cell).
+  template <typename T, class IndexOf>
+  void put_pixels(T* buffer, int rows, std::size_t band_space, IndexOf&& index_of) {
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 4)
     for (int r = 0; r < rows; ++r) {
       T* out = buffer + static_cast<std::size_t>(r) * size.width;
@@ -212,11 +213,9 @@ struct Filler {
       for (std::size_t x = 0; x < static_cast<std::size_t>(size.width); ++x) {
         if (codes[x] == grid::kInvalidCode) {
           put_nodata(out, x, band_space);
-          continue;
+        } else {
+          put(index_of(codes[x]), codes[x], out, x, band_space);
         }
-        const std::size_t k = static_cast<std::size_t>(
-            std::lower_bound(labels.codes.begin(), labels.codes.end(), codes[x]) - labels.codes.begin());
-        put(k, codes[x], out, x, band_space);
       }
     }
   }

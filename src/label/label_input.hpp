@@ -50,8 +50,9 @@ struct SiteCell {
 };
 
 /// A cell inside a polygon site: it keeps that site at distance 0 (the lower id when two
-/// polygons claim it). Its centre is a candidate point of the site for the other cells too, but
-/// one inside the polygon's rings is never nearer to another cell than the rings are.
+/// polygons claim it). Without fixed nodes its centre is also a candidate point of the site for
+/// the other cells, but one inside the polygon's rings is never nearer to another cell than the
+/// rings are.
 struct FixedCell {
   grid::Code code;
   std::int32_t site;
@@ -59,7 +60,9 @@ struct FixedCell {
 
 /// A quadtree node wholly inside a polygon site (a "cover" entry): every cell below it at the
 /// labelling level is a fixed cell of that site. Readers give a polygon's interior as such nodes
-/// plus the fixed cells along its rings, so that the work follows the rings, not the area.
+/// plus the fixed cells along its rings, so that the work follows the rings, not the area. With
+/// fixed nodes, claimed cells are no candidates for other cells: the polygons' rings must be
+/// given too (as pieces, or site cells for the cell rule), as the readers give them.
 struct FixedNode {
   grid::Code code;      ///< the node's code at its own level
   std::int32_t level;   ///< the node's level (0 .. the labelling level)

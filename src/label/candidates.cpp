@@ -19,7 +19,7 @@ std::vector<Piece> make_candidates(const LabelInput& given, Rule rule, int threa
   LabelInput in = given;
   std::vector<FixedCell> with_nodes;
   if (given.fixed_node_count > 0) {
-    with_nodes = fixed_cells_with_nodes(given, 0);
+    with_nodes = fixed_cells_with_nodes(given);
     in.fixed_cells = with_nodes.data();
     in.fixed_cell_count = with_nodes.size();
     in.fixed_nodes = nullptr;

@@ -1,32 +1,11 @@
 #include "label/fixed_cover.hpp"
 
-#include "common/openmp_threads.hpp"
-#include "common/parallel_sort.hpp"
-#include "grid/qtm_key_ranges.hpp"
-
-
 namespace qtmv::label {
 
-FixedCover make_fixed_cover(const LabelInput& input, int threads_requested) {
-  const int threads = thread_count(threads_requested);
+FixedCover make_fixed_cover(const LabelInput& input) {
   FixedCover cover;
   cover.level = input.level;
-  const auto cells = static_cast<std::int64_t>(input.fixed_cell_count);
-  const auto nodes = static_cast<std::int64_t>(input.fixed_node_count);
-  if (cells + nodes == 0) return cover;
-  std::vector<grid::KeyRange> ranges(static_cast<std::size_t>(cells + nodes));
-#pragma omp parallel for schedule(static) num_threads(threads)
-  for (std::int64_t k = 0; k < cells; ++k) {
-    const FixedCell& f = input.fixed_cells[k];
-    const std::uint64_t key = grid::quadtree_key(grid::cell_of(f.code, input.level), input.level);
-    ranges[k] = {key, key, f.site};
-  }
-  for (std::int64_t k = 0; k < nodes; ++k) {
-    const FixedNode& n = input.fixed_nodes[k];
-    ranges[cells + k] = grid::node_key_range(grid::cell_of(n.code, n.level), n.level, input.level, n.site);
-  }
-  parallel_sort(ranges.begin(), ranges.end(), grid::key_range_before);
-  const std::vector<grid::KeyRange> parts = grid::lowest_owner_partition_of_sorted(ranges);
+  const std::vector<grid::KeyRange> parts = held_claims(input);
   cover.first.reserve(parts.size());
   cover.last.reserve(parts.size());
   cover.site.reserve(parts.size());
@@ -41,15 +20,15 @@ FixedCover make_fixed_cover(const LabelInput& input, int threads_requested) {
   return cover;
 }
 
-PreparedInput prepare_input(const LabelInput& given, bool hier, int threads) {
+PreparedInput prepare_input(const LabelInput& given, bool hier) {
   PreparedInput out;
   out.input = given;
-  if (hier) out.cover = make_fixed_cover(given, threads);
+  if (hier) out.cover = make_fixed_cover(given);
   if (given.fixed_node_count > 0) {
     if (hier) {
       out.cover.split_partly = true;
     } else {
-      out.fixed_cells = fixed_cells_with_nodes(given, 0);
+      out.fixed_cells = fixed_cells_with_nodes(given);
     }
     out.input.fixed_cells = out.fixed_cells.data();
     out.input.fixed_cell_count = out.fixed_cells.size();
@@ -59,22 +38,20 @@ PreparedInput prepare_input(const LabelInput& given, bool hier, int threads) {
   return out;
 }
 
-std::uint64_t fixed_node_cells(const LabelInput& input, int from_level) {
+std::uint64_t fixed_node_cells(const LabelInput& input) {
   std::uint64_t n = 0;
   for (std::size_t k = 0; k < input.fixed_node_count; ++k) {
-    const FixedNode& node = input.fixed_nodes[k];
-    if (node.level >= from_level) n += std::uint64_t{1} << (2 * (input.level - node.level));
+    n += std::uint64_t{1} << (2 * (input.level - input.fixed_nodes[k].level));
   }
   return n;
 }
 
-std::vector<FixedCell> fixed_cells_with_nodes(const LabelInput& input, int from_level) {
+std::vector<FixedCell> fixed_cells_with_nodes(const LabelInput& input) {
   std::vector<FixedCell> out;
-  out.reserve(input.fixed_cell_count + fixed_node_cells(input, from_level));
+  out.reserve(input.fixed_cell_count + fixed_node_cells(input));
   out.assign(input.fixed_cells, input.fixed_cells + input.fixed_cell_count);
   for (std::size_t k = 0; k < input.fixed_node_count; ++k) {
     const FixedNode& node = input.fixed_nodes[k];
-    if (node.level < from_level) continue;
     const grid::Cell cell = grid::cell_of(node.code, node.level);
     const int depth = input.level - node.level;
     for (std::uint32_t r = 0; r < (1u << depth); ++r) {

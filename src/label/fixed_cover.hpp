@@ -22,13 +22,12 @@ struct FixedCover {
   }
 };
 
-/// The cover of all of the input's fixed cells and fixed nodes. `threads`: as
-/// LabelOptions::threads.
-FixedCover make_fixed_cover(const LabelInput& input, int threads);
+/// The cover of all of the input's fixed cells and fixed nodes (held_claims, label_input.hpp).
+FixedCover make_fixed_cover(const LabelInput& input);
 
-/// The input's fixed cells, then every cell of its fixed nodes of level >= from_level (code
-/// order within a node). from_level 0: all the cells that the input claims.
-std::vector<FixedCell> fixed_cells_with_nodes(const LabelInput& input, int from_level);
+/// The input's fixed cells, then every cell of its fixed nodes (code order within a node): all
+/// the cells that the input claims, cell by cell.
+std::vector<FixedCell> fixed_cells_with_nodes(const LabelInput& input);
 
 /// The input as a labelling takes it. For the tree (`hier`): the cover of its claims; with fixed
 /// nodes, no fixed cells at all (claims have no candidate points; the tree splits partly claimed
@@ -40,9 +39,9 @@ struct PreparedInput {
   FixedCover cover;
   std::vector<FixedCell> fixed_cells;
 };
-PreparedInput prepare_input(const LabelInput& given, bool hier, int threads);
+PreparedInput prepare_input(const LabelInput& given, bool hier);
 
-/// Number of cells below the input's fixed nodes of level >= from_level.
-std::uint64_t fixed_node_cells(const LabelInput& input, int from_level);
+/// Number of cells below the input's fixed nodes.
+std::uint64_t fixed_node_cells(const LabelInput& input);
 
 }  // namespace qtmv::label

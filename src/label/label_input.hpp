@@ -6,7 +6,9 @@
 #include <cstdint>
 #include <vector>
 
+#include "common/parallel_sort.hpp"
 #include "grid/qtm.hpp"
+#include "grid/qtm_key_ranges.hpp"
 
 namespace qtmv::label {
 
@@ -106,5 +108,25 @@ struct SiteGeometry {
     return in;
   }
 };
+
+/// The cells that the input's fixed cells and fixed nodes claim, each held by the lowest site that
+/// claims it: grid::lowest_owner_partition of their quadtree-key ranges (the labeller's cover and
+/// the readers' counts).
+inline std::vector<grid::KeyRange> held_claims(const LabelInput& input) {
+  const auto cells = static_cast<std::int64_t>(input.fixed_cell_count);
+  const auto nodes = static_cast<std::int64_t>(input.fixed_node_count);
+  std::vector<grid::KeyRange> ranges(static_cast<std::size_t>(cells + nodes));
+  for (std::int64_t k = 0; k < cells; ++k) {
+    const FixedCell& f = input.fixed_cells[k];
+    const std::uint64_t key = grid::quadtree_key(grid::cell_of(f.code, input.level), input.level);
+    ranges[k] = {key, key, f.site};
+  }
+  for (std::int64_t k = 0; k < nodes; ++k) {
+    const FixedNode& n = input.fixed_nodes[k];
+    ranges[cells + k] = grid::node_key_range(grid::cell_of(n.code, n.level), n.level, input.level, n.site);
+  }
+  parallel_sort(ranges.begin(), ranges.end(), grid::key_range_before);
+  return grid::lowest_owner_partition_of_sorted(ranges);
+}
 
 }  // namespace qtmv::label

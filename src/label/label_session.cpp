@@ -79,7 +79,7 @@ LabelSession::LabelSession(const LabelInput& input, const LabelOptions& options)
     own.fixed_nodes = s.nodes_copy.data();
   }
   // As label_cells prepares the tree: polygon interiors' fixed nodes as the tree's cover.
-  s.prepared = prepare_input(own, true, s.threads);
+  s.prepared = prepare_input(own, true);
   if (device.cuda) {
     // Ranges on the GPU, with the tree built there; a GPU that cannot hold it leaves the work
     // to the CPU.

@@ -222,7 +222,7 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
   // list level (the coarser fixed nodes are its cover's uniform leaves at once).
   const double brute_candidates =
       static_cast<double>((options.rule == Rule::exact ? given.piece_count : given.site_cell_count) +
-                          given.fixed_cell_count + fixed_node_cells(given, 0));
+                          given.fixed_cell_count + fixed_node_cells(given));
   stats.algorithm = options.algorithm;
   if (stats.algorithm == Algorithm::automatic) {
     const double work = static_cast<double>(grid::cell_count(given.level)) * brute_candidates;
@@ -232,7 +232,7 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
   // Fixed nodes: the tree takes them as its cover (a node of its list level or above is a
   // uniform leaf at once) and fixed points only where a list leaf may meet claimed cells; brute
   // force takes every claimed cell as a fixed point.
-  const PreparedInput prepared = prepare_input(given, hier, threads);
+  const PreparedInput prepared = prepare_input(given, hier);
   const LabelInput& input = prepared.input;
   const CoverView cover_view = prepared.cover.view();
   // The host's candidates, made when the host needs them: the exact rule's device build makes

@@ -35,17 +35,7 @@ SiteCellCounts resolve_claims(SiteGeometry& g, DistanceRule rule) {
                                   [](const FixedCell& a, const FixedCell& b) { return a.code == b.code; }),
                       g.fixed_cells.end());
   // The cells claimed, cells and nodes alike, each given to its lowest claimant.
-  std::vector<grid::KeyRange> ranges;
-  ranges.reserve(g.fixed_cells.size() + g.fixed_nodes.size());
-  for (const FixedCell& f : g.fixed_cells) {
-    const std::uint64_t key = grid::quadtree_key(grid::cell_of(f.code, g.level), g.level);
-    ranges.push_back({key, key, f.site});
-  }
-  for (const FixedNode& n : g.fixed_nodes) {
-    ranges.push_back(grid::node_key_range(grid::cell_of(n.code, n.level), n.level, g.level, n.site));
-  }
-  parallel_sort(ranges.begin(), ranges.end(), grid::key_range_before);
-  const std::vector<grid::KeyRange> held = grid::lowest_owner_partition_of_sorted(ranges);
+  const std::vector<grid::KeyRange> held = label::held_claims(g.input());
   for (const grid::KeyRange& r : held) {
     counts.fixed_cells[r.owner] += r.last - r.first + 1;
     counts.has_own_cell[r.owner] = true;

@@ -367,7 +367,7 @@ TEST(LabelTree, CoverLookupMatchesEveryNode) {
     g.fixed_nodes.push_back({rng() % grid::cell_count(l), l, static_cast<std::int32_t>(rng() % 6)});
   }
   std::shuffle(g.fixed_cells.begin(), g.fixed_cells.end(), rng);
-  const FixedCover cover = make_fixed_cover(g.input(), 2);
+  const FixedCover cover = make_fixed_cover(g.input());
   const CoverView view = cover.view();
   // The definition: per cell of the level, its lowest claimant (-1: none).
   std::vector<std::int32_t> lowest(grid::cell_count(level), -1);
@@ -438,7 +438,7 @@ TEST(LabelTree, FixedNodesLabelAsTheirCells) {
     const Cell deep = grid::descendant(grid::cell_of(37, 2), level - 2, 7);
     nodes.fixed_cells.push_back({grid::code_of(deep, level), 3});
     SiteGeometry cells = nodes;
-    const std::vector<FixedCell> all = fixed_cells_with_nodes(nodes.input(), 0);
+    const std::vector<FixedCell> all = fixed_cells_with_nodes(nodes.input());
     cells.fixed_cells = all;
     cells.fixed_nodes.clear();
     for (const char* device : {"cpu", "cuda"}) {
@@ -487,7 +487,7 @@ TEST(LabelTree, NodeRuleKinds) {
 TEST(LabelTree, CoverLeavesAreTheCoverLookUps) {
   for (const SiteGeometry& g : {polygons(6), solid_polygon(5), solid_polygon(7)}) {
     const LabelInput in = g.input();
-    const FixedCover cover = make_fixed_cover(in, 2);
+    const FixedCover cover = make_fixed_cover(in);
     const CoverView view = cover.view();
     for (const Rule rule : {Rule::exact, Rule::cell}) {
       const Tree tree = build_tree(make_candidates(in, rule), g.level, true, 2, {}, &view);
@@ -676,7 +676,7 @@ TEST_P(LabelDevice, SolidPolygonInteriorsAreUniformLeaves) {
   const LabelInput in = g.input();
   const std::vector<Piece> candidates = make_candidates(in, Rule::exact);
   const Tree plain = build_tree(candidates, g.level, true, 2);
-  const FixedCover cover = make_fixed_cover(in, 2);
+  const FixedCover cover = make_fixed_cover(in);
   const CoverView view = cover.view();
   const Tree covered = build_tree(candidates, g.level, true, 2, {}, &view);
   std::uint64_t uniform = 0, covered_cells = 0;
@@ -905,7 +905,7 @@ TEST(LabelDeviceTree, MatchesTheHostTree) {
         SCOPED_TRACE(c.name + " level " + std::to_string(c.g.level) + (rule == Rule::exact ? " exact" : " cell") +
                      (with_distance ? " with distances" : ""));
         // With the fixed cells, as label_cells builds them: nodes inside polygons are uniform.
-        const FixedCover cover = make_fixed_cover(in, 2);
+        const FixedCover cover = make_fixed_cover(in);
         const CoverView view = cover.view();
         const Tree host = build_tree(candidates, c.g.level, with_distance, 2, {}, &view);
         // From the host's candidates, and (exact rule) from the input, the pieces made there.

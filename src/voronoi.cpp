@@ -28,8 +28,9 @@ std::string VoronoiSummary::line() const {
     s << ", " << invalid_polygons << " with an invalid polygon";
     if (repaired_polygons > 0) s << " (" << repaired_polygons << " repaired)";
   }
-  s << "; level " << level << ", "
-    << cells << " cells; " << device << "; read " << seconds(read_seconds) << " (rasterise " << seconds(rasterise_seconds) << "), label " << seconds(label_seconds)
+  s << "; level " << level << ", " << cells << " cells";
+  if (tile_count > 0) s << ", tile " << tile_index << "/" << tile_count;
+  s << "; " << device << "; read " << seconds(read_seconds) << " (rasterise " << seconds(rasterise_seconds) << "), label " << seconds(label_seconds)
     << " (prepare " << seconds(prepare_seconds) << "), write " << seconds(write_seconds) << "; total "
     << seconds(total_seconds);
   return s.str();
@@ -37,7 +38,9 @@ std::string VoronoiSummary::line() const {
 
 VoronoiSummary run_voronoi(const std::string& source, const std::string& destination, const VoronoiOptions& options) {
   const double t_start = now_seconds();
-  const pipeline::RunPlan plan = pipeline::plan_run(destination, options);  // every check before any work
+  const bool tile_job = options.tile_count > 0;
+  // Every check before any work.
+  const pipeline::RunPlan plan = tile_job ? pipeline::plan_tile_job(destination, options) : pipeline::plan_run(destination, options);
   pipeline::StagedOutput output(destination, options.overwrite);
   pipeline::RunProgress progress(options.progress);
   VoronoiSummary summary;
@@ -45,6 +48,8 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   summary.raster = plan.format.raster;
   summary.level = plan.level;
   summary.cells = grid::cell_count(plan.level);
+  summary.tile_index = options.tile_index;
+  summary.tile_count = options.tile_count;
 
   double t0 = now_seconds();
   sites::SiteSet sites = pipeline::read_stage(source, options, plan, progress);
@@ -57,13 +62,23 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   summary.read_seconds = now_seconds() - t0;
 
   t0 = now_seconds();
+  // A merge joins the tile jobs' products instead of labelling.
   const pipeline::LabelledLevel labels =
-      pipeline::label_stage(sites, options, plan, progress, &summary.sites_without_cell);
+      plan.merge_files.empty() ? pipeline::label_stage(sites, options, plan, progress, &summary.sites_without_cell)
+                               : pipeline::merge_stage(source, sites, options, plan, progress, &summary.sites_without_cell);
   summary.device = labels.device;
   summary.prepare_seconds = labels.prepare_seconds;
   summary.label_seconds = now_seconds() - t0;
 
   t0 = now_seconds();
+  if (tile_job) {
+    pipeline::write_tile_stage(output.begin(), destination, labels, sites, options, plan);
+    output.commit();
+    summary.write_seconds = now_seconds() - t0;
+    summary.total_seconds = now_seconds() - t_start;
+    tell(options.messages, Severity::info, summary.line());
+    return summary;
+  }
   // A raster's labels are made strip by strip as it is written: that time counts as labelling.
   const double strip_label_seconds = pipeline::write_stage(output.begin(), destination, labels, sites, plan,
                                                                   progress, options.messages, &summary.sites_without_cell);

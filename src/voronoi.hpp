@@ -8,6 +8,7 @@
 #include <functional>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "common/run_context.hpp"
 #include "label/labeller.hpp"
@@ -48,6 +49,16 @@ struct VoronoiOptions {
   /// raster's strips: a quarter of it, at most 64 MiB, per strip) and the labeller's tiles; 0: 80%
   /// of physical RAM.
   std::uint64_t memory_limit_bytes = 0;
+  /// -tile K/N: a tile job. Only tile `tile_index` (1..tile_count) of the level split in
+  /// tile_count parts (grid::tile_range: whole octant rows, in code order) is labelled, and its
+  /// products are written to the destination as a tile product (pipeline/tile_product.hpp)
+  /// instead of a dataset; the output options are not used. 0: a whole run.
+  int tile_index = 0;
+  int tile_count = 0;
+  /// -merge: the tile products of all tile_count tile jobs (files, or directories of *.qtmt
+  /// files), joined instead of labelling. The source and reading options must be the tile jobs';
+  /// the destination is then exactly a whole run's. Vector output only.
+  std::vector<std::string> merge;
   ProgressFunc progress;   ///< may be empty
   MessageSink messages;    ///< warnings, informative lines and the closing summary; may be empty
 };
@@ -64,7 +75,8 @@ struct VoronoiSummary {
   int level = 0;                   ///< QTM level
   std::uint64_t cells = 0;         ///< 8 * 4^level
   std::uint64_t sites_without_cell = 0;  ///< sites that got no cell in the labels
-  std::string device;              ///< where the labelling ran
+  std::string device;              ///< where the labelling ran (or which tile products were merged)
+  int tile_index = 0, tile_count = 0;  ///< a tile job's tile (-tile K/N); 0: a whole run
   double read_seconds = 0;         ///< reading and rasterising the sites (s)
   double rasterise_seconds = 0;    ///< of read_seconds, tracing and filling the sites' cells (s)
   double prepare_seconds = 0;      ///< the labeller's candidates and tree (s)
@@ -86,7 +98,8 @@ struct OutputFormat {
 };
 OutputFormat choose_output_format(const std::string& destination, const std::string& format, OutputKind kind);
 
-/// Runs the whole pipeline from `source` (any OGR dataset name) to `destination`. Checks the
+/// Runs the whole pipeline from `source` (any OGR dataset name) to `destination` (with
+/// options.tile_count, a tile job's product; with options.merge, from tile products). Checks the
 /// options, the destination (an existing one is an error unless options.overwrite) and the
 /// memory before any work; writes into a temporary directory beside the destination and renames
 /// the result into place after a clean close (/vsi* destinations are written directly).

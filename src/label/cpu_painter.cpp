@@ -399,7 +399,7 @@ std::vector<OutlineCell> join_in_code_order(std::vector<std::vector<OutlineCell>
 
 }  // namespace
 
-std::vector<OutlineCell> cpu_tree_outlines(const Tree& tree, const TreeView& tv, int threads,
+std::vector<OutlineCell> cpu_tree_outlines(const Tree& tree, const TreeView& tv, int threads, grid::CodeRange range,
                                            const std::function<void(double)>& done) {
   const std::size_t leaves = tree.leaves.size();
   std::vector<std::vector<OutlineCell>> parts(static_cast<std::size_t>(threads));
@@ -414,12 +414,22 @@ std::vector<OutlineCell> cpu_tree_outlines(const Tree& tree, const TreeView& tv,
 #pragma omp for schedule(dynamic, 16)
       for (std::int64_t q = static_cast<std::int64_t>(first); q < static_cast<std::int64_t>(last); ++q) {
         const TreeLeaf& leaf = tree.leaves[static_cast<std::size_t>(q)];
+        // The leaf's cells lie in its rows, between the first code of its first row and the
+        // first code of the row after its last.
+        const int k = tree.level - leaf.level;
+        const grid::Code octant_first = static_cast<grid::Code>(leaf.cell.octant) * grid::cells_per_octant(tree.level);
+        const std::uint64_t row_first = std::uint64_t{leaf.cell.row} << k, row_end = row_first + (std::uint64_t{1} << k);
+        if (octant_first + row_end * row_end <= range.first || octant_first + row_first * row_first >= range.end) continue;
         leaf_outline_cells(tv, leaf, tree.nodes[static_cast<std::size_t>(leaf.node)], scratch[t], parts[t]);
       }
     }
     if (done) done(static_cast<double>(last) / static_cast<double>(leaves));
   }
-  return join_in_code_order(parts);
+  std::vector<OutlineCell> all = join_in_code_order(parts);
+  if (range == grid::whole_level(tree.level)) return all;
+  const auto in_range = [&](const OutlineCell& c) { return c.code >= range.first && c.code < range.end; };
+  all.erase(std::remove_if(all.begin(), all.end(), [&](const OutlineCell& c) { return !in_range(c); }), all.end());
+  return all;
 }
 
 void append_outline_cells(int level, grid::Code first, std::uint64_t count, const std::int32_t* site,

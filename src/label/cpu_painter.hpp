@@ -18,13 +18,13 @@ namespace qtmv::label {
 void cpu_tree_range(const Tree& tree, const TreeView& tv, grid::Code first, std::uint64_t count,
                     std::int32_t* site, float* metres, std::uint8_t* boundary, int threads);
 
-/// The hier pass that follows the outlines: the outline cells (outline_cells.hpp) of the whole
-/// level, in code order, from the cells of the list leaves and the rims of the uniform leaves
+/// The hier pass that follows the outlines: the outline cells (outline_cells.hpp) of `range` (row
+/// starts at both ends; the leaves outside it are skipped), in code order, from the cells of the list leaves and the rims of the uniform leaves
 /// (a uniform leaf's inner cells have all three neighbours in it: no boundary, no row end).
 /// Work and memory grow with the outlines, not with the cells.
 /// `done` (may be empty) is called on the calling thread, outside any parallel region, with the
 /// fraction of the leaves done, every 1/256 of them or so; it may throw to stop the pass.
-std::vector<OutlineCell> cpu_tree_outlines(const Tree& tree, const TreeView& tv, int threads,
+std::vector<OutlineCell> cpu_tree_outlines(const Tree& tree, const TreeView& tv, int threads, grid::CodeRange range,
                                            const std::function<void(double)>& done = {});
 
 /// The outline cells of a labelled range [first, first + count) (code order): its boundary cells

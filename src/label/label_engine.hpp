@@ -25,6 +25,17 @@ struct DeviceChoice {
   int index = 0;
 };
 DeviceChoice choose_device(const std::string& name);
+/// Every device a name asks for ("cuda:all": all CUDA devices; "cuda:0,2": those two; the other
+/// forms: one); the first is choose_device's. Throws as choose_device.
+std::vector<DeviceChoice> choose_devices(const std::string& name);
+
+/// label_outlines on several devices at once, named as LabelOptions::device ("cpu", "cuda:1"): the
+/// range is split in rows (grid::split_in_rows) into one part per name, each labelled on its
+/// own thread, and the parts' products joined. Progress is reported, and a stop honoured, on the
+/// calling thread. The products are those of one device. (label_outlines calls it for several
+/// GPUs; the tests give it several "cpu".)
+LabelStats label_outlines_on(const LabelInput& input, const LabelOptions& options,
+                             const std::vector<std::string>& devices, Outlines* out);
 
 /// The input checks of label_cells: throws std::invalid_argument naming the first bad entry.
 void check_label_input(const LabelInput& input, Rule rule);

@@ -7,9 +7,15 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <atomic>
+#include <chrono>
+#include <exception>
+#include <future>
 #include <memory>
+#include <mutex>
 #include <stdexcept>
 #include <string>
+#include <thread>
 
 #include "common/device_spec.hpp"
 #include "common/host_info.hpp"
@@ -81,18 +87,28 @@ void validate(const LabelInput& in, Rule rule) {
 
 }  // namespace
 
-DeviceChoice choose_device(const std::string& name) {
+std::vector<DeviceChoice> choose_devices(const std::string& name) {
   const DeviceSpec spec = parse_device_spec(name);
-  if (spec.kind == DeviceSpec::Kind::cpu) return {};
+  if (spec.kind == DeviceSpec::Kind::cpu) return {DeviceChoice{}};
   const int count = cuda::device_count();
-  if (spec.kind == DeviceSpec::Kind::automatic) return count > 0 ? DeviceChoice{true, 0} : DeviceChoice{};
+  if (spec.kind == DeviceSpec::Kind::automatic) return {count > 0 ? DeviceChoice{true, 0} : DeviceChoice{}};
   if (count == 0) throw std::runtime_error("device '" + name + "' was asked for, but no usable CUDA GPU was found");
-  if (spec.index >= count) {
-    throw std::runtime_error("device '" + name + "' was asked for, but there are only " + std::to_string(count) +
-                             " CUDA device(s)");
+  std::vector<DeviceChoice> out;
+  if (spec.all) {
+    for (int d = 0; d < count; ++d) out.push_back({true, d});
+    return out;
   }
-  return {true, spec.index};
+  for (const int index : spec.indices) {
+    if (index >= count) {
+      throw std::runtime_error("device '" + name + "' was asked for, but there are only " + std::to_string(count) +
+                               " CUDA device(s)");
+    }
+    out.push_back({true, index});
+  }
+  return out;
 }
+
+DeviceChoice choose_device(const std::string& name) { return choose_devices(name).front(); }
 
 void check_label_input(const LabelInput& input, Rule rule) { validate(input, rule); }
 
@@ -122,10 +138,10 @@ struct HostTile {
 /// the cells handed over, for the CPU to go on from when the GPU runs out of memory mid-run.
 /// With `outline`, the tiles' outline cells are selected on the device and appended to it
 /// instead (the host tile is not used).
-void label_on_gpu(cuda::Labeller& gpu, int device, int level, const LabelOptions& options, const MemoryEstimate& need,
-                  const HostTile& host, const std::function<void(const LabelTile&)>& sink, LabelStats& stats,
-                  std::uint64_t& done, std::vector<OutlineCell>* outline) {
-  const std::uint64_t total = need.cells;
+void label_on_gpu(cuda::Labeller& gpu, int device, int level, grid::CodeRange range, const LabelOptions& options,
+                  const MemoryEstimate& need, const HostTile& host, const std::function<void(const LabelTile&)>& sink,
+                  LabelStats& stats, std::uint64_t& done, std::vector<OutlineCell>* outline) {
+  const std::uint64_t total = range.size();
   const cuda::DeviceInfo info = cuda::device_info(device);
   const std::uint64_t device_limit =
       options.memory_limit_bytes ? options.memory_limit_bytes : static_cast<std::uint64_t>(info.free_bytes * 0.8);
@@ -159,8 +175,8 @@ void label_on_gpu(cuda::Labeller& gpu, int device, int level, const LabelOptions
              "; labelling in tiles of " + std::to_string(device_tile) + " cells");
   }
   stats.device_bytes = gpu.device_bytes();
-  for (std::uint64_t first = done; first < total; first += device_tile) {
-    const std::uint64_t count = std::min(device_tile, total - first);
+  for (std::uint64_t first = done; first < range.end; first += device_tile) {
+    const std::uint64_t count = std::min(device_tile, range.end - first);
     stats.label_seconds += gpu.run(first, count, options.want_distance, options.want_boundary) / 1e3;
     ++stats.tiles;
     if (outline) {
@@ -173,7 +189,7 @@ void label_on_gpu(cuda::Labeller& gpu, int device, int level, const LabelOptions
       sink({first + offset, part, host.site, host.metres, host.boundary});
       done = first + offset + part;
     }
-    report_progress(options.progress, double(first + count) / double(total), "label");
+    report_progress(options.progress, double(first + count - range.first) / double(total), "label");
   }
 }
 
@@ -206,6 +222,12 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
   validate(given, options.rule);
   const int threads = thread_count(options.threads);
   const DeviceChoice device = choose_device(options.device);
+  const grid::CodeRange range = options.range.end == 0 ? grid::whole_level(given.level) : options.range;
+  if (range.end > grid::cell_count(given.level) || range.end <= range.first ||
+      !grid::is_row_start(range.first, given.level) || !grid::is_row_start(range.end, given.level)) {
+    throw std::invalid_argument("codes " + std::to_string(range.first) + " to " + std::to_string(range.end) +
+                                " are not whole rows of level " + std::to_string(given.level));
+  }
   LabelStats stats;
   auto say = [&](const std::string& message) { tell(options.messages, Severity::info, message); };
   auto progress = [&](double fraction, const char* stage) { report_progress(options.progress, fraction, stage); };
@@ -254,7 +276,7 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
   auto leave_gpu = [&](const cuda::OutOfMemory& e, std::uint64_t from) {
     tell(options.messages, Severity::warning,
          "the GPU ran out of memory (" + std::string(e.what()) + "); labelling " +
-             (from == 0 ? std::string("on the CPU") : "cells " + std::to_string(from) + " onwards on the CPU") +
+             (from == range.first ? std::string("on the CPU") : "cells " + std::to_string(from) + " onwards on the CPU") +
              " instead");
     on_gpu = false;
     gpu_built.reset();
@@ -271,7 +293,7 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
       // Too large for the device build's 32-bit work counts: the host builds it (below).
       gpu_built.reset();
     } catch (const cuda::OutOfMemory& e) {
-      leave_gpu(e, 0);
+      leave_gpu(e, range.first);
     }
   }
   if (gpu_built) {
@@ -293,7 +315,7 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
   stats.prepare_seconds = now_seconds() - t0;
 
   const MemoryEstimate need = estimate_output_memory(input.level, options);
-  const std::uint64_t total = need.cells;
+  const std::uint64_t total = range.size();
   // Host tiles are bounded so that a whole-globe run does not double the caller's memory.
   const std::uint64_t host_limit = options.memory_limit_bytes ? options.memory_limit_bytes : host_ram_bytes() / 4;
   std::uint64_t host_tile = std::min<std::uint64_t>(total, std::max<std::uint64_t>(1, host_limit / need.bytes_per_cell));
@@ -310,7 +332,7 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
   float* metres_ptr = metres.empty() ? nullptr : metres.data();
   std::uint8_t* boundary_ptr = boundary.empty() ? nullptr : boundary.data();
 
-  std::uint64_t done = 0;  // cells handed to the sink
+  std::uint64_t done = range.first;  // cells up to here handed to the sink
   if (on_gpu) {
     try {
       if (!gpu_built) {
@@ -318,7 +340,7 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
             std::make_unique<cuda::Labeller>(device.index, host_candidates(), hier ? &tree : nullptr, input.level);
       }
       const HostTile host{host_tile, site.data(), metres_ptr, boundary_ptr};
-      label_on_gpu(*gpu_built, device.index, input.level, options, need, host, sink, stats, done, outline);
+      label_on_gpu(*gpu_built, device.index, input.level, range, options, need, host, sink, stats, done, outline);
       gpu_built.reset();
       cuda::release_cached_memory(device.index);
       return stats;
@@ -334,11 +356,9 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
     // Only the leaves that can touch an outline are visited (after a GPU that ran out of memory,
     // those of the cells it had not done).
     const double start = now_seconds();
-    std::vector<OutlineCell> cpu =
-        cpu_tree_outlines(tree, tv, threads, [&](double fraction) { progress(fraction, "label"); });
-    const auto from = std::lower_bound(cpu.begin(), cpu.end(), done,
-                                       [](const OutlineCell& c, std::uint64_t code) { return c.code < code; });
-    outline->insert(outline->end(), from, cpu.end());
+    const std::vector<OutlineCell> cpu = cpu_tree_outlines(tree, tv, threads, {done, range.end},
+                                                           [&](double fraction) { progress(fraction, "label"); });
+    outline->insert(outline->end(), cpu.begin(), cpu.end());
     stats.label_seconds += now_seconds() - start;
     ++stats.tiles;
     progress(1.0, "label");
@@ -349,8 +369,8 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
     boundary.resize(host_tile);
     boundary_ptr = boundary.data();
   }
-  for (std::uint64_t first = done; first < total; first += host_tile) {
-    const std::uint64_t count = std::min(host_tile, total - first);
+  for (std::uint64_t first = done; first < range.end; first += host_tile) {
+    const std::uint64_t count = std::min(host_tile, range.end - first);
     const double start = now_seconds();
     if (hier) {
       cpu_tree_range(tree, tv, first, count, site.data(), metres_ptr, boundary_ptr, threads);
@@ -364,7 +384,7 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
     } else {
       sink({first, count, site.data(), metres_ptr, boundary_ptr});
     }
-    progress(double(first + count) / double(total), "label");
+    progress(double(first + count - range.first) / double(total), "label");
   }
   return stats;
 }
@@ -377,16 +397,113 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
 }
 
 LabelStats label_outlines(const LabelInput& input, const LabelOptions& options, Outlines* out) {
+  const std::vector<DeviceChoice> devices = choose_devices(options.device);
+  if (devices.size() > 1) {
+    std::vector<std::string> names;
+    for (const DeviceChoice& d : devices) names.push_back("cuda:" + std::to_string(d.index));
+    return label_outlines_on(input, options, names, out);
+  }
   LabelOptions outline_options = options;
   outline_options.want_distance = false;
   outline_options.want_boundary = true;
   Outlines result;
   result.level = input.level;
   result.site_count = input.site_count;
+  result.range = options.range.end == 0 ? grid::whole_level(input.level) : options.range;
   const LabelStats stats = run_labelling(input, outline_options, {}, &result.cells);
-  result.cells_per_site = count_cells_per_site(result.cells, input.level, input.site_count);
+  result.cells_per_site = count_cells_per_site(result.cells, input.level, input.site_count, result.range.end);
   *out = std::move(result);
   return stats;
+}
+
+LabelStats label_outlines_on(const LabelInput& input, const LabelOptions& options,
+                             const std::vector<std::string>& devices, Outlines* out) {
+  if (devices.empty()) throw std::invalid_argument("label_outlines_on: no device");
+  grid::require_level(input.level);
+  const grid::CodeRange range = options.range.end == 0 ? grid::whole_level(input.level) : options.range;
+  const std::vector<grid::CodeRange> parts = grid::split_in_rows(range, static_cast<int>(devices.size()), input.level);
+  const std::size_t n = parts.size();
+  std::vector<Outlines> products(n);
+  std::vector<LabelStats> stats(n);
+  // Each part reports its fraction here; the calling thread passes their mean on, and a stop
+  // asked for there stops every part at its next report.
+  std::vector<std::atomic<double>> fraction(n);
+  std::atomic<bool> stop{false};
+  // The parts' messages wait here for the calling thread, which passes them on.
+  std::mutex message_lock;
+  std::vector<std::pair<Severity, std::string>> pending;
+  const auto pass_messages_on = [&] {
+    std::vector<std::pair<Severity, std::string>> now;
+    {
+      const std::lock_guard<std::mutex> hold(message_lock);
+      now.swap(pending);
+    }
+    for (const auto& [severity, message] : now) tell(options.messages, severity, message);
+  };
+  std::vector<std::future<void>> runs;
+  for (std::size_t k = 0; k < n; ++k) {
+    fraction[k] = 0.0;
+    runs.push_back(std::async(std::launch::async, [&, k] {
+      LabelOptions part = options;
+      part.device = devices[k];
+      part.range = parts[k];
+      part.progress = [&, k](double f, const char*) {
+        fraction[k] = f;
+        return !stop.load();
+      };
+      part.messages = [&, k](Severity severity, const std::string& message) {
+        const std::lock_guard<std::mutex> hold(message_lock);
+        pending.emplace_back(severity, devices[k] + ": " + message);
+      };
+      stats[k] = label_outlines(input, part, &products[k]);
+    }));
+  }
+  // A part's failure stops the others; it is the one reported, not the others' Interrupted.
+  std::exception_ptr failure;
+  bool interrupted = false;
+  for (std::size_t k = 0; k < n; ++k) {
+    while (runs[k].wait_for(std::chrono::milliseconds(100)) != std::future_status::ready) {
+      pass_messages_on();
+      double sum = 0;
+      for (const auto& f : fraction) sum += f.load();
+      if (options.progress && !stop.load() && !options.progress(sum / double(n), "label")) stop = true;
+    }
+    try {
+      runs[k].get();
+    } catch (const Interrupted&) {
+      interrupted = true;
+    } catch (...) {
+      if (!failure) failure = std::current_exception();
+      stop = true;
+    }
+  }
+  pass_messages_on();
+  if (failure) std::rethrow_exception(failure);
+  if (stop || interrupted) throw Interrupted();
+
+  // The parts' products, joined in code order; their stats as one run's.
+  Outlines joined;
+  joined.level = input.level;
+  joined.site_count = input.site_count;
+  joined.range = range;
+  joined.cells_per_site.assign(static_cast<std::size_t>(input.site_count), 0);
+  std::size_t cells = 0;
+  for (const Outlines& p : products) cells += p.cells.size();
+  joined.cells.reserve(cells);
+  LabelStats all = stats.front();
+  all.device.clear();
+  for (std::size_t k = 0; k < n; ++k) {
+    joined.cells.insert(joined.cells.end(), products[k].cells.begin(), products[k].cells.end());
+    for (std::size_t s = 0; s < joined.cells_per_site.size(); ++s) joined.cells_per_site[s] += products[k].cells_per_site[s];
+    all.device += (k ? ", " : "") + stats[k].device;
+    all.prepare_seconds = std::max(all.prepare_seconds, stats[k].prepare_seconds);
+    all.label_seconds = std::max(all.label_seconds, stats[k].label_seconds);
+    all.copy_seconds = std::max(all.copy_seconds, stats[k].copy_seconds);
+    all.device_bytes = std::max(all.device_bytes, stats[k].device_bytes);
+    if (k > 0) all.tiles += stats[k].tiles;
+  }
+  *out = std::move(joined);
+  return all;
 }
 
 LabelResult label_all(const LabelInput& input, const LabelOptions& options) {

@@ -46,6 +46,10 @@ struct LabelOptions {
   /// Memory (bytes) the dense outputs of one tile may take on the device that computes them
   /// (and on the host that receives them); 0: from the device's free memory / the host's RAM.
   std::size_t memory_limit_bytes = 0;
+  /// The codes to label, both ends row starts (grid/qtm_code_ranges.hpp); an empty range (the
+  /// default): the whole level. label_cells hands over the range's tiles; label_outlines gives
+  /// the range's products (Outlines::range).
+  grid::CodeRange range;
   /// Called with a fraction done (0..1) and the stage's name, between tiles and after each level
   /// of the tree build, on the calling thread; returning false stops the run with Interrupted.
   ProgressFunc progress;

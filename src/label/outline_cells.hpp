@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "grid/qtm.hpp"
+#include "grid/qtm_code_ranges.hpp"
 
 namespace qtmv::label {
 
@@ -39,12 +40,27 @@ QTMV_HD inline bool is_row_end(const grid::Cell& c) { return c.col == 0 || c.col
 /// Outline cells listed per octant row: 2 per row but the pole row's one, 8 octants.
 inline std::uint64_t row_end_count(int level) { return 8 * (2 * grid::rows_per_octant(level) - 1); }
 
-/// The sparse outputs of one labelled level.
+/// Outline cells of the octant rows that start in [first, end): row_end_count(level) for the
+/// whole level. `first` and `end` are row starts (qtm_code_ranges.hpp).
+inline std::uint64_t row_end_count(int level, grid::CodeRange range) {
+  std::uint64_t count = 0;
+  for (grid::Code code = range.first; code < range.end;) {
+    const grid::Cell c = grid::cell_of(code, level);
+    count += c.row == 0 ? 1 : 2;
+    code += 2 * std::uint64_t{c.row} + 1;
+  }
+  return count;
+}
+
+/// The sparse outputs of one labelled level, or of one range of it that starts and ends at row
+/// starts (a tile; grid/qtm_code_ranges.hpp): the products of a level's ranges, concatenated in
+/// code order (cells) and added up (cells_per_site), are those of the whole level.
 struct Outlines {
   int level = 0;
   std::int32_t site_count = 0;
-  std::vector<OutlineCell> cells;             ///< every outline cell, in code order, once
-  std::vector<std::uint64_t> cells_per_site;  ///< cells labelled with each site (site_count)
+  grid::CodeRange range;                      ///< the codes labelled (whole_level(level) for a whole run)
+  std::vector<OutlineCell> cells;             ///< every outline cell of the range, in code order, once
+  std::vector<std::uint64_t> cells_per_site;  ///< cells of the range labelled with each site (site_count)
 };
 
 /// The site of any cell of the level: the site of the last outline cell at or before `code`
@@ -92,12 +108,13 @@ inline std::int32_t site_of_near(const std::vector<OutlineCell>& cells, std::siz
   return (after - 1)->site;
 }
 
-/// The cells per site from the outline cells (in code order, row ends included): each outline
-/// cell's site owns the cells from it up to the next outline cell.
+/// The cells per site from the outline cells (in code order, row ends included) of a range that
+/// ends at `end` (0: the level's end): each outline cell's site owns the cells from it up to the
+/// next outline cell.
 inline std::vector<std::uint64_t> count_cells_per_site(const std::vector<OutlineCell>& cells, int level,
-                                                       std::int32_t site_count) {
+                                                       std::int32_t site_count, grid::Code end = 0) {
   std::vector<std::uint64_t> count(static_cast<std::size_t>(site_count), 0);
-  const grid::Code end = grid::cell_count(level);
+  if (end == 0) end = grid::cell_count(level);
   for (std::size_t k = 0; k < cells.size(); ++k) {
     const grid::Code next = k + 1 < cells.size() ? cells[k + 1].code : end;
     count[static_cast<std::size_t>(cells[k].site)] += next - cells[k].code;
@@ -105,24 +122,29 @@ inline std::vector<std::uint64_t> count_cells_per_site(const std::vector<Outline
   return count;
 }
 
-/// Checks what a producer promises (code order, unique codes, site ids in range, every row end
-/// present, the counts adding up to the level's cells); throws std::logic_error naming the first
-/// fault. O(outline cells).
+/// Checks what a producer promises (code order, unique codes in the range, site ids in range,
+/// every row end present, the counts adding up to the range's cells); throws std::logic_error
+/// naming the first fault. O(outline cells + rows of the range).
 inline void check_outlines(const Outlines& o) {
   const auto fail = [](const std::string& what) { throw std::logic_error("outline cells: " + what); };
   if (static_cast<std::int32_t>(o.cells_per_site.size()) != o.site_count) fail("cells_per_site has the wrong size");
+  if (!grid::is_valid_level(o.level) || o.range.end <= o.range.first || !grid::is_row_start(o.range.first, o.level) ||
+      !grid::is_row_start(o.range.end, o.level)) {
+    fail("the range [" + std::to_string(o.range.first) + ", " + std::to_string(o.range.end) +
+         ") is not rows of the level");
+  }
   std::uint64_t row_ends = 0;
   for (std::size_t k = 0; k < o.cells.size(); ++k) {
     const OutlineCell& c = o.cells[k];
-    if (!grid::is_valid_code(c.code, o.level)) fail("code " + std::to_string(c.code) + " is not of the level");
+    if (c.code < o.range.first || c.code >= o.range.end) fail("code " + std::to_string(c.code) + " is not of the range");
     if (k > 0 && o.cells[k - 1].code >= c.code) fail("codes not in increasing order at " + std::to_string(c.code));
     if (c.site < 0 || c.site >= o.site_count) fail("site " + std::to_string(c.site) + " out of range");
     row_ends += is_row_end(grid::cell_of(c.code, o.level)) ? 1 : 0;
   }
-  if (row_ends != row_end_count(o.level)) fail("row ends missing");
+  if (row_ends != row_end_count(o.level, o.range)) fail("row ends missing");
   std::uint64_t total = 0;
   for (const std::uint64_t n : o.cells_per_site) total += n;
-  if (total != grid::cell_count(o.level)) fail("cells per site do not add up to the level's cells");
+  if (total != o.range.size()) fail("cells per site do not add up to the range's cells");
 }
 
 /// The outline cells of dense arrays (every cell's site, and optionally its boundary flag; without
@@ -132,6 +154,7 @@ inline Outlines outlines_of_dense(int level, const std::int32_t* site, const std
   Outlines o;
   o.level = level;
   o.site_count = site_count;
+  o.range = grid::whole_level(level);
   const grid::Code n = grid::cell_count(level);
   grid::Cell c{0, 0, 0};
   for (grid::Code code = 0; code < n; ++code, grid::next_in_code_order(c, level)) {

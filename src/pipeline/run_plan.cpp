@@ -13,6 +13,8 @@
 #include "grid/qtm_checks.hpp"
 #include "label/label_session.hpp"
 #include "label/outline_cells.hpp"
+#include "grid/qtm_code_ranges.hpp"
+#include "pipeline/tile_product.hpp"
 #include "write/output_size.hpp"
 #include "write/raster_writer.hpp"
 #include "write/vector_writer.hpp"
@@ -78,6 +80,34 @@ void check_vector_destination(const std::string& destination, RunPlan& plan) {
   plan.cells_layer = std::find(vector.layers.begin(), vector.layers.end(), "cells") != vector.layers.end();
 }
 
+// The labeller's options, and a GPU asked for and missing (fails now, not after the read).
+void plan_labeller(RunPlan& plan, const VoronoiOptions& options, bool want_distance) {
+  DeviceSpec device;
+  try {
+    device = parse_device_spec(options.device);
+  } catch (const std::invalid_argument& e) {
+    throw VoronoiError(std::string("-device: ") + e.what());
+  }
+  label::LabelOptions& label_options = plan.label;
+  label_options.rule = options.rule;
+  label_options.device = options.device;
+  label_options.algorithm = options.algorithm;
+  label_options.threads = options.threads;
+  label_options.want_distance = want_distance;
+  label_options.want_boundary = true;
+  label_options.memory_limit_bytes = tile_limit(label_options);
+  if (device.kind == DeviceSpec::Kind::cuda) {
+    const int gpus = label::cuda_device_count();
+    const int highest = device.all ? 0 : *std::max_element(device.indices.begin(), device.indices.end());
+    if (gpus == 0 || highest >= gpus) {
+      throw VoronoiError("-device " + label_options.device + ": " +
+                         (gpus == 0 ? std::string("no usable CUDA GPU found")
+                                    : "this host has " + std::to_string(gpus) + " CUDA device(s)") +
+                         "; use -device cpu or auto");
+    }
+  }
+}
+
 }  // namespace
 
 std::uint64_t estimate_run_memory(const RunPlan& plan, std::uint64_t sites) {
@@ -131,7 +161,15 @@ RunPlan plan_run(const std::string& destination, const VoronoiOptions& options) 
   } catch (const std::invalid_argument& e) {
     throw VoronoiError(std::string("-level: ") + e.what());
   }
+  if (options.tile_count > 0) throw VoronoiError("-tile: a tile job is planned by plan_tile_job");
   plan.format = choose_output_format(destination, options.format, options.kind);
+  if (!options.merge.empty()) {
+    if (plan.format.raster) {
+      throw VoronoiError("-merge joins tile products into vector output; " + plan.format.driver +
+                         " output is a raster, which a whole run writes (strip by strip, in bounded memory)");
+    }
+    plan.merge_files = tile_product_files(options.merge);
+  }
   static_cast<write::VectorLayers&>(plan.vector) = options.vector;
   static_cast<write::RasterGrid&>(plan.raster) = options.raster;
   plan.vector.driver = plan.raster.driver = plan.format.driver;
@@ -159,40 +197,15 @@ RunPlan plan_run(const std::string& destination, const VoronoiOptions& options) 
     check_vector_destination(destination, plan);
   }
 
-  DeviceSpec device;
-  try {
-    device = parse_device_spec(options.device);
-  } catch (const std::invalid_argument& e) {
-    throw VoronoiError(std::string("-device: ") + e.what());
-  }
-  label::LabelOptions& label_options = plan.label;
-  label_options.rule = options.rule;
-  label_options.device = options.device;
-  label_options.algorithm = options.algorithm;
-  label_options.threads = options.threads;
-  label_options.want_distance = plan.format.raster || plan.cells_layer;
-  label_options.want_boundary = true;
-  label_options.memory_limit_bytes = tile_limit(label_options);
-
+  plan_labeller(plan, options, plan.format.raster || plan.cells_layer);
   check_run_memory(plan, options.memory_limit_bytes, 0);
-
-  // A GPU asked for and missing fails now, not after the read.
-  if (device.kind == DeviceSpec::Kind::cuda) {
-    const int gpus = label::cuda_device_count();
-    if (device.index >= gpus) {
-      throw VoronoiError("-device " + label_options.device + ": " +
-                         (gpus == 0 ? std::string("no usable CUDA GPU found")
-                                    : "this host has " + std::to_string(gpus) + " CUDA device(s)") +
-                         "; use -device cpu or auto");
-    }
-  }
 
   // An output its file system cannot hold fails now, not after the work (GDAL's GeoTIFF driver
   // checks the same, late, and only uncompressed files).
   if (options.check_disk_space) {
     try {
       write::check_disk_space(destination,
-                              plan.format.raster ? write::estimate_raster_size(plan.level, plan.raster, label_options.want_distance)
+                              plan.format.raster ? write::estimate_raster_size(plan.level, plan.raster, plan.label.want_distance)
                                                  : write::estimate_vector_size(plan.level, plan.vector),
                               plan.format.raster ? "raster" : "cells layer");
     } catch (const write::WriteError& e) {
@@ -200,6 +213,31 @@ RunPlan plan_run(const std::string& destination, const VoronoiOptions& options) 
     }
   }
   set_stage_ends(plan);
+  return plan;
+}
+
+RunPlan plan_tile_job(const std::string& destination, const VoronoiOptions& options) {
+  RunPlan plan;
+  plan.level = options.level;
+  try {
+    grid::require_level(plan.level);
+  } catch (const std::invalid_argument& e) {
+    throw VoronoiError(std::string("-level: ") + e.what());
+  }
+  if (!options.merge.empty()) throw VoronoiError("-tile and -merge: a run labels one tile, or merges all of them");
+  if (destination.empty()) throw VoronoiError("-tile: no file named for the tile product");
+  plan.tile_index = options.tile_index;
+  plan.tile_count = options.tile_count;
+  plan_labeller(plan, options, false);
+  try {
+    plan.label.range = grid::tile_range(plan.level, options.tile_index, options.tile_count);
+  } catch (const std::invalid_argument& e) {
+    throw VoronoiError(std::string("-tile: ") + e.what());
+  }
+  check_run_memory(plan, options.memory_limit_bytes, 0);
+  // Labelling is nearly all of a tile job.
+  plan.read_end = 0.05;
+  plan.label_end = 0.98;
   return plan;
 }
 

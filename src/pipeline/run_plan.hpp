@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "label/labeller.hpp"
 #include "voronoi.hpp"
@@ -21,6 +22,10 @@ struct RunPlan {
   /// and the tiles of the cells layer (label_cells).
   label::LabelOptions label;
   bool cells_layer = false;  ///< vector output with the cells layer: every cell's labels, in tiles
+  /// A tile job's tile (-tile K/N), its range in label.range; 0: a whole run or a merge.
+  int tile_index = 0, tile_count = 0;
+  /// A merge's tile product files (tile_product_files of -merge); empty: the run labels.
+  std::vector<std::string> merge_files;
   /// Ends of the read and label stages' slices of the run's progress (fractions 0..1).
   double read_end = 0, label_end = 0;
 };
@@ -28,6 +33,10 @@ struct RunPlan {
 /// Checks the options against the destination and this host, and plans the run; throws
 /// VoronoiError naming the option, the destination or the shortage. Nothing is written.
 RunPlan plan_run(const std::string& destination, const VoronoiOptions& options);
+
+/// The plan of a tile job (options.tile_count > 0): the labeller's options for its tile's codes;
+/// the destination is a tile product, not a dataset. Throws VoronoiError naming the option.
+RunPlan plan_tile_job(const std::string& destination, const VoronoiOptions& options);
 
 /// Throws VoronoiError, with the estimate, when estimate_run_memory(plan, sites) is more than the
 /// run may use: memory_limit_bytes (VoronoiOptions), or 80% of RAM when 0. `sites`: 0 before the

@@ -8,6 +8,7 @@
 
 #include "common/host_info.hpp"
 #include "pipeline/staged_output.hpp"
+#include "pipeline/tile_product.hpp"
 #include "sites/fid_list.hpp"
 #include "write/raster_writer.hpp"
 #include "write/vector_writer.hpp"
@@ -42,6 +43,23 @@ auto as_stage(RunProgress& progress, const std::string& prefix, Work&& work) -> 
   }
 }
 
+/// Marks the sites that got no cell (SiteRecord::has_own_cell) from the cells per site, with one
+/// warning naming them (they keep their row); returns their count.
+std::uint64_t mark_sites_without_cell(const std::vector<std::uint64_t>& count, const RunPlan& plan,
+                                      const MessageSink& messages, sites::SiteSet& sites) {
+  sites::FidList missing;
+  for (std::size_t s = 0; s < count.size(); ++s) {
+    sites.table.sites[s].has_own_cell = count[s] > 0;
+    if (count[s] == 0) missing.add(sites.table.sites[s].fid);
+  }
+  if (missing.count() > 0) {
+    tell(messages, Severity::warning,
+         std::to_string(missing.count()) + " site(s) got no cell of their own at level " + std::to_string(plan.level) +
+             " (FIDs " + missing.text() + "); they keep their row, with an empty geometry");
+  }
+  return missing.count();
+}
+
 }  // namespace
 
 sites::SiteSet read_stage(const std::string& source, const VoronoiOptions& options, const RunPlan& plan,
@@ -73,7 +91,6 @@ LabelledLevel label_stage(sites::SiteSet& sites, const VoronoiOptions& options, 
   label_options.messages = options.messages;
   LabelledLevel out;
   label::LabelStats stats;
-  std::vector<std::uint64_t> count;
   as_stage(progress, "labelling failed: ", [&] {
     if (plan.format.raster) {
       // A raster's labels come strip by strip from the session as it is written (which sites
@@ -85,26 +102,50 @@ LabelledLevel label_stage(sites::SiteSet& sites, const VoronoiOptions& options, 
       stats = out.session->stats();
     } else {
       stats = label::label_outlines(sites.geometry.input(), label_options, &out.outlines);
-      count = out.outlines.cells_per_site;
     }
   });
   out.device = stats.device;
   out.prepare_seconds = stats.prepare_seconds;
-  if (plan.format.raster) return out;
-
-  // Sites left without a cell still get their row; say which.
-  sites::FidList missing;
-  for (std::size_t s = 0; s < count.size(); ++s) {
-    sites.table.sites[s].has_own_cell = count[s] > 0;
-    if (count[s] == 0) missing.add(sites.table.sites[s].fid);
-  }
-  *without_cell = missing.count();
-  if (missing.count() > 0) {
-    tell(options.messages, Severity::warning,
-         std::to_string(missing.count()) + " site(s) got no cell of their own at level " + std::to_string(plan.level) +
-             " (FIDs " + missing.text() + "); they keep their row, with an empty geometry");
-  }
+  // A raster's sites are counted from its pixels; a tile's products hold only its own cells.
+  if (plan.format.raster || plan.tile_count > 0) return out;
+  *without_cell = mark_sites_without_cell(out.outlines.cells_per_site, plan, options.messages, sites);
   return out;
+}
+
+LabelledLevel merge_stage(const std::string& source, sites::SiteSet& sites, const VoronoiOptions& options,
+                          const RunPlan& plan, RunProgress& progress, std::uint64_t* without_cell) {
+  check_run_memory(plan, options.memory_limit_bytes, sites.table.sites.size());
+  LabelledLevel out;
+  MergeExpectation expect;
+  expect.level = plan.level;
+  expect.rule = options.rule;
+  expect.site_count = static_cast<std::int32_t>(sites.table.sites.size());
+  expect.sites_fingerprint = input_fingerprint(sites.geometry.input());
+  expect.source = "'" + source + "'";
+  out.outlines = as_stage(progress, "", [&] {
+    return merge_tile_products(plan.merge_files, expect,
+                               [&](double f) { return progress.report(plan.read_end, plan.label_end, f, "merge"); });
+  });
+  out.device = "merged " + std::to_string(plan.merge_files.size()) + " tile products";
+  *without_cell = mark_sites_without_cell(out.outlines.cells_per_site, plan, options.messages, sites);
+  return out;
+}
+
+void write_tile_stage(const std::string& path, const std::string& destination, const LabelledLevel& labels,
+                      const sites::SiteSet& sites, const VoronoiOptions& options, const RunPlan& plan) {
+  TileProduct product;
+  product.index = plan.tile_index;
+  product.count = plan.tile_count;
+  product.rule = options.rule;
+  product.sites_fingerprint = input_fingerprint(sites.geometry.input());
+  product.outlines = labels.outlines;
+  try {
+    write_tile_product(path, product);
+  } catch (const VoronoiError& e) {
+    std::string message = e.what();
+    replace_all(message, path, destination);  // name the destination, not the temporary file
+    throw VoronoiError(message);
+  }
 }
 
 namespace {

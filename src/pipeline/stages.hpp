@@ -52,6 +52,17 @@ sites::SiteSet read_stage(const std::string& source, const VoronoiOptions& optio
 LabelledLevel label_stage(sites::SiteSet& sites, const VoronoiOptions& options, const RunPlan& plan,
                           RunProgress& progress, std::uint64_t* without_cell);
 
+/// A merge's label stage (plan.merge_files): the tile products joined into the level's outlines
+/// (pipeline/tile_product.hpp), checked against the sites read now; then as label_stage.
+/// Throws VoronoiError naming the tile product at fault, or Interrupted.
+LabelledLevel merge_stage(const std::string& source, sites::SiteSet& sites, const VoronoiOptions& options,
+                          const RunPlan& plan, RunProgress& progress, std::uint64_t* without_cell);
+
+/// A tile job's write stage: its tile's outlines as a tile product at `path`, named as the
+/// destination in every message. Throws VoronoiError.
+void write_tile_stage(const std::string& path, const std::string& destination, const LabelledLevel& labels,
+                      const sites::SiteSet& sites, const VoronoiOptions& options, const RunPlan& plan);
+
 /// Writes the destination from the labels (progress in [plan.label_end, 1]): into the staged
 /// output's temporary path, named as the destination in every message. For the cells layer the
 /// level is labelled again, tile by tile; a raster asks the session for each strip's labels.

@@ -723,6 +723,10 @@ void write_vector(const std::string& path, const label::Outlines& outlines, cons
                                 " sites, the table " + std::to_string(site_count));
   }
   label::check_outlines(outlines);
+  if (!(outlines.range == grid::whole_level(outlines.level))) {
+    throw std::invalid_argument("write_vector: the outlines hold only codes " + std::to_string(outlines.range.first) +
+                                " to " + std::to_string(outlines.range.end) + " of the level");
+  }
   const bool want_cells = std::find(layers.begin(), layers.end(), "cells") != layers.end();
   if (want_cells && !cell_tiles) throw std::invalid_argument("write_vector: the cells layer needs the cells' labels");
   const Code cells = grid::cell_count(outlines.level);

@@ -121,6 +121,7 @@ Options parse_command_line(const std::vector<std::string>& args) {
   VoronoiOptions& run = o.run;
   std::vector<std::string> positional;
   bool options_ended = false, tr = false, ts = false, raster_named = false;
+  std::string output_option;  // the first option that shapes a dataset (a tile job writes none)
   for (std::size_t i = 0; i < args.size(); ++i) {
     const std::string& arg = args[i];
     if (options_ended || !looks_like_option(arg)) {
@@ -136,6 +137,9 @@ Options parse_command_line(const std::vector<std::string>& args) {
       if (i + 1 >= args.size()) throw UsageError("option '" + arg + "' needs a value");
       return args[++i];
     };
+    const bool shapes_output = name == "-of" || name == "-f" || name == "-lco" || name == "-dsco" || name == "-co" ||
+                               name == "-ot" || name == "-layers" || name == "-raster" || name == "-tr" || name == "-ts";
+    if (shapes_output && output_option.empty()) output_option = arg;
     // Reader, labeller and writer options.
     if (name == "-level") {
       run.level = parse_int(arg, value(), 0, 24, "a level from 0 to 24");
@@ -200,6 +204,14 @@ Options parse_command_line(const std::vector<std::string>& args) {
       } catch (const std::exception& e) {
         throw UsageError(e.what());
       }
+    } else if (name == "-tile") {
+      const std::string& v = value();
+      const std::size_t slash = v.find('/');
+      if (slash == std::string::npos) throw UsageError("-tile: '" + v + "' is not K/N (tile K of N, from 1)");
+      run.tile_count = parse_int(arg, v.substr(slash + 1), 1, 2147483647, "K/N with N a positive number of tiles");
+      run.tile_index = parse_int(arg, v.substr(0, slash), 1, run.tile_count, "K/N with K from 1 to N");
+    } else if (name == "-merge") {
+      run.merge.push_back(value());
     } else if (name == "-overwrite") {
       run.overwrite = true;
     } else if (name == "-q" || name == "-quiet") {
@@ -244,6 +256,12 @@ Options parse_command_line(const std::vector<std::string>& args) {
     }
   }
   if (tr && ts) throw UsageError("-tr and -ts exclude each other");
+  if (run.tile_count > 0 && !run.merge.empty()) {
+    throw UsageError("-tile and -merge exclude each other: tile jobs come first, then one merge of their products");
+  }
+  if (run.tile_count > 0 && !output_option.empty()) {
+    throw UsageError("-tile writes a tile product, not a dataset: give " + output_option + " to the -merge run");
+  }
   // Which of the two a batch job meant is a guess: refuse the pair.
   if (!run.read.sql.empty() && !run.read.where.empty()) {
     throw UsageError("-sql and -where exclude each other: put the condition in the -sql statement");

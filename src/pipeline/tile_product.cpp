@@ -1,0 +1,319 @@
+#include "pipeline/tile_product.hpp"
+
+#include <cpl_conv.h>
+#include <cpl_string.h>
+#include <cpl_vsi.h>
+
+#include <algorithm>
+#include <cstring>
+#include <functional>
+#include <map>
+#include <memory>
+#include <stdexcept>
+
+#include "common/run_context.hpp"
+#include "gdal/error_capture.hpp"
+#include "grid/qtm_code_ranges.hpp"
+#include "pipeline/voronoi_error.hpp"
+
+namespace qtmv::pipeline {
+
+namespace {
+
+constexpr char kMagic[8] = {'Q', 'T', 'M', 'V', 'T', 'I', 'L', 'E'};
+constexpr std::uint32_t kVersion = 1;
+constexpr std::size_t kHeaderBytes = 64;
+constexpr std::size_t kCellBytes = 16;
+
+static_assert(sizeof(label::OutlineCell) == kCellBytes, "outline cells are written as they are held");
+
+/// Word-wise hash: each step (xor, then multiply by an odd constant) is a bijection of the state,
+/// so one changed word always changes the result; a final mix spreads it over all bits.
+class Hash64 {
+ public:
+  void add(std::uint64_t word) { state_ = (state_ ^ word) * 0x100000001b3ull + 0x9e3779b97f4a7c15ull; }
+  void add_double(double value) {
+    std::uint64_t bits;
+    std::memcpy(&bits, &value, sizeof bits);
+    add(bits);
+  }
+  void add_bytes(const unsigned char* data, std::size_t size) {
+    std::size_t k = 0;
+    for (; k + 8 <= size; k += 8) {
+      std::uint64_t word;
+      std::memcpy(&word, data + k, 8);
+      add(word);
+    }
+    std::uint64_t tail = 0;
+    std::memcpy(&tail, data + k, size - k);
+    add(tail ^ (std::uint64_t{size - k} << 56));
+  }
+  std::uint64_t value() const {
+    std::uint64_t h = state_;
+    h ^= h >> 33;
+    h *= 0xff51afd7ed558ccdull;
+    h ^= h >> 33;
+    h *= 0xc4ceb9fe1a85ec53ull;
+    return h ^ (h >> 33);
+  }
+
+ private:
+  std::uint64_t state_ = 0xcbf29ce484222325ull;
+};
+
+template <class T>
+void put(std::vector<unsigned char>& out, T value) {
+  const auto* bytes = reinterpret_cast<const unsigned char*>(&value);
+  out.insert(out.end(), bytes, bytes + sizeof value);
+}
+
+template <class T>
+T get(const unsigned char* data, std::size_t& at) {
+  T value;
+  std::memcpy(&value, data + at, sizeof value);
+  at += sizeof value;
+  return value;
+}
+
+struct FileCloser {
+  void operator()(VSILFILE* f) const { VSIFCloseL(f); }
+};
+using File = std::unique_ptr<VSILFILE, FileCloser>;
+
+/// GDAL's messages, if any, for the end of a message.
+std::string said(gdal::ErrorCapture& errors) {
+  const std::string text = errors.take();
+  return text.empty() ? "" : " (GDAL: " + text + ")";
+}
+
+std::string rule_name(label::Rule rule) { return rule == label::Rule::exact ? "exact" : "cell"; }
+
+}  // namespace
+
+std::uint64_t input_fingerprint(const label::LabelInput& in) {
+  Hash64 h;
+  h.add(static_cast<std::uint64_t>(in.level));
+  h.add(static_cast<std::uint64_t>(in.site_count));
+  h.add(in.piece_count);
+  for (std::size_t k = 0; k < in.piece_count; ++k) {
+    const label::SitePiece& p = in.pieces[k];
+    for (const double v : {p.a.x, p.a.y, p.a.z, p.b.x, p.b.y, p.b.z}) h.add_double(v);
+    h.add(static_cast<std::uint64_t>(p.site));
+  }
+  h.add(in.site_cell_count);
+  for (std::size_t k = 0; k < in.site_cell_count; ++k) {
+    const label::SiteCell& c = in.site_cells[k];
+    h.add(c.code);
+    h.add(static_cast<std::uint64_t>(c.site));
+  }
+  h.add(in.fixed_cell_count);
+  for (std::size_t k = 0; k < in.fixed_cell_count; ++k) {
+    h.add(in.fixed_cells[k].code);
+    h.add(static_cast<std::uint64_t>(in.fixed_cells[k].site));
+  }
+  h.add(in.fixed_node_count);
+  for (std::size_t k = 0; k < in.fixed_node_count; ++k) {
+    const label::FixedNode& n = in.fixed_nodes[k];
+    h.add(n.code);
+    h.add(static_cast<std::uint64_t>(n.level) << 32 | static_cast<std::uint32_t>(n.site));
+  }
+  return h.value();
+}
+
+void write_tile_product(const std::string& path, const TileProduct& product) {
+  const label::Outlines& o = product.outlines;
+  std::vector<unsigned char> header;
+  header.insert(header.end(), kMagic, kMagic + sizeof kMagic);
+  put<std::uint32_t>(header, kVersion);
+  put<std::uint32_t>(header, static_cast<std::uint32_t>(o.level));
+  put<std::uint32_t>(header, product.rule == label::Rule::exact ? 0u : 1u);
+  put<std::uint32_t>(header, static_cast<std::uint32_t>(product.index));
+  put<std::uint32_t>(header, static_cast<std::uint32_t>(product.count));
+  put<std::int32_t>(header, o.site_count);
+  put<std::uint64_t>(header, product.sites_fingerprint);
+  put<std::uint64_t>(header, o.range.first);
+  put<std::uint64_t>(header, o.range.end);
+  put<std::uint64_t>(header, o.cells.size());
+  if (header.size() != kHeaderBytes) throw std::logic_error("tile product header size");
+
+  gdal::ErrorCapture errors;
+  File file(VSIFOpenL(path.c_str(), "wb"));
+  if (!file) throw VoronoiError("'" + path + "': cannot create the tile product" + said(errors));
+  Hash64 checksum;
+  bool ok = true;
+  const auto write = [&](const void* data, std::size_t size) {
+    if (size == 0 || !ok) return;
+    checksum.add_bytes(static_cast<const unsigned char*>(data), size);
+    ok = VSIFWriteL(data, 1, size, file.get()) == size;
+  };
+  write(header.data(), header.size());
+  // Checksummed in the chunks it is written in, as the reader reads them.
+  write(o.cells.data(), o.cells.size() * kCellBytes);
+  write(o.cells_per_site.data(), o.cells_per_site.size() * sizeof(std::uint64_t));
+  const std::uint64_t sum = checksum.value();
+  ok = ok && VSIFWriteL(&sum, 1, sizeof sum, file.get()) == sizeof sum;
+  ok = VSIFCloseL(file.release()) == 0 && ok;
+  if (!ok) throw VoronoiError("'" + path + "': writing the tile product failed (disk full?)" + said(errors));
+}
+
+TileProduct read_tile_product(const std::string& path) {
+  const auto fail = [&](const std::string& why) { return VoronoiError("'" + path + "': " + why); };
+  gdal::ErrorCapture errors;
+  VSIStatBufL stat;
+  if (VSIStatL(path.c_str(), &stat) != 0) throw fail("no such tile product");
+  File file(VSIFOpenL(path.c_str(), "rb"));
+  if (!file) throw fail("cannot open the tile product" + said(errors));
+  const auto size = static_cast<std::uint64_t>(stat.st_size);
+  unsigned char header[kHeaderBytes];
+  if (size < kHeaderBytes || VSIFReadL(header, 1, kHeaderBytes, file.get()) != kHeaderBytes ||
+      std::memcmp(header, kMagic, sizeof kMagic) != 0) {
+    throw fail("not a qtmvoronoi tile product (made by qtmvoronoi -tile K/N)");
+  }
+  std::size_t at = sizeof kMagic;
+  const auto version = get<std::uint32_t>(header, at);
+  if (version != kVersion) {
+    throw fail("a tile product of version " + std::to_string(version) + "; this qtmvoronoi reads version " +
+               std::to_string(kVersion) + ": run the tile jobs again with this version");
+  }
+  TileProduct p;
+  label::Outlines& o = p.outlines;
+  o.level = static_cast<int>(get<std::uint32_t>(header, at));
+  const auto rule = get<std::uint32_t>(header, at);
+  p.index = static_cast<int>(get<std::uint32_t>(header, at));
+  p.count = static_cast<int>(get<std::uint32_t>(header, at));
+  o.site_count = get<std::int32_t>(header, at);
+  p.sites_fingerprint = get<std::uint64_t>(header, at);
+  o.range.first = get<std::uint64_t>(header, at);
+  o.range.end = get<std::uint64_t>(header, at);
+  const auto cells = get<std::uint64_t>(header, at);
+  if (!grid::is_valid_level(o.level) || rule > 1 || o.site_count <= 0 || p.count < 1 || p.index < 1 ||
+      p.index > p.count || cells > grid::cell_count(o.level)) {
+    throw fail("corrupt tile product (its header holds impossible values)");
+  }
+  p.rule = rule == 0 ? label::Rule::exact : label::Rule::cell;
+  const std::uint64_t expected = kHeaderBytes + cells * kCellBytes +
+                                 static_cast<std::uint64_t>(o.site_count) * sizeof(std::uint64_t) + sizeof(std::uint64_t);
+  if (size < expected) {
+    throw fail("truncated tile product (" + std::to_string(size) + " bytes of " + std::to_string(expected) +
+               "): was its tile job stopped, or the copy cut short?");
+  }
+  if (size > expected) throw fail("corrupt tile product (" + std::to_string(size - expected) + " bytes too many)");
+  Hash64 checksum;
+  checksum.add_bytes(header, kHeaderBytes);
+  o.cells.resize(cells);
+  o.cells_per_site.resize(static_cast<std::size_t>(o.site_count));
+  std::uint64_t stored = 0;
+  const auto read = [&](void* data, std::size_t bytes) {
+    if (bytes > 0 && VSIFReadL(data, 1, bytes, file.get()) != bytes) throw fail("reading failed" + said(errors));
+  };
+  read(o.cells.data(), o.cells.size() * kCellBytes);
+  checksum.add_bytes(reinterpret_cast<const unsigned char*>(o.cells.data()), o.cells.size() * kCellBytes);
+  read(o.cells_per_site.data(), o.cells_per_site.size() * sizeof(std::uint64_t));
+  checksum.add_bytes(reinterpret_cast<const unsigned char*>(o.cells_per_site.data()),
+                     o.cells_per_site.size() * sizeof(std::uint64_t));
+  read(&stored, sizeof stored);
+  if (stored != checksum.value()) throw fail("corrupt tile product (its checksum does not match its contents)");
+  try {
+    if (!(o.range == grid::tile_range(o.level, p.index, p.count))) throw std::logic_error("not the tile's codes");
+    label::check_outlines(o);
+  } catch (const std::exception& e) {
+    throw fail(std::string("corrupt tile product (") + e.what() + ")");
+  }
+  return p;
+}
+
+std::vector<std::string> tile_product_files(const std::vector<std::string>& paths) {
+  std::vector<std::string> files;
+  for (const std::string& path : paths) {
+    VSIStatBufL stat;
+    if (VSIStatL(path.c_str(), &stat) != 0) throw VoronoiError("-merge: '" + path + "': no such file or directory");
+    if (!VSI_ISDIR(stat.st_mode)) {
+      files.push_back(path);
+      continue;
+    }
+    char** names = VSIReadDir(path.c_str());
+    std::vector<std::string> found;
+    for (char** n = names; n && *n; ++n) {
+      const std::string name = *n;
+      const std::string extension = kTileProductExtension;
+      if (name.size() > extension.size() && name.compare(name.size() - extension.size(), extension.size(), extension) == 0) {
+        found.push_back(CPLFormFilename(path.c_str(), name.c_str(), nullptr));
+      }
+    }
+    CSLDestroy(names);
+    if (found.empty()) throw VoronoiError("-merge: '" + path + "': a directory without " + kTileProductExtension + " files");
+    std::sort(found.begin(), found.end());
+    files.insert(files.end(), found.begin(), found.end());
+  }
+  return files;
+}
+
+label::Outlines merge_tile_products(const std::vector<std::string>& files, const MergeExpectation& expect,
+                                    const std::function<bool(double)>& progress) {
+  if (files.empty()) throw VoronoiError("-merge: no tile products given");
+  std::map<int, std::pair<std::string, TileProduct>> tiles;  // by index
+  int count = 0;
+  std::string count_from;
+  for (std::size_t k = 0; k < files.size(); ++k) {
+    const std::string& file = files[k];
+    TileProduct p = read_tile_product(file);
+    const auto fail = [&](const std::string& why) { return VoronoiError("'" + file + "': " + why); };
+    const label::Outlines& o = p.outlines;
+    if (o.level != expect.level) {
+      throw fail("a tile of level " + std::to_string(o.level) + "; this merge is of level " + std::to_string(expect.level) +
+                 " (-level)");
+    }
+    if (p.rule != expect.rule) {
+      throw fail("a tile labelled with -distance " + rule_name(p.rule) + "; this merge uses -distance " +
+                 rule_name(expect.rule));
+    }
+    if (o.site_count != expect.site_count || p.sites_fingerprint != expect.sites_fingerprint) {
+      throw fail("a tile of other sites than " + expect.source + " read with these options (" +
+                 std::to_string(o.site_count) + " sites, against " + std::to_string(expect.site_count) +
+                 " read now): give the merge the source and the reading options (-l, -where, -sql, -s_srs, -oo, "
+                 "-edges, ...) of the tile jobs");
+    }
+    if (count == 0) {
+      count = p.count;
+      count_from = file;
+    } else if (p.count != count) {
+      throw fail("tile " + std::to_string(p.index) + " of " + std::to_string(p.count) + ", but '" + count_from +
+                 "' is a tile of " + std::to_string(count) + ": all tiles of a merge come from one split -tile K/N");
+    }
+    const auto [at, inserted] = tiles.emplace(p.index, std::make_pair(file, TileProduct{}));
+    if (!inserted) {
+      throw fail("tile " + std::to_string(p.index) + "/" + std::to_string(count) + " again; '" + at->second.first +
+                 "' is that tile too");
+    }
+    at->second.second = std::move(p);
+    if (progress && !progress(double(k + 1) / double(files.size()))) throw Interrupted();
+  }
+  if (static_cast<int>(tiles.size()) != count) {
+    std::string missing;
+    int listed = 0, absent = 0;
+    for (int k = 1; k <= count; ++k) {
+      if (tiles.count(k)) continue;
+      ++absent;
+      if (listed < 20) missing += (listed++ ? ", " : "") + std::to_string(k);
+    }
+    throw VoronoiError("-merge: " + std::to_string(absent) + " of the " + std::to_string(count) +
+                       " tiles missing (" + missing + (absent > listed ? ", ..." : "") + ")");
+  }
+  label::Outlines joined;
+  joined.level = expect.level;
+  joined.site_count = expect.site_count;
+  joined.range = grid::whole_level(expect.level);
+  joined.cells_per_site.assign(static_cast<std::size_t>(expect.site_count), 0);
+  std::size_t cells = 0;
+  for (const auto& [index, tile] : tiles) cells += tile.second.outlines.cells.size();
+  joined.cells.reserve(cells);
+  for (auto& [index, tile] : tiles) {
+    label::Outlines& o = tile.second.outlines;
+    joined.cells.insert(joined.cells.end(), o.cells.begin(), o.cells.end());
+    for (std::size_t s = 0; s < joined.cells_per_site.size(); ++s) joined.cells_per_site[s] += o.cells_per_site[s];
+    o = {};  // its memory, now that it is joined
+  }
+  return joined;
+}
+
+}  // namespace qtmv::pipeline

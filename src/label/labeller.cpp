@@ -440,6 +440,7 @@ LabelStats label_outlines_on(const LabelInput& input, const LabelOptions& option
     }
     for (const auto& [severity, message] : now) tell(options.messages, severity, message);
   };
+  report_progress(options.progress, 0.0, "label");
   std::vector<std::future<void>> runs;
   for (std::size_t k = 0; k < n; ++k) {
     fraction[k] = 0.0;
@@ -447,8 +448,8 @@ LabelStats label_outlines_on(const LabelInput& input, const LabelOptions& option
       LabelOptions part = options;
       part.device = devices[k];
       part.range = parts[k];
-      part.progress = [&, k](double f, const char*) {
-        fraction[k] = f;
+      part.progress = [&, k](double f, const char* stage) {
+        if (std::strcmp(stage, "label") == 0) fraction[k] = f;  // its labelling, after its tree's build
         return !stop.load();
       };
       part.messages = [&, k](Severity severity, const std::string& message) {

@@ -800,6 +800,117 @@ TEST_P(LabelDevice, OutlinesAreThoseOfTheDenseLabels) {
   }
 }
 
+/// Outline cells that differ between two products (code, site or flag), or the size difference.
+std::size_t outline_mismatches(const Outlines& got, const Outlines& want) {
+  if (got.cells.size() != want.cells.size()) return std::max(got.cells.size(), want.cells.size());
+  std::size_t mismatches = 0;
+  for (std::size_t k = 0; k < want.cells.size(); ++k) {
+    mismatches += got.cells[k].code != want.cells[k].code || got.cells[k].site != want.cells[k].site ||
+                  got.cells[k].boundary != want.cells[k].boundary;
+  }
+  return mismatches;
+}
+
+/// The device names of a parameter for label_outlines_on ("cuda" is "cuda:0").
+std::string device_name(const std::string& param) { return param == "cuda" ? "cuda:0" : param; }
+
+// A level's ranges of whole rows (tile jobs, several GPUs) give products that join, by
+// concatenation and addition, into the whole level's: both algorithms and rules, with the
+// device's own tiles smaller than the ranges too.
+TEST_P(LabelDevice, OutlinesOfRangesJoinIntoTheWhole) {
+  const std::vector<SiteSet> sets = {{"points L7", random_points(7, 300, 16)},
+                                     {"arcs", arcs(7, 5, 20, 717)},
+                                     {"polygons", polygons(6)},
+                                     {"solid polygon", solid_polygon(7)},
+                                     {"wiggly lines", test::wiggly_sites(6, 716)}};
+  for (const SiteSet& set : sets) {
+    const int level = set.geometry.level;
+    for (const Algorithm algorithm : {Algorithm::hier, Algorithm::brute}) {
+      for (const Rule rule : {Rule::exact, Rule::cell}) {
+        LabelOptions options;
+        options.device = GetParam();
+        options.algorithm = algorithm;
+        options.rule = rule;
+        Outlines whole;
+        label_outlines(set.geometry.input(), options, &whole);
+        for (const int parts : {2, 5, 13}) {
+          SCOPED_TRACE(set.name + (algorithm == Algorithm::hier ? " hier" : " brute") +
+                       (rule == Rule::exact ? " exact " : " cell ") + std::to_string(parts) + " parts on " + GetParam());
+          options.memory_limit_bytes = parts == 5 ? 5 * 8000 : 0;  // device tiles inside the ranges
+          Outlines joined;
+          joined.cells_per_site.assign(whole.cells_per_site.size(), 0);
+          for (int k = 1; k <= parts; ++k) {
+            options.range = grid::tile_range(level, k, parts);
+            Outlines part;
+            label_outlines(set.geometry.input(), options, &part);
+            ASSERT_EQ(part.range, options.range);
+            ASSERT_NO_THROW(check_outlines(part));
+            joined.cells.insert(joined.cells.end(), part.cells.begin(), part.cells.end());
+            for (std::size_t s = 0; s < part.cells_per_site.size(); ++s) joined.cells_per_site[s] += part.cells_per_site[s];
+          }
+          options.range = {};
+          EXPECT_EQ(outline_mismatches(joined, whole), 0u);
+          EXPECT_EQ(joined.cells_per_site, whole.cells_per_site);
+        }
+      }
+    }
+  }
+}
+
+// label_outlines_on: several devices at once (several CPU runs on threads; on a GPU, the same
+// GPU from several threads) give one device's products, for the whole level and for a range.
+TEST_P(LabelDevice, SeveralDevicesGiveOneDevicesOutlines) {
+  const SiteGeometry g = arcs(8, 7, 25, 818);
+  const std::string device = device_name(GetParam());
+  LabelOptions options;
+  options.device = GetParam();
+  for (const grid::CodeRange range : {grid::CodeRange{}, grid::tile_range(8, 2, 3)}) {
+    options.range = range;
+    Outlines one;
+    label_outlines(g.input(), options, &one);
+    for (const std::size_t n : {std::size_t{2}, std::size_t{3}}) {
+      SCOPED_TRACE(std::to_string(n) + " x " + device + (range.end ? " on a range" : ""));
+      Outlines several;
+      double last_fraction = -1;
+      options.progress = [&](double f, const char*) {
+        EXPECT_GE(f, last_fraction);  // on the calling thread, never backwards
+        last_fraction = f;
+        return true;
+      };
+      const LabelStats stats = label_outlines_on(g.input(), options, std::vector<std::string>(n, device), &several);
+      options.progress = {};
+      EXPECT_NO_THROW(check_outlines(several));
+      EXPECT_EQ(several.range, one.range);
+      EXPECT_EQ(outline_mismatches(several, one), 0u);
+      EXPECT_EQ(several.cells_per_site, one.cells_per_site);
+      EXPECT_NE(stats.device.find(", "), std::string::npos) << stats.device;  // every device named
+    }
+  }
+}
+
+// Several devices stop as one run does: a stop asked for on the calling thread stops them all
+// (Interrupted), and one device's failure is the one reported, not the others' stop.
+TEST(LabelInterface, SeveralDevicesStopAndFailAsOne) {
+  const SiteGeometry g = random_points(8, 500, 919);
+  LabelOptions options;
+  options.device = "cpu";
+  options.progress = [](double, const char*) { return false; };
+  Outlines out;
+  EXPECT_THROW(label_outlines_on(g.input(), options, {"cpu", "cpu"}, &out), Interrupted);
+  options.progress = {};
+  std::vector<std::string> said;
+  options.messages = [&](Severity, const std::string& m) { said.push_back(m); };
+  try {
+    label_outlines_on(g.input(), options, {"cpu", "cuda:99"}, &out);
+    ADD_FAILURE() << "a missing device was not reported";
+  } catch (const Interrupted&) {
+    ADD_FAILURE() << "a missing device was reported as a stop";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("cuda:99"), std::string::npos) << e.what();
+  }
+  for (const std::string& m : said) EXPECT_EQ(m.rfind("cpu: ", 0), 0u) << m;  // each names its device
+}
+
 // The counts and flags that outlines_of_dense derives agree with a direct count over the labels.
 TEST(LabelOutlines, DenseOutlinesCountEveryCell) {
   const SiteGeometry g = random_points(6, 50, 3);

@@ -836,7 +836,7 @@ TEST_P(LabelDevice, OutlinesOfRangesJoinIntoTheWhole) {
         for (const int parts : {2, 5, 13}) {
           SCOPED_TRACE(set.name + (algorithm == Algorithm::hier ? " hier" : " brute") +
                        (rule == Rule::exact ? " exact " : " cell ") + std::to_string(parts) + " parts on " + GetParam());
-          options.memory_limit_bytes = parts == 5 ? 5 * 8000 : 0;  // device tiles inside the ranges
+          options.memory_limit_bytes = parts == 5 ? 25 * 8000 : 0;  // device tiles inside the ranges
           Outlines joined;
           joined.cells_per_site.assign(whole.cells_per_site.size(), 0);
           for (int k = 1; k <= parts; ++k) {

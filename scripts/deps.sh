@@ -3,7 +3,8 @@
 # CUDA is not among them: the build finds nvcc (/usr/local/cuda/bin) when it is there.
 set -euo pipefail
 
-packages=(cmake ninja-build g++ pkg-config perl
+# parallel: GNU parallel, for the test of the tile jobs' example (examples/tiles_gnu_parallel.sh).
+packages=(cmake ninja-build g++ pkg-config perl parallel
           libgdal-dev libgeos-dev libsqlite3-dev libgeographiclib-dev libgtest-dev libbenchmark-dev)
 
 missing=()

@@ -1,0 +1,42 @@
+#!/usr/bin/env bash
+# A qtmvoronoi run split into tile jobs over a Slurm cluster: a job array of TILES tasks (one GPU
+# each, when the partition has them), then one merge job that runs once the whole array succeeded.
+# The output is the same as one run's.
+#
+#   slurm_tiles.sh LEVEL TILES SOURCE DESTINATION TILE_DIR [READING OPTIONS...] [-- OUTPUT OPTIONS...]
+#
+# SOURCE and TILE_DIR must be on a file system that every node sees (or a /vsis3/ style GDAL
+# path). READING OPTIONS go to every task and to the merge, OUTPUT OPTIONS to the merge alone.
+# Extra sbatch options: SBATCH_TILE_OPTIONS (default "--gpus=1"), SBATCH_MERGE_OPTIONS.
+#
+# Example: level 16 in 16 tiles, the regions as a GeoPackage
+#   examples/slurm_tiles.sh 16 16 /shared/sites.gpkg /shared/voronoi.gpkg /shared/tiles -- -layers regions
+set -euo pipefail
+
+if [ $# -lt 5 ]; then
+  sed -n '6,10p' "$0" >&2
+  exit 2
+fi
+level=$1 tiles=$2 source=$3 destination=$4 tile_dir=$5
+shift 5
+reading=()
+while [ $# -gt 0 ] && [ "$1" != "--" ]; do reading+=("$1"); shift; done
+[ $# -gt 0 ] && shift
+output=("$@")
+mkdir -p "$tile_dir"
+tool=${QTMVORONOI:-qtmvoronoi}
+quoted_reading="" quoted_output=""
+[ ${#reading[@]} -gt 0 ] && quoted_reading=$(printf ' %q' "${reading[@]}")
+[ ${#output[@]} -gt 0 ] && quoted_output=$(printf ' %q' "${output[@]}")
+
+# Each task labels tile $SLURM_ARRAY_TASK_ID of $tiles; --parsable gives the array's job id.
+array=$(sbatch --parsable --job-name=qtmv-tiles --array=1-"$tiles" ${SBATCH_TILE_OPTIONS:---gpus=1} \
+  --output="$tile_dir/tile-%a.log" \
+  --wrap="$(printf '%q' "$tool") -q -overwrite -level $level -tile \$SLURM_ARRAY_TASK_ID/$tiles$quoted_reading \
+$(printf '%q' "$source") $(printf '%q' "$tile_dir")/\$SLURM_ARRAY_TASK_ID.qtmt")
+# The merge needs no GPU; afterok: only when every task of the array succeeded.
+merge=$(sbatch --parsable --job-name=qtmv-merge --dependency=afterok:"$array" ${SBATCH_MERGE_OPTIONS:-} \
+  --output="$tile_dir/merge.log" \
+  --wrap="$(printf '%q' "$tool") -level $level -merge $(printf '%q' "$tile_dir")$quoted_reading$quoted_output \
+$(printf '%q' "$source") $(printf '%q' "$destination")")
+echo "tile jobs: array $array ($tiles tasks); merge: job $merge (after them); logs in $tile_dir"

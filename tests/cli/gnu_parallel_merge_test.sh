@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# examples/tiles_gnu_parallel.sh as a user runs it: tile jobs on the CPU through GNU parallel,
+# then the merge; its outputs (CSV layers) must equal one whole run's byte for byte, for points
+# and polygons; a failing tile job must fail the script and leave no destination.
+#   gnu_parallel_merge_test.sh QTMVORONOI TESTDATA_DIR
+set -euo pipefail
+tool=$1 data=$2
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+export QTMVORONOI=$tool JOBS=2
+
+check() {  # name level tiles source [reading options...]
+  local name=$1 level=$2 tiles=$3 source=$4
+  shift 4
+  "$tool" -q -level "$level" -device cpu "$@" -of CSV -layers regions,voronoi_edges,boundary_cells \
+    "$source" "$work/$name-whole"
+  examples/tiles_gnu_parallel.sh "$level" "$tiles" "$source" "$work/$name-merged" -device cpu "$@" \
+    -- -q -of CSV -layers regions,voronoi_edges,boundary_cells
+  for f in regions voronoi_edges boundary_cells; do
+    cmp "$work/$name-whole/$f.csv" "$work/$name-merged/$f.csv"
+    [ -s "$work/$name-whole/$f.csv" ]
+  done
+  echo "$name: level $level, $tiles tiles merged = whole run"
+}
+
+centres=(-oo X_POSSIBLE_NAMES=lon -oo Y_POSSIBLE_NAMES=lat -s_srs EPSG:4326)
+check points 9 8 "$data/country_centres.csv" "${centres[@]}" -where "lon > -100"
+check polygons 8 4 "$data/world_atlas_countries_110m.gpkg"
+
+# A tile job that fails (a bad -where) fails the whole script, and the merge never runs.
+if examples/tiles_gnu_parallel.sh 6 4 "$data/country_centres.csv" "$work/failed" "${centres[@]}" \
+     -where "no_such_column > 1" -- -of CSV 2> "$work/failed.err"; then
+  echo "a failing tile job did not fail the script" >&2
+  exit 1
+fi
+grep -q "no_such_column" "$work/failed.err" || { cat "$work/failed.err" >&2; exit 1; }
+[ ! -e "$work/failed" ] || { echo "a destination was written after a failed tile job" >&2; exit 1; }
+echo "a failing tile job fails the script, nothing written"

@@ -5,8 +5,12 @@ Each case runs the tool `--repeat` times; the table gives the median wall time, 
 memory (the child's maximum resident set, from wait4) and the stage times of the tool's summary
 line (read / label / write). Ratios are taken within one run of this script, on one machine.
 
-  bench/end_to_end.py --tool PATH [--device cuda|cpu|both] [--cases NAMES] [--repeat N] [--csv OUT]
-                      [--data DIR]
+  bench/end_to_end.py --tool PATH [--device cuda|cpu|both|cuda:all|cuda:0,1] [--cases NAMES] [--repeat N]
+                      [--csv OUT] [--data DIR] [--tiles N]
+
+--tiles N: each vector case also as N tile jobs (-tile K/N) run one after another, then the merge
+(-merge); its wall time is the sum of all N + 1 processes, its peak memory the largest of them, and
+its regions are compared with the whole run's (the rows of the GeoPackage's regions table).
 
 PATH is the qtmvoronoi binary or the bundle's bin/qtmvoronoi wrapper (scripts/make_bundle.sh).
 The inputs: testdata/country_centres.csv (241 points) and 135 233 points spread evenly over the
@@ -22,6 +26,8 @@ import os
 import random
 import re
 import statistics
+import sqlite3
+import hashlib
 import subprocess
 import sys
 import tempfile
@@ -78,10 +84,54 @@ def run_once(command):
     return wall, usage.ru_maxrss * 1024, child.returncode, err
 
 
+def regions_digest(path):
+    """md5 of the regions table's rows (a GeoPackage's own timestamps aside)."""
+    h = hashlib.md5()
+    with sqlite3.connect(path) as db:
+        for row in db.execute("select * from regions order by 1"):
+            h.update(repr(row).encode())
+    return h.hexdigest()
+
+
+def run_tiles(args, command, whole_out, name, device, level, layers, whole_wall):
+    """The case as args.tiles tile jobs one after another, then the merge; repeated, median."""
+    source, out = command[-2], command[-1]
+    tile_dir = out + ".tiles"
+    os.makedirs(tile_dir, exist_ok=True)
+    merged = out.replace(".gpkg", "-merged.gpkg")
+    reading = [a for a in command[1:-2] if a != "-layers" and a != layers]
+    totals, peaks = [], []
+    for _ in range(args.repeat):
+        total, peak = 0.0, 0
+        for k in range(1, args.tiles + 1):
+            wall, rss, status, err = run_once([command[0]] + reading + ["-tile", "%d/%d" % (k, args.tiles), source,
+                                                                         os.path.join(tile_dir, "%d.qtmt" % k)])
+            if status != 0:
+                sys.exit("tile %d failed: %s" % (k, err))
+            total, peak = total + wall, max(peak, rss)
+        merge_command = command[:-2] + ["-merge", tile_dir, source, merged]
+        wall, rss, status, err = run_once(merge_command)
+        if status != 0:
+            sys.exit("merge failed: %s" % err)
+        totals.append(total + wall)
+        peaks.append(max(peak, rss))
+    wall = statistics.median(totals)
+    same = regions_digest(merged) == regions_digest(whole_out)
+    print("| %s | %s, %d tiles one after another + merge | %.2f (%.2fx the whole run) | %.0f | regions %s |" %
+          (name, device, args.tiles, wall, wall / whole_wall, max(peaks) / 1e6, "identical" if same else "DIFFER"))
+    sys.stdout.flush()
+    return {"case": name, "device": "%s %d tiles+merge" % (device, args.tiles), "level": level, "layers": layers,
+            "wall_s": "%.3f" % wall, "peak_mb": "%.0f" % (max(peaks) / 1e6), "read_s": 0, "label_s": 0, "write_s": 0,
+            "walls": " ".join("%.3f" % t for t in totals),
+            "command": "for K in 1..%d: %s -tile K/%d %s TILE; %s" % (args.tiles, command[0], args.tiles,
+                                                                 " ".join(reading[1:]), " ".join(merge_command))}
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--tool", required=True)
-    parser.add_argument("--device", default="both", choices=["cpu", "cuda", "both"])
+    parser.add_argument("--device", default="both", help="cpu, cuda, both, or any -device value (cuda:all, cuda:0,1)")
+    parser.add_argument("--tiles", type=int, default=0, help="also run each vector case as N tile jobs and a merge")
     parser.add_argument("--cases", default=",".join(CASES), help="comma-separated case names")
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--threads", type=int, default=0, help="-threads for the CPU runs (0: all)")
@@ -98,6 +148,7 @@ def main():
     if any(CASES[c][0] == "points" for c in names):
         even_points(points)
     devices = ["cpu", "cuda"] if args.device == "both" else [args.device]
+    kind = lambda device: "cuda" if device.startswith("cuda") else device
 
     rows = []
     print("| case | device | wall s (median of %d) | peak host memory MB | read / label / write s | outline output MB |" % args.repeat)
@@ -105,7 +156,7 @@ def main():
     for name in names:
         source, level, layers, allowed = CASES[name]
         for device in devices:
-            if device not in allowed:
+            if kind(device) not in allowed:
                 continue
             raster = layers == "tif"
             out = os.path.join(work, "%s-%s.%s" % (name, device, "tif" if raster else "gpkg"))
@@ -135,6 +186,8 @@ def main():
             rows.append({"case": name, "device": device, "level": level, "layers": layers, "wall_s": "%.3f" % wall,
                          "peak_mb": "%.0f" % peak, "read_s": stage[0], "label_s": stage[1], "write_s": stage[2],
                          "walls": " ".join("%.3f" % r[0] for r in runs), "command": " ".join(command)})
+            if args.tiles and not raster:
+                rows.append(run_tiles(args, command, out, name, device, level, layers, wall))
     if args.csv and rows:
         with open(args.csv, "w", newline="") as f:
             writer = csv.DictWriter(f, fieldnames=list(rows[0]))

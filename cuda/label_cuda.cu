@@ -1226,6 +1226,12 @@ int device_count() {
   return count;
 }
 
+void warm_up(int device) {
+  // The runtime creates the device's primary context on its first use; cudaFree(nullptr) is
+  // such a use that does nothing else. Failures are left for the labelling to report.
+  if (cudaSetDevice(device) != cudaSuccess || cudaFree(nullptr) != cudaSuccess) (void)cudaGetLastError();
+}
+
 void release_cached_memory(int device) {
   QTMV_CUDA_CHECK(cudaSetDevice(device));
   QTMV_CUDA_CHECK(release_pool(device));

@@ -40,6 +40,11 @@ constexpr std::uint64_t kOutlineSelectBytesPerCell = 4 + sizeof(OutlineCell);
 /// Number of CUDA devices the runtime can use (0 when there is no driver or no device).
 int device_count();
 
+/// Creates the device's context (what the first CUDA call of a process pays: tenths of a second),
+/// so that the labelling finds it ready: for a thread of its own while the sites are read. Never
+/// throws; a device that fails is reported when it is used.
+void warm_up(int device);
+
 /// The device tree build keeps its scratch in the device's default memory pool, so that the next
 /// build need not map it again (tens of milliseconds at level 15); this gives it back to the
 /// system. label_cells calls it when it is done with a device.

@@ -7,6 +7,8 @@ namespace qtmv::label::cuda {
 
 int device_count() { return 0; }
 
+void warm_up(int) {}
+
 void release_cached_memory(int) {}
 
 DeviceInfo device_info(int) { throw std::runtime_error("qtmvoronoi was built without CUDA"); }

@@ -535,4 +535,18 @@ LabelResult label_dense(const LabelInput& input, const LabelOptions& options) {
 
 int cuda_device_count() { return cuda::device_count(); }
 
+void warm_up_devices(const std::string& device) {
+  std::vector<DeviceChoice> devices;
+  try {
+    devices = choose_devices(device);
+  } catch (const std::exception&) {
+    return;
+  }
+  std::vector<std::thread> threads;
+  for (const DeviceChoice& d : devices) {
+    if (d.cuda) threads.emplace_back([index = d.index] { cuda::warm_up(index); });
+  }
+  for (std::thread& t : threads) t.join();
+}
+
 }  // namespace qtmv::label

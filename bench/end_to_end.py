@@ -41,6 +41,11 @@ CSV_OPTIONS = ["-oo", "X_POSSIBLE_NAMES=lon", "-oo", "Y_POSSIBLE_NAMES=lat", "-s
 CASES = {
     "centres-L10-regions": ("centres", 10, "regions", ("cpu", "cuda")),
     "centres-L12-regions": ("centres", 12, "regions", ("cpu", "cuda")),
+    "centres-L15-regions": ("centres", 15, "regions", ("cuda",)),
+    "centres-L16-regions": ("centres", 16, "regions", ("cuda",)),
+    "centres-L17-regions": ("centres", 17, "regions", ("cuda",)),
+    "points135k-L16-regions": ("points", 16, "regions", ("cuda",)),
+    "points135k-L17-regions": ("points", 17, "regions", ("cuda",)),
     "centres-L13-regions+edges": ("centres", 13, "regions,voronoi_edges", ("cpu", "cuda")),
     "centres-L14-regions+edges": ("centres", 14, "regions,voronoi_edges", ("cpu", "cuda")),
     "centres-L15-regions+edges": ("centres", 15, "regions,voronoi_edges", ("cpu", "cuda")),

@@ -1593,7 +1593,7 @@ float Labeller::download(std::uint64_t offset, std::uint64_t count, std::int32_t
   return ms;
 }
 
-float Labeller::select_outline(grid::Code first, std::uint64_t count, std::vector<OutlineCell>* out) {
+float Labeller::select_outline(grid::Code first, std::uint64_t count, OutlineCells* out) {
   Impl& m = *impl_;
   if (count > m.capacity || !m.boundary) {
     throw std::invalid_argument("Labeller::select_outline: the last run had no flags for these cells");
@@ -1614,6 +1614,22 @@ float Labeller::select_outline(grid::Code first, std::uint64_t count, std::vecto
     m.output_bytes += m.bytes - before;
   }
   QTMV_CUDA_CHECK(cudaEventRecord(m.start));
+  // The chunks' outline cells gather in select_cells (a chunk's worth) and cross to the host in
+  // as few copies as fit: small pageable copies, and the vector's growth, were most of the time.
+  std::uint64_t pending = 0;
+  const auto flush = [&](std::uint64_t done_cells) {
+    if (pending == 0) return;
+    const std::size_t at = out->size();
+    if (out->capacity() < at + pending && done_cells < count) {
+      // Room for the rest of the range at the rate seen so far, so that the vector grows once.
+      const double rate = static_cast<double>(pending) / static_cast<double>(done_cells);
+      out->reserve(at + static_cast<std::size_t>(pending + rate * 1.1 * static_cast<double>(count - done_cells)));
+    }
+    out->resize(at + pending);
+    QTMV_CUDA_CHECK(cudaMemcpy(out->data() + at, m.select_cells.get(), pending * sizeof(OutlineCell),
+                               cudaMemcpyDeviceToHost));
+    pending = 0;
+  };
   for (std::uint64_t offset = 0; offset < count; offset += chunk) {
     const std::uint64_t n = std::min(chunk, count - offset);
     std::size_t temp_bytes = m.select_temp.size();
@@ -1624,15 +1640,14 @@ float Labeller::select_outline(grid::Code first, std::uint64_t count, std::vecto
     std::uint32_t selected = 0;
     QTMV_CUDA_CHECK(cudaMemcpy(&selected, m.select_count.get(), sizeof selected, cudaMemcpyDeviceToHost));
     if (selected == 0) continue;
+    if (pending + selected > chunk) flush(offset);
     gather_outline_kernel<<<blocks_of(selected), kBlock>>>(m.select_index.get(), selected, first + offset,
                                                            m.site.get() + offset, m.boundary.get() + offset,
-                                                           m.select_cells.get());
+                                                           m.select_cells.get() + pending);
     QTMV_CUDA_CHECK_LAUNCH("gather_outline_kernel");
-    const std::size_t at = out->size();
-    out->resize(at + selected);
-    QTMV_CUDA_CHECK(cudaMemcpy(out->data() + at, m.select_cells.get(), selected * sizeof(OutlineCell),
-                               cudaMemcpyDeviceToHost));
+    pending += selected;
   }
+  flush(count);
   QTMV_CUDA_CHECK(cudaEventRecord(m.stop));
   QTMV_CUDA_CHECK(cudaEventSynchronize(m.stop));
   float ms = 0;

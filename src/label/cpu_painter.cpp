@@ -286,7 +286,7 @@ bool in_uniform_leaf_of(const TreeView& tv, const grid::Cell& c, int l, std::int
 /// three neighbours (of its level) lie in uniform leaves of that site has no boundary cell: only
 /// its row ends are listed.
 void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode& node, OutlineScratch& scratch,
-                        std::vector<OutlineCell>& out) {
+                        OutlineCells& out) {
   LeafOrder& order = scratch.order;
   LeafLabels& labels = scratch.labels;
   const int level = tv.level;
@@ -384,14 +384,14 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
 bool code_less(const OutlineCell& a, const OutlineCell& b) { return a.code < b.code; }
 
 /// Per-thread lists joined and put in code order.
-std::vector<OutlineCell> join_in_code_order(std::vector<std::vector<OutlineCell>>& parts) {
+OutlineCells join_in_code_order(std::vector<OutlineCells>& parts) {
   std::size_t total = 0;
   for (const auto& p : parts) total += p.size();
-  std::vector<OutlineCell> all;
+  OutlineCells all;
   all.reserve(total);
   for (auto& p : parts) {
     all.insert(all.end(), p.begin(), p.end());
-    std::vector<OutlineCell>().swap(p);
+    OutlineCells().swap(p);
   }
   parallel_sort(all.begin(), all.end(), code_less);  // codes are unique
   return all;
@@ -399,10 +399,10 @@ std::vector<OutlineCell> join_in_code_order(std::vector<std::vector<OutlineCell>
 
 }  // namespace
 
-std::vector<OutlineCell> cpu_tree_outlines(const Tree& tree, const TreeView& tv, int threads, grid::CodeRange range,
+OutlineCells cpu_tree_outlines(const Tree& tree, const TreeView& tv, int threads, grid::CodeRange range,
                                            const std::function<void(double)>& done) {
   const std::size_t leaves = tree.leaves.size();
-  std::vector<std::vector<OutlineCell>> parts(static_cast<std::size_t>(threads));
+  std::vector<OutlineCells> parts(static_cast<std::size_t>(threads));
   std::vector<OutlineScratch> scratch(static_cast<std::size_t>(threads));
   // Leaves in batches, so that `done` (which may throw to stop the run) is called every so often.
   const std::size_t batch = std::max<std::size_t>(4096, leaves / 256);
@@ -425,7 +425,7 @@ std::vector<OutlineCell> cpu_tree_outlines(const Tree& tree, const TreeView& tv,
     }
     if (done) done(static_cast<double>(last) / static_cast<double>(leaves));
   }
-  std::vector<OutlineCell> all = join_in_code_order(parts);
+  OutlineCells all = join_in_code_order(parts);
   if (range == grid::whole_level(tree.level)) return all;
   const auto in_range = [&](const OutlineCell& c) { return c.code >= range.first && c.code < range.end; };
   all.erase(std::remove_if(all.begin(), all.end(), [&](const OutlineCell& c) { return !in_range(c); }), all.end());
@@ -433,9 +433,9 @@ std::vector<OutlineCell> cpu_tree_outlines(const Tree& tree, const TreeView& tv,
 }
 
 void append_outline_cells(int level, grid::Code first, std::uint64_t count, const std::int32_t* site,
-                          const std::uint8_t* boundary, int threads, std::vector<OutlineCell>* out) {
+                          const std::uint8_t* boundary, int threads, OutlineCells* out) {
   const std::int64_t blocks = static_cast<std::int64_t>((count + kCpuBlock - 1) / kCpuBlock);
-  std::vector<std::vector<OutlineCell>> parts(static_cast<std::size_t>(blocks));
+  std::vector<OutlineCells> parts(static_cast<std::size_t>(blocks));
 #pragma omp parallel for schedule(dynamic, 4) num_threads(threads)
   for (std::int64_t b = 0; b < blocks; ++b) {
     const std::uint64_t begin = static_cast<std::uint64_t>(b) * kCpuBlock;

@@ -24,13 +24,13 @@ void cpu_tree_range(const Tree& tree, const TreeView& tv, grid::Code first, std:
 /// Work and memory grow with the outlines, not with the cells.
 /// `done` (may be empty) is called on the calling thread, outside any parallel region, with the
 /// fraction of the leaves done, every 1/256 of them or so; it may throw to stop the pass.
-std::vector<OutlineCell> cpu_tree_outlines(const Tree& tree, const TreeView& tv, int threads, grid::CodeRange range,
+OutlineCells cpu_tree_outlines(const Tree& tree, const TreeView& tv, int threads, grid::CodeRange range,
                                            const std::function<void(double)>& done = {});
 
 /// The outline cells of a labelled range [first, first + count) (code order): its boundary cells
 /// and row ends, appended to *out.
 void append_outline_cells(int level, grid::Code first, std::uint64_t count, const std::int32_t* site,
-                          const std::uint8_t* boundary, int threads, std::vector<OutlineCell>* out);
+                          const std::uint8_t* boundary, int threads, OutlineCells* out);
 
 /// The brute-force pass over [first, first + count): each cell against every candidate.
 void cpu_brute_range(const std::vector<Piece>& candidates, int level, grid::Code first, std::uint64_t count,

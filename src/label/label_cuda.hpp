@@ -105,7 +105,7 @@ class Labeller {
   /// Appends the outline cells (outline_cells.hpp) of the last run's cells [0, count), codes
   /// first.., to *out, selected on the device in chunks of kOutlineChunkCells (CUB); the run
   /// must have had boundary flags. Returns the time (milliseconds) of selection and copies.
-  float select_outline(grid::Code first, std::uint64_t count, std::vector<OutlineCell>* out);
+  float select_outline(grid::Code first, std::uint64_t count, OutlineCells* out);
   /// Bytes this object holds on the device now.
   std::size_t device_bytes() const;
   /// The float64 brute-force labels of the given codes (the reference of the benchmark's check).

@@ -140,7 +140,7 @@ struct HostTile {
 /// instead (the host tile is not used).
 void label_on_gpu(cuda::Labeller& gpu, int device, int level, grid::CodeRange range, const LabelOptions& options,
                   const MemoryEstimate& need, const HostTile& host, const std::function<void(const LabelTile&)>& sink,
-                  LabelStats& stats, std::uint64_t& done, std::vector<OutlineCell>* outline) {
+                  LabelStats& stats, std::uint64_t& done, OutlineCells* outline) {
   const std::uint64_t total = range.size();
   const cuda::DeviceInfo info = cuda::device_info(device);
   const std::uint64_t device_limit =
@@ -182,6 +182,11 @@ void label_on_gpu(cuda::Labeller& gpu, int device, int level, grid::CodeRange ra
     if (outline) {
       stats.copy_seconds += gpu.select_outline(first, count, outline) / 1e3;
       done = first + count;
+      // Room for the tiles to come at this tile's rate, so that the list grows once.
+      if (done < range.end && outline->capacity() < outline->size() * 2) {
+        const double rate = static_cast<double>(outline->size()) / static_cast<double>(done - range.first);
+        outline->reserve(outline->size() + static_cast<std::size_t>(rate * 1.1 * static_cast<double>(range.end - done)));
+      }
     }
     for (std::uint64_t offset = 0; !outline && offset < count; offset += host.cells) {
       const std::uint64_t part = std::min(host.cells, count - offset);
@@ -218,7 +223,7 @@ bool outline_pass_pays(const Tree& tree) {
 
 /// label_cells, or with `outline` label_outlines' pass (no sink then).
 LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
-                         const std::function<void(const LabelTile&)>& sink, std::vector<OutlineCell>* outline) {
+                         const std::function<void(const LabelTile&)>& sink, OutlineCells* outline) {
   validate(given, options.rule);
   const int threads = thread_count(options.threads);
   const DeviceChoice device = choose_device(options.device);
@@ -340,7 +345,13 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
             std::make_unique<cuda::Labeller>(device.index, host_candidates(), hier ? &tree : nullptr, input.level);
       }
       const HostTile host{host_tile, site.data(), metres_ptr, boundary_ptr};
+      const double gpu_start = now_seconds();
       label_on_gpu(*gpu_built, device.index, input.level, range, options, need, host, sink, stats, done, outline);
+      if (std::getenv("QTMV_LABEL_TRACE")) {
+        std::fprintf(stderr, "trace: %s: %zu tiles, kernels %.3f s, outline selection and copies %.3f s, wall %.3f s\n",
+                     stats.device.c_str(), stats.tiles, stats.label_seconds, stats.copy_seconds,
+                     now_seconds() - gpu_start);
+      }
       gpu_built.reset();
       cuda::release_cached_memory(device.index);
       return stats;
@@ -356,7 +367,7 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
     // Only the leaves that can touch an outline are visited (after a GPU that ran out of memory,
     // those of the cells it had not done).
     const double start = now_seconds();
-    const std::vector<OutlineCell> cpu = cpu_tree_outlines(tree, tv, threads, {done, range.end},
+    const OutlineCells cpu = cpu_tree_outlines(tree, tv, threads, {done, range.end},
                                                            [&](double fraction) { progress(fraction, "label"); });
     outline->insert(outline->end(), cpu.begin(), cpu.end());
     stats.label_seconds += now_seconds() - start;
@@ -490,11 +501,24 @@ LabelStats label_outlines_on(const LabelInput& input, const LabelOptions& option
   joined.cells_per_site.assign(static_cast<std::size_t>(input.site_count), 0);
   std::size_t cells = 0;
   for (const Outlines& p : products) cells += p.cells.size();
-  joined.cells.reserve(cells);
+  // One allocation, filled on all cores (first touch included): gigabytes at high levels.
+  joined.cells.resize(cells);
+  std::size_t at = 0;
+  for (Outlines& p : products) {
+    constexpr std::int64_t kBlock = std::int64_t{1} << 20;
+    const auto blocks = static_cast<std::int64_t>((p.cells.size() + kBlock - 1) / kBlock);
+#pragma omp parallel for schedule(static) num_threads(thread_count(options.threads))
+    for (std::int64_t b = 0; b < blocks; ++b) {
+      const std::size_t first = static_cast<std::size_t>(b * kBlock);
+      const std::size_t size = std::min<std::size_t>(kBlock, p.cells.size() - first);
+      std::memcpy(joined.cells.data() + at + first, p.cells.data() + first, size * sizeof(OutlineCell));
+    }
+    at += p.cells.size();
+    OutlineCells().swap(p.cells);
+  }
   LabelStats all = stats.front();
   all.device.clear();
   for (std::size_t k = 0; k < n; ++k) {
-    joined.cells.insert(joined.cells.end(), products[k].cells.begin(), products[k].cells.end());
     for (std::size_t s = 0; s < joined.cells_per_site.size(); ++s) joined.cells_per_site[s] += products[k].cells_per_site[s];
     all.device += (k ? ", " : "") + stats[k].device;
     all.prepare_seconds = std::max(all.prepare_seconds, stats[k].prepare_seconds);

@@ -17,8 +17,12 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <memory>
+#include <new>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "grid/qtm.hpp"
@@ -34,8 +38,33 @@ struct OutlineCell {
   std::uint32_t boundary;  ///< 1: boundary cell; 0: a row end only
 };
 
+/// std::allocator, but resize() leaves new elements of a trivial type uninitialised: the outline
+/// cells are copied into them at once (from a GPU, from the parts of a run), and zeroing gigabytes
+/// first, on one thread, took longer than the copies.
+template <class T>
+struct DefaultInitAllocator : std::allocator<T> {
+  template <class U>
+  struct rebind {
+    using other = DefaultInitAllocator<U>;
+  };
+  DefaultInitAllocator() noexcept = default;
+  template <class U>
+  DefaultInitAllocator(const DefaultInitAllocator<U>&) noexcept {}
+  template <class U>
+  void construct(U* p) noexcept(std::is_nothrow_default_constructible<U>::value) {
+    ::new (static_cast<void*>(p)) U;
+  }
+  template <class U, class... Args>
+  void construct(U* p, Args&&... args) {
+    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
+};
+
 /// True for the first and last cell of an octant row (column 0 or 2 row).
 QTMV_HD inline bool is_row_end(const grid::Cell& c) { return c.col == 0 || c.col == 2 * c.row; }
+
+/// A list of outline cells (in code order where it is a product).
+using OutlineCells = std::vector<OutlineCell, DefaultInitAllocator<OutlineCell>>;
 
 /// Outline cells listed per octant row: 2 per row but the pole row's one, 8 octants.
 inline std::uint64_t row_end_count(int level) { return 8 * (2 * grid::rows_per_octant(level) - 1); }
@@ -59,13 +88,13 @@ struct Outlines {
   int level = 0;
   std::int32_t site_count = 0;
   grid::CodeRange range;                      ///< the codes labelled (whole_level(level) for a whole run)
-  std::vector<OutlineCell> cells;             ///< every outline cell of the range, in code order, once
+  OutlineCells cells;             ///< every outline cell of the range, in code order, once
   std::vector<std::uint64_t> cells_per_site;  ///< cells of the range labelled with each site (site_count)
 };
 
 /// The site of any cell of the level: the site of the last outline cell at or before `code`
 /// (the row's first cell is one; the cells after it in the row up to the next share its site).
-inline std::int32_t site_of(const std::vector<OutlineCell>& cells, grid::Code code) {
+inline std::int32_t site_of(const OutlineCells& cells, grid::Code code) {
   const auto after = std::upper_bound(cells.begin(), cells.end(), code,
                                       [](grid::Code c, const OutlineCell& o) { return c < o.code; });
   if (after == cells.begin()) throw std::logic_error("outline cells: no row start at or before code " + std::to_string(code));
@@ -75,7 +104,7 @@ inline std::int32_t site_of(const std::vector<OutlineCell>& cells, grid::Code co
 /// site_of for a cell near the k-th outline cell, such as one of its neighbours: the cells next to
 /// it in its row are settled by the outline cells next to it in the list; others (the cell above
 /// or below, a row away) by a search that gallops out from k, so that it stays in memory near k.
-inline std::int32_t site_of_near(const std::vector<OutlineCell>& cells, std::size_t k, grid::Code code) {
+inline std::int32_t site_of_near(const OutlineCells& cells, std::size_t k, grid::Code code) {
   const std::size_t n = cells.size();
   // The answer is the last index j with cells[j].code <= code; find lo <= j < hi around k.
   std::size_t lo, hi;
@@ -111,7 +140,7 @@ inline std::int32_t site_of_near(const std::vector<OutlineCell>& cells, std::siz
 /// The cells per site from the outline cells (in code order, row ends included) of a range that
 /// ends at `end` (0: the level's end): each outline cell's site owns the cells from it up to the
 /// next outline cell.
-inline std::vector<std::uint64_t> count_cells_per_site(const std::vector<OutlineCell>& cells, int level,
+inline std::vector<std::uint64_t> count_cells_per_site(const OutlineCells& cells, int level,
                                                        std::int32_t site_count, grid::Code end = 0) {
   std::vector<std::uint64_t> count(static_cast<std::size_t>(site_count), 0);
   if (end == 0) end = grid::cell_count(level);

@@ -287,7 +287,7 @@ std::vector<Region> trace_regions(const label::Outlines& outlines, const std::fu
   };
   const int level = outlines.level;
   grid::require_level(level);
-  const std::vector<label::OutlineCell>& cells = outlines.cells;
+  const label::OutlineCells& cells = outlines.cells;
   const auto n = static_cast<std::int64_t>(cells.size());
 
   // Boundary edges of every region with their site, each thread's in a list of its own.

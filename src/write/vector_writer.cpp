@@ -112,7 +112,7 @@ struct EdgeRef {
 /// edge has a boundary cell on each side: the outline cells hold them all.
 std::vector<EdgeRef> gather_edges(const label::Outlines& outlines) {
   const int level = outlines.level;
-  const std::vector<label::OutlineCell>& cells = outlines.cells;
+  const label::OutlineCells& cells = outlines.cells;
   const auto n = static_cast<std::int64_t>(cells.size());
   std::vector<EdgeRef> all;
   FirstException failure;

@@ -158,6 +158,8 @@ void label_on_gpu(cuda::Labeller& gpu, int device, int level, grid::CodeRange ra
                              " of outputs on the GPU; not even a tile of 4096 cells fits in the " +
                              format_gib(double(device_limit)) + " available");
   }
+  const bool trace = std::getenv("QTMV_LABEL_TRACE") != nullptr;
+  const double reserve_start = now_seconds();
   for (;;) {
     try {
       gpu.reserve(device_tile, options.want_distance, options.want_boundary);
@@ -175,9 +177,12 @@ void label_on_gpu(cuda::Labeller& gpu, int device, int level, grid::CodeRange ra
              "; labelling in tiles of " + std::to_string(device_tile) + " cells");
   }
   stats.device_bytes = gpu.device_bytes();
+  if (trace) std::fprintf(stderr, "trace: device buffers of %llu cells: %.3f s\n", static_cast<unsigned long long>(device_tile), now_seconds() - reserve_start);
   for (std::uint64_t first = done; first < range.end; first += device_tile) {
     const std::uint64_t count = std::min(device_tile, range.end - first);
+    const double tile_start = now_seconds();
     stats.label_seconds += gpu.run(first, count, options.want_distance, options.want_boundary) / 1e3;
+    const double run_end = now_seconds();
     ++stats.tiles;
     if (outline) {
       stats.copy_seconds += gpu.select_outline(first, count, outline) / 1e3;
@@ -186,6 +191,10 @@ void label_on_gpu(cuda::Labeller& gpu, int device, int level, grid::CodeRange ra
       if (done < range.end && outline->capacity() < outline->size() * 2) {
         const double rate = static_cast<double>(outline->size()) / static_cast<double>(done - range.first);
         outline->reserve(outline->size() + static_cast<std::size_t>(rate * 1.1 * static_cast<double>(range.end - done)));
+      }
+      if (trace) {
+        std::fprintf(stderr, "trace: tile of %llu cells: run %.3f s, outline selection %.3f s (%zu outline cells so far)\n",
+                     static_cast<unsigned long long>(count), run_end - tile_start, now_seconds() - run_end, outline->size());
       }
     }
     for (std::uint64_t offset = 0; !outline && offset < count; offset += host.cells) {

@@ -80,6 +80,18 @@ void check_vector_destination(const std::string& destination, RunPlan& plan) {
   plan.cells_layer = std::find(vector.layers.begin(), vector.layers.end(), "cells") != vector.layers.end();
 }
 
+// A plan of options.level, checked.
+RunPlan plan_level(const VoronoiOptions& options) {
+  RunPlan plan;
+  plan.level = options.level;
+  try {
+    grid::require_level(plan.level);
+  } catch (const std::invalid_argument& e) {
+    throw VoronoiError(std::string("-level: ") + e.what());
+  }
+  return plan;
+}
+
 // The labeller's options, and a GPU asked for and missing (fails now, not after the read).
 void plan_labeller(RunPlan& plan, const VoronoiOptions& options, bool want_distance) {
   DeviceSpec device;
@@ -124,7 +136,9 @@ std::uint64_t estimate_run_memory(const RunPlan& plan, std::uint64_t sites) {
   // about 3 boundary cells per cell edge (pi / 2^(L+1) radians) of it.
   const double boundary = 6.6 * std::sqrt(static_cast<double>(std::max<std::uint64_t>(sites, 1))) * 3.0 *
                           std::ldexp(1.0, level + 1) / 3.14159265358979;
-  const double outline = static_cast<double>(label::row_end_count(level)) + std::min(boundary, double(dense.cells));
+  double outline = static_cast<double>(label::row_end_count(level)) + std::min(boundary, double(dense.cells));
+  // A tile job holds its part of them (its rows, about its share of the edges).
+  if (plan.label.range.end != 0) outline *= static_cast<double>(plan.label.range.size()) / static_cast<double>(dense.cells);
   if (plan.format.raster) {
     // The labelling session's tree (its jump table grows with the level, up to 256 MiB) and the
     // writer's strip: never every cell's labels.
@@ -154,13 +168,7 @@ void check_run_memory(const RunPlan& plan, std::uint64_t memory_limit_bytes, std
 }
 
 RunPlan plan_run(const std::string& destination, const VoronoiOptions& options) {
-  RunPlan plan;
-  plan.level = options.level;
-  try {
-    grid::require_level(plan.level);
-  } catch (const std::invalid_argument& e) {
-    throw VoronoiError(std::string("-level: ") + e.what());
-  }
+  RunPlan plan = plan_level(options);
   if (options.tile_count > 0) throw VoronoiError("-tile: a tile job is planned by plan_tile_job");
   plan.format = choose_output_format(destination, options.format, options.kind);
   if (!options.merge.empty()) {
@@ -217,13 +225,7 @@ RunPlan plan_run(const std::string& destination, const VoronoiOptions& options) 
 }
 
 RunPlan plan_tile_job(const std::string& destination, const VoronoiOptions& options) {
-  RunPlan plan;
-  plan.level = options.level;
-  try {
-    grid::require_level(plan.level);
-  } catch (const std::invalid_argument& e) {
-    throw VoronoiError(std::string("-level: ") + e.what());
-  }
+  RunPlan plan = plan_level(options);
   if (!options.merge.empty()) throw VoronoiError("-tile and -merge: a run labels one tile, or merges all of them");
   if (destination.empty()) throw VoronoiError("-tile: no file named for the tile product");
   plan.tile_index = options.tile_index;

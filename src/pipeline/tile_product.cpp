@@ -156,68 +156,109 @@ void write_tile_product(const std::string& path, const TileProduct& product) {
   if (!ok) throw VoronoiError("'" + path + "': writing the tile product failed (disk full?)" + said(errors));
 }
 
+namespace {
+
+/// A tile product whose header has been read and checked; read_body() reads the rest. The file
+/// is open only while each is read (a merge may hold thousands of these).
+class TileReader {
+ public:
+  explicit TileReader(std::string path) : path_(std::move(path)) {
+    gdal::ErrorCapture errors;
+    VSIStatBufL stat;
+    if (VSIStatL(path_.c_str(), &stat) != 0) throw fail("no such tile product");
+    const File file(VSIFOpenL(path_.c_str(), "rb"));
+    if (!file) throw fail("cannot open the tile product" + said(errors));
+    const auto size = static_cast<std::uint64_t>(stat.st_size);
+    if (size < kHeaderBytes || VSIFReadL(header_, 1, kHeaderBytes, file.get()) != kHeaderBytes ||
+        std::memcmp(header_, kMagic, sizeof kMagic) != 0) {
+      throw fail("not a qtmvoronoi tile product (made by qtmvoronoi -tile K/N)");
+    }
+    std::size_t at = sizeof kMagic;
+    const auto version = get<std::uint32_t>(header_, at);
+    if (version != kVersion) {
+      throw fail("a tile product of version " + std::to_string(version) + "; this qtmvoronoi reads version " +
+                 std::to_string(kVersion) + ": run the tile jobs again with this version");
+    }
+    level = static_cast<int>(get<std::uint32_t>(header_, at));
+    const auto rule_code = get<std::uint32_t>(header_, at);
+    index = static_cast<int>(get<std::uint32_t>(header_, at));
+    count = static_cast<int>(get<std::uint32_t>(header_, at));
+    site_count = get<std::int32_t>(header_, at);
+    sites_fingerprint = get<std::uint64_t>(header_, at);
+    range.first = get<std::uint64_t>(header_, at);
+    range.end = get<std::uint64_t>(header_, at);
+    cells = get<std::uint64_t>(header_, at);
+    if (!grid::is_valid_level(level) || rule_code > 1 || site_count <= 0 || count < 1 || index < 1 || index > count ||
+        count > grid::most_row_parts(level) || cells > grid::cell_count(level) ||
+        !(range == grid::tile_range(level, index, count))) {
+      throw fail("corrupt tile product (its header holds impossible values)");
+    }
+    rule = rule_code == 0 ? label::Rule::exact : label::Rule::cell;
+    const std::uint64_t expected = kHeaderBytes + cells * kCellBytes +
+                                   static_cast<std::uint64_t>(site_count) * sizeof(std::uint64_t) + sizeof(std::uint64_t);
+    if (size < expected) {
+      throw fail("truncated tile product (" + std::to_string(size) + " bytes of " + std::to_string(expected) +
+                 "): was its tile job stopped, or the copy cut short?");
+    }
+    if (size > expected) throw fail("corrupt tile product (" + std::to_string(size - expected) + " bytes too many)");
+  }
+
+  /// Appends the outline cells to *cells and adds the cells per site to *per_site (site_count of
+  /// them), checking the checksum. The caller checks the cells (check_outlines).
+  void read_body(label::OutlineCells* out, std::vector<std::uint64_t>* per_site) {
+    gdal::ErrorCapture errors;
+    const File file(VSIFOpenL(path_.c_str(), "rb"));
+    if (!file || VSIFSeekL(file.get(), kHeaderBytes, SEEK_SET) != 0) throw fail("cannot open the tile product" + said(errors));
+    Hash64 checksum;
+    checksum.add_bytes(header_, kHeaderBytes);
+    const std::size_t at = out->size();
+    out->resize(at + cells);
+    std::vector<std::uint64_t> counts(static_cast<std::size_t>(site_count));
+    std::uint64_t stored = 0;
+    const auto read = [&](void* data, std::size_t bytes) {
+      if (bytes > 0 && VSIFReadL(data, 1, bytes, file.get()) != bytes) throw fail("reading failed" + said(errors));
+    };
+    read(out->data() + at, cells * kCellBytes);
+    checksum.add_bytes(reinterpret_cast<const unsigned char*>(out->data() + at), cells * kCellBytes);
+    read(counts.data(), counts.size() * sizeof(std::uint64_t));
+    checksum.add_bytes(reinterpret_cast<const unsigned char*>(counts.data()), counts.size() * sizeof(std::uint64_t));
+    read(&stored, sizeof stored);
+    if (stored != checksum.value()) throw fail("corrupt tile product (its checksum does not match its contents)");
+    per_site->resize(counts.size(), 0);
+    for (std::size_t s = 0; s < counts.size(); ++s) (*per_site)[s] += counts[s];
+  }
+
+  VoronoiError fail(const std::string& why) const { return VoronoiError("'" + path_ + "': " + why); }
+  const std::string& path() const { return path_; }
+
+  int level = 0, index = 0, count = 0;
+  label::Rule rule = label::Rule::exact;
+  std::int32_t site_count = 0;
+  std::uint64_t sites_fingerprint = 0, cells = 0;
+  grid::CodeRange range;
+
+ private:
+  std::string path_;
+  unsigned char header_[kHeaderBytes];
+};
+
+}  // namespace
+
 TileProduct read_tile_product(const std::string& path) {
-  const auto fail = [&](const std::string& why) { return VoronoiError("'" + path + "': " + why); };
-  gdal::ErrorCapture errors;
-  VSIStatBufL stat;
-  if (VSIStatL(path.c_str(), &stat) != 0) throw fail("no such tile product");
-  File file(VSIFOpenL(path.c_str(), "rb"));
-  if (!file) throw fail("cannot open the tile product" + said(errors));
-  const auto size = static_cast<std::uint64_t>(stat.st_size);
-  unsigned char header[kHeaderBytes];
-  if (size < kHeaderBytes || VSIFReadL(header, 1, kHeaderBytes, file.get()) != kHeaderBytes ||
-      std::memcmp(header, kMagic, sizeof kMagic) != 0) {
-    throw fail("not a qtmvoronoi tile product (made by qtmvoronoi -tile K/N)");
-  }
-  std::size_t at = sizeof kMagic;
-  const auto version = get<std::uint32_t>(header, at);
-  if (version != kVersion) {
-    throw fail("a tile product of version " + std::to_string(version) + "; this qtmvoronoi reads version " +
-               std::to_string(kVersion) + ": run the tile jobs again with this version");
-  }
+  TileReader reader(path);
   TileProduct p;
-  label::Outlines& o = p.outlines;
-  o.level = static_cast<int>(get<std::uint32_t>(header, at));
-  const auto rule = get<std::uint32_t>(header, at);
-  p.index = static_cast<int>(get<std::uint32_t>(header, at));
-  p.count = static_cast<int>(get<std::uint32_t>(header, at));
-  o.site_count = get<std::int32_t>(header, at);
-  p.sites_fingerprint = get<std::uint64_t>(header, at);
-  o.range.first = get<std::uint64_t>(header, at);
-  o.range.end = get<std::uint64_t>(header, at);
-  const auto cells = get<std::uint64_t>(header, at);
-  if (!grid::is_valid_level(o.level) || rule > 1 || o.site_count <= 0 || p.count < 1 || p.index < 1 ||
-      p.index > p.count || cells > grid::cell_count(o.level)) {
-    throw fail("corrupt tile product (its header holds impossible values)");
-  }
-  p.rule = rule == 0 ? label::Rule::exact : label::Rule::cell;
-  const std::uint64_t expected = kHeaderBytes + cells * kCellBytes +
-                                 static_cast<std::uint64_t>(o.site_count) * sizeof(std::uint64_t) + sizeof(std::uint64_t);
-  if (size < expected) {
-    throw fail("truncated tile product (" + std::to_string(size) + " bytes of " + std::to_string(expected) +
-               "): was its tile job stopped, or the copy cut short?");
-  }
-  if (size > expected) throw fail("corrupt tile product (" + std::to_string(size - expected) + " bytes too many)");
-  Hash64 checksum;
-  checksum.add_bytes(header, kHeaderBytes);
-  o.cells.resize(cells);
-  o.cells_per_site.resize(static_cast<std::size_t>(o.site_count));
-  std::uint64_t stored = 0;
-  const auto read = [&](void* data, std::size_t bytes) {
-    if (bytes > 0 && VSIFReadL(data, 1, bytes, file.get()) != bytes) throw fail("reading failed" + said(errors));
-  };
-  read(o.cells.data(), o.cells.size() * kCellBytes);
-  checksum.add_bytes(reinterpret_cast<const unsigned char*>(o.cells.data()), o.cells.size() * kCellBytes);
-  read(o.cells_per_site.data(), o.cells_per_site.size() * sizeof(std::uint64_t));
-  checksum.add_bytes(reinterpret_cast<const unsigned char*>(o.cells_per_site.data()),
-                     o.cells_per_site.size() * sizeof(std::uint64_t));
-  read(&stored, sizeof stored);
-  if (stored != checksum.value()) throw fail("corrupt tile product (its checksum does not match its contents)");
+  p.index = reader.index;
+  p.count = reader.count;
+  p.rule = reader.rule;
+  p.sites_fingerprint = reader.sites_fingerprint;
+  p.outlines.level = reader.level;
+  p.outlines.site_count = reader.site_count;
+  p.outlines.range = reader.range;
+  reader.read_body(&p.outlines.cells, &p.outlines.cells_per_site);
   try {
-    if (!(o.range == grid::tile_range(o.level, p.index, p.count))) throw std::logic_error("not the tile's codes");
-    label::check_outlines(o);
+    label::check_outlines(p.outlines);
   } catch (const std::exception& e) {
-    throw fail(std::string("corrupt tile product (") + e.what() + ")");
+    throw reader.fail(std::string("corrupt tile product (") + e.what() + ")");
   }
   return p;
 }
@@ -251,42 +292,40 @@ std::vector<std::string> tile_product_files(const std::vector<std::string>& path
 label::Outlines merge_tile_products(const std::vector<std::string>& files, const MergeExpectation& expect,
                                     const std::function<bool(double)>& progress) {
   if (files.empty()) throw VoronoiError("-merge: no tile products given");
-  std::map<int, std::pair<std::string, TileProduct>> tiles;  // by index
+  // Every header first: a tile that does not belong, or one missing, fails before the reading.
+  std::map<int, std::unique_ptr<TileReader>> tiles;  // by index
   int count = 0;
   std::string count_from;
-  for (std::size_t k = 0; k < files.size(); ++k) {
-    const std::string& file = files[k];
-    TileProduct p = read_tile_product(file);
-    const auto fail = [&](const std::string& why) { return VoronoiError("'" + file + "': " + why); };
-    const label::Outlines& o = p.outlines;
-    if (o.level != expect.level) {
-      throw fail("a tile of level " + std::to_string(o.level) + "; this merge is of level " + std::to_string(expect.level) +
-                 " (-level)");
+  for (const std::string& file : files) {
+    auto tile = std::make_unique<TileReader>(file);
+    if (tile->level != expect.level) {
+      throw tile->fail("a tile of level " + std::to_string(tile->level) + "; this merge is of level " +
+                       std::to_string(expect.level) + " (-level)");
     }
-    if (p.rule != expect.rule) {
-      throw fail("a tile labelled with -distance " + rule_name(p.rule) + "; this merge uses -distance " +
-                 rule_name(expect.rule));
+    if (tile->rule != expect.rule) {
+      throw tile->fail("a tile labelled with -distance " + rule_name(tile->rule) + "; this merge uses -distance " +
+                       rule_name(expect.rule));
     }
-    if (o.site_count != expect.site_count || p.sites_fingerprint != expect.sites_fingerprint) {
-      throw fail("a tile of other sites than " + expect.source + " read with these options (" +
-                 std::to_string(o.site_count) + " sites, against " + std::to_string(expect.site_count) +
-                 " read now): give the merge the source and the reading options (-l, -where, -sql, -s_srs, -oo, "
-                 "-edges, ...) of the tile jobs");
+    if (tile->site_count != expect.site_count || tile->sites_fingerprint != expect.sites_fingerprint) {
+      throw tile->fail("a tile of other sites than " + expect.source + " read with these options (" +
+                       std::to_string(tile->site_count) + " sites, against " + std::to_string(expect.site_count) +
+                       " read now): give the merge the source and the reading options (-l, -where, -sql, -s_srs, "
+                       "-oo, -edges, ...) of the tile jobs");
     }
     if (count == 0) {
-      count = p.count;
+      count = tile->count;
       count_from = file;
-    } else if (p.count != count) {
-      throw fail("tile " + std::to_string(p.index) + " of " + std::to_string(p.count) + ", but '" + count_from +
-                 "' is a tile of " + std::to_string(count) + ": all tiles of a merge come from one split -tile K/N");
+    } else if (tile->count != count) {
+      throw tile->fail("tile " + std::to_string(tile->index) + " of " + std::to_string(tile->count) + ", but '" +
+                       count_from + "' is a tile of " + std::to_string(count) +
+                       ": all tiles of a merge come from one split -tile K/N");
     }
-    const auto [at, inserted] = tiles.emplace(p.index, std::make_pair(file, TileProduct{}));
-    if (!inserted) {
-      throw fail("tile " + std::to_string(p.index) + "/" + std::to_string(count) + " again; '" + at->second.first +
-                 "' is that tile too");
+    const int index = tile->index;
+    if (const auto same = tiles.find(index); same != tiles.end()) {
+      throw tile->fail("tile " + std::to_string(index) + "/" + std::to_string(count) + " again; '" +
+                       same->second->path() + "' is that tile too");
     }
-    at->second.second = std::move(p);
-    if (progress && !progress(double(k + 1) / double(files.size()))) throw Interrupted();
+    tiles.emplace(index, std::move(tile));
   }
   if (static_cast<int>(tiles.size()) != count) {
     std::string missing;
@@ -299,19 +338,33 @@ label::Outlines merge_tile_products(const std::vector<std::string>& files, const
     throw VoronoiError("-merge: " + std::to_string(absent) + " of the " + std::to_string(count) +
                        " tiles missing (" + missing + (absent > listed ? ", ..." : "") + ")");
   }
+  // Then the bodies, in code order, straight into the level's lists: the outline cells are held
+  // once, as a whole run holds them.
   label::Outlines joined;
   joined.level = expect.level;
   joined.site_count = expect.site_count;
   joined.range = grid::whole_level(expect.level);
-  joined.cells_per_site.assign(static_cast<std::size_t>(expect.site_count), 0);
-  std::size_t cells = 0;
-  for (const auto& [index, tile] : tiles) cells += tile.second.outlines.cells.size();
+  std::uint64_t cells = 0;
+  for (const auto& [index, tile] : tiles) cells += tile->cells;
   joined.cells.reserve(cells);
+  std::size_t done = 0;
   for (auto& [index, tile] : tiles) {
-    label::Outlines& o = tile.second.outlines;
-    joined.cells.insert(joined.cells.end(), o.cells.begin(), o.cells.end());
-    for (std::size_t s = 0; s < joined.cells_per_site.size(); ++s) joined.cells_per_site[s] += o.cells_per_site[s];
-    o = {};  // its memory, now that it is joined
+    const std::size_t from = joined.cells.size();
+    tile->read_body(&joined.cells, &joined.cells_per_site);
+    // The tile's cells must lie in its codes, in order (the whole is checked below).
+    for (std::size_t k = from; k < joined.cells.size(); ++k) {
+      const grid::Code code = joined.cells[k].code;
+      if (code < tile->range.first || code >= tile->range.end || (k > from && joined.cells[k - 1].code >= code)) {
+        throw tile->fail("corrupt tile product (outline cell " + std::to_string(code) + " out of place)");
+      }
+    }
+    tile.reset();  // closes the file
+    if (progress && !progress(double(++done) / double(tiles.size()))) throw Interrupted();
+  }
+  try {
+    label::check_outlines(joined);
+  } catch (const std::exception& e) {
+    throw VoronoiError(std::string("-merge: the tile products do not make the level's outline cells (") + e.what() + ")");
   }
   return joined;
 }

@@ -124,7 +124,7 @@ TEST(TileMerge, LinesMergeIntoTheWholeRun) {
 
 TEST(TileMerge, PolygonsMergeIntoTheWholeRun) {
   expect_merge_is_the_whole_run(kCountries, case_options(kCountries, 7), 4);
-  expect_merge_is_the_whole_run(kCountries, case_options(kCountries, 9), 7);
+  expect_merge_is_the_whole_run(kCountries, case_options(kCountries, 10), 3);
 }
 
 /// Expects the merge of `paths` to fail with a message holding every one of `words`, and the

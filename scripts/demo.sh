@@ -4,6 +4,8 @@
 # at level 9, as GeoPackage layers and as rasters, in build/demo/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# GDAL's command-line tools make the picture (build/demo/countries_voronoi.png) from the raster.
+scripts/deps.sh gdal-bin
 scripts/build.sh
 qtmvoronoi=build/tools/qtmvoronoi/qtmvoronoi
 out=build/demo
@@ -22,7 +24,8 @@ echo "== the regions nearest to each country (polygon sites)"
 echo "== the same as a lon/lat raster of 0.25 degree pixels"
 "$qtmvoronoi" -progress -overwrite -level $level -tr 0.25 0.25 "${countries[@]}" "$out/countries_lonlat.tif"
 
-# With GDAL's command-line tools (Debian: gdal-bin), a look at the results and a picture.
+# With GDAL's command-line tools (Debian: gdal-bin, installed above), a look at the results and
+# the picture.
 if command -v ogrinfo > /dev/null; then
   echo "== the five largest regions of the country centres"
   ogrinfo -q -sql "SELECT name, cells, CAST(area_m2 / 1e6 AS INTEGER) AS area_km2 FROM regions ORDER BY area_m2 DESC LIMIT 5" \

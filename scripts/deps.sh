@@ -1,11 +1,15 @@
 #!/usr/bin/env bash
-# Installs the Debian 12 packages that qtmvoronoi needs to build and test, when they are missing.
+# Installs the Debian 12 packages that qtmvoronoi needs to build and test, and any named as
+# arguments, when they are missing.
 # CUDA is not among them: the build finds nvcc (/usr/local/cuda/bin) when it is there.
 set -euo pipefail
 
 # parallel: GNU parallel, for the test of the tile jobs' example (examples/tiles_gnu_parallel.sh).
 packages=(cmake ninja-build g++ pkg-config perl parallel
           libgdal-dev libgeos-dev libsqlite3-dev libgeographiclib-dev libgtest-dev libbenchmark-dev)
+
+# Arguments: more packages a script needs (the demo: gdal-bin, for its picture).
+packages+=("$@")
 
 missing=()
 for p in "${packages[@]}"; do

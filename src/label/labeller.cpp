@@ -3,12 +3,12 @@
 #include "label/labeller.hpp"
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <atomic>
-#include <chrono>
 #include <exception>
 #include <future>
 #include <memory>
@@ -177,7 +177,10 @@ void label_on_gpu(cuda::Labeller& gpu, int device, int level, grid::CodeRange ra
              "; labelling in tiles of " + std::to_string(device_tile) + " cells");
   }
   stats.device_bytes = gpu.device_bytes();
-  if (trace) std::fprintf(stderr, "trace: device buffers of %llu cells: %.3f s\n", static_cast<unsigned long long>(device_tile), now_seconds() - reserve_start);
+  if (trace) {
+    std::fprintf(stderr, "trace: device buffers of %llu cells: %.3f s\n", static_cast<unsigned long long>(device_tile),
+                 now_seconds() - reserve_start);
+  }
   for (std::uint64_t first = done; first < range.end; first += device_tile) {
     const std::uint64_t count = std::min(device_tile, range.end - first);
     const double tile_start = now_seconds();

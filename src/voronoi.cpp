@@ -79,17 +79,14 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   summary.label_seconds = now_seconds() - t0;
 
   t0 = now_seconds();
+  // A raster's labels are made strip by strip as it is written: that time counts as labelling.
+  double strip_label_seconds = 0;
   if (tile_job) {
     pipeline::write_tile_stage(output.begin(), destination, labels, sites, options, plan);
-    output.commit();
-    summary.write_seconds = now_seconds() - t0;
-    summary.total_seconds = now_seconds() - t_start;
-    tell(options.messages, Severity::info, summary.line());
-    return summary;
+  } else {
+    strip_label_seconds = pipeline::write_stage(output.begin(), destination, labels, sites, plan, progress,
+                                                options.messages, &summary.sites_without_cell);
   }
-  // A raster's labels are made strip by strip as it is written: that time counts as labelling.
-  const double strip_label_seconds = pipeline::write_stage(output.begin(), destination, labels, sites, plan,
-                                                                  progress, options.messages, &summary.sites_without_cell);
   summary.label_seconds += strip_label_seconds;
   output.commit();
   summary.write_seconds = now_seconds() - t0 - strip_label_seconds;

@@ -38,6 +38,11 @@ inline bool is_row_start(Code code, int level) {
   return code == cell_count(level) || (is_valid_code(code, level) && cell_of(code, level).col == 0);
 }
 
+/// True when `range` is non-empty and both its ends are row starts of the level (whole rows).
+inline bool is_rows(CodeRange range, int level) {
+  return range.first < range.end && is_row_start(range.first, level) && is_row_start(range.end, level);
+}
+
 /// The most parts split_in_rows accepts at a level: a part gets at least as many cells as the
 /// longest row (2^(level+1) - 1), so that no part is empty.
 inline int most_row_parts(int level) {
@@ -50,7 +55,7 @@ inline int most_row_parts(int level) {
 /// parts < 1 or more parts than the range's rows allow.
 inline std::vector<CodeRange> split_in_rows(CodeRange range, int parts, int level) {
   if (parts < 1) throw std::invalid_argument("a range is split into at least one part");
-  if (!is_row_start(range.first, level) || !is_row_start(range.end, level) || range.end <= range.first) {
+  if (!is_rows(range, level)) {
     throw std::invalid_argument("the range to split must start and end at row starts");
   }
   std::vector<CodeRange> out;

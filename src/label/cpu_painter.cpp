@@ -427,8 +427,10 @@ OutlineCells cpu_tree_outlines(const Tree& tree, const TreeView& tv, int threads
   }
   OutlineCells all = join_in_code_order(parts);
   if (range == grid::whole_level(tree.level)) return all;
-  const auto in_range = [&](const OutlineCell& c) { return c.code >= range.first && c.code < range.end; };
-  all.erase(std::remove_if(all.begin(), all.end(), [&](const OutlineCell& c) { return !in_range(c); }), all.end());
+  // The leaves met at the range's ends bring cells from outside it.
+  all.erase(std::remove_if(all.begin(), all.end(),
+                           [&](const OutlineCell& c) { return c.code < range.first || c.code >= range.end; }),
+            all.end());
   return all;
 }
 

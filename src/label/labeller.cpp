@@ -125,6 +125,17 @@ MemoryEstimate estimate_output_memory(int level, const LabelOptions& options) {
 
 namespace {
 
+/// The codes a run labels: options.range, or the whole level when it is empty. Throws
+/// std::invalid_argument unless they are whole rows of the level.
+grid::CodeRange range_of(const LabelOptions& options, int level) {
+  const grid::CodeRange range = options.range.end == 0 ? grid::whole_level(level) : options.range;
+  if (!grid::is_rows(range, level)) {
+    throw std::invalid_argument("codes " + std::to_string(range.first) + " to " + std::to_string(range.end) +
+                                " are not whole rows of level " + std::to_string(level));
+  }
+  return range;
+}
+
 /// The host's buffers for one tile of outputs.
 struct HostTile {
   std::uint64_t cells;
@@ -239,12 +250,7 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
   validate(given, options.rule);
   const int threads = thread_count(options.threads);
   const DeviceChoice device = choose_device(options.device);
-  const grid::CodeRange range = options.range.end == 0 ? grid::whole_level(given.level) : options.range;
-  if (range.end > grid::cell_count(given.level) || range.end <= range.first ||
-      !grid::is_row_start(range.first, given.level) || !grid::is_row_start(range.end, given.level)) {
-    throw std::invalid_argument("codes " + std::to_string(range.first) + " to " + std::to_string(range.end) +
-                                " are not whole rows of level " + std::to_string(given.level));
-  }
+  const grid::CodeRange range = range_of(options, given.level);
   LabelStats stats;
   auto say = [&](const std::string& message) { tell(options.messages, Severity::info, message); };
   auto progress = [&](double fraction, const char* stage) { report_progress(options.progress, fraction, stage); };
@@ -432,7 +438,7 @@ LabelStats label_outlines(const LabelInput& input, const LabelOptions& options, 
   Outlines result;
   result.level = input.level;
   result.site_count = input.site_count;
-  result.range = options.range.end == 0 ? grid::whole_level(input.level) : options.range;
+  result.range = range_of(options, input.level);
   const LabelStats stats = run_labelling(input, outline_options, {}, &result.cells);
   result.cells_per_site = count_cells_per_site(result.cells, input.level, input.site_count, result.range.end);
   *out = std::move(result);
@@ -443,7 +449,7 @@ LabelStats label_outlines_on(const LabelInput& input, const LabelOptions& option
                              const std::vector<std::string>& devices, Outlines* out) {
   if (devices.empty()) throw std::invalid_argument("label_outlines_on: no device");
   grid::require_level(input.level);
-  const grid::CodeRange range = options.range.end == 0 ? grid::whole_level(input.level) : options.range;
+  const grid::CodeRange range = range_of(options, input.level);
   const std::vector<grid::CodeRange> parts = grid::split_in_rows(range, static_cast<int>(devices.size()), input.level);
   const std::size_t n = parts.size();
   std::vector<Outlines> products(n);

@@ -157,8 +157,7 @@ inline std::vector<std::uint64_t> count_cells_per_site(const OutlineCells& cells
 inline void check_outlines(const Outlines& o) {
   const auto fail = [](const std::string& what) { throw std::logic_error("outline cells: " + what); };
   if (static_cast<std::int32_t>(o.cells_per_site.size()) != o.site_count) fail("cells_per_site has the wrong size");
-  if (!grid::is_valid_level(o.level) || o.range.end <= o.range.first || !grid::is_row_start(o.range.first, o.level) ||
-      !grid::is_row_start(o.range.end, o.level)) {
+  if (!grid::is_valid_level(o.level) || !grid::is_rows(o.range, o.level)) {
     fail("the range [" + std::to_string(o.range.first) + ", " + std::to_string(o.range.end) +
          ") is not rows of the level");
   }

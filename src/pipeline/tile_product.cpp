@@ -244,25 +244,6 @@ class TileReader {
 
 }  // namespace
 
-TileProduct read_tile_product(const std::string& path) {
-  TileReader reader(path);
-  TileProduct p;
-  p.index = reader.index;
-  p.count = reader.count;
-  p.rule = reader.rule;
-  p.sites_fingerprint = reader.sites_fingerprint;
-  p.outlines.level = reader.level;
-  p.outlines.site_count = reader.site_count;
-  p.outlines.range = reader.range;
-  reader.read_body(&p.outlines.cells, &p.outlines.cells_per_site);
-  try {
-    label::check_outlines(p.outlines);
-  } catch (const std::exception& e) {
-    throw reader.fail(std::string("corrupt tile product (") + e.what() + ")");
-  }
-  return p;
-}
-
 std::vector<std::string> tile_product_files(const std::vector<std::string>& paths) {
   std::vector<std::string> files;
   for (const std::string& path : paths) {

@@ -44,11 +44,6 @@ std::uint64_t input_fingerprint(const label::LabelInput& input);
 /// the path.
 void write_tile_product(const std::string& path, const TileProduct& product);
 
-/// Reads and checks one tile product (its layout, checksum and outline cells). Throws
-/// VoronoiError naming the path: missing, not a tile product, of another version, truncated,
-/// corrupt.
-TileProduct read_tile_product(const std::string& path);
-
 /// What the tiles must match: the run that merges them.
 struct MergeExpectation {
   int level = 0;

@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "common/device_spec.hpp"
 #include "grid/qtm.hpp"
 #include "grid/qtm_key_ranges.hpp"
 #include "label/fixed_cover.hpp"
@@ -886,6 +887,38 @@ TEST_P(LabelDevice, SeveralDevicesGiveOneDevicesOutlines) {
       EXPECT_NE(stats.device.find(", "), std::string::npos) << stats.device;  // every device named
     }
   }
+}
+
+// -device lists: cuda:all and cuda:N,M,... parse to the ordinals named, once each; malformed
+// lists are refused naming the text; a GPU list on a host without one (or past its count) fails.
+TEST(LabelInterface, DeviceListsAreParsedAndChecked) {
+  const DeviceSpec all = parse_device_spec("cuda:all");
+  EXPECT_TRUE(all.all && all.several() && all.kind == DeviceSpec::Kind::cuda);
+  const DeviceSpec two = parse_device_spec("cuda:2,0");
+  EXPECT_EQ(two.indices, (std::vector<int>{2, 0}));
+  EXPECT_EQ(two.index, 2);
+  EXPECT_TRUE(two.several());
+  EXPECT_FALSE(parse_device_spec("cuda:1").several());
+  EXPECT_EQ(parse_device_spec("cuda").indices, (std::vector<int>{0}));
+  for (const std::string bad : {"cuda:", "cuda:0,", "cuda:,1", "cuda:a", "cuda:0;1", "cuda:all,1", "gpu:0"}) {
+    EXPECT_THROW(parse_device_spec(bad), std::invalid_argument) << bad;
+  }
+  try {
+    parse_device_spec("cuda:1,1");
+    ADD_FAILURE() << "a device named twice was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("twice"), std::string::npos) << e.what();
+  }
+  const int gpus = cuda_device_count();
+  if (gpus == 0) {
+    EXPECT_THROW(choose_devices("cuda:all"), std::runtime_error);
+    EXPECT_THROW(choose_devices("cuda:0,1"), std::runtime_error);
+  } else {
+    EXPECT_EQ(choose_devices("cuda:all").size(), static_cast<std::size_t>(gpus));
+    EXPECT_THROW(choose_devices("cuda:0," + std::to_string(gpus)), std::runtime_error);
+  }
+  EXPECT_EQ(choose_devices("cpu").size(), 1u);
+  EXPECT_FALSE(choose_devices("cpu").front().cuda);
 }
 
 // Several devices stop as one run does: a stop asked for on the calling thread stops them all

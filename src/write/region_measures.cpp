@@ -1,178 +1,162 @@
 #include "write/region_measures.hpp"
 
 #include <GeographicLib/Geodesic.hpp>
-#include <GeographicLib/PolygonArea.hpp>
+#include <GeographicLib/Math.hpp>
 
-#include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 
-#include "grid/qtm.hpp"
 #include "common/first_exception.hpp"
+#include "grid/qtm.hpp"
 
 namespace qtmv::write {
 
 namespace {
 
-/// Rings with more vertices than this are measured in chunks of kChunkVertices on all cores.
-constexpr std::size_t kChunkVertices = 4096;
-constexpr std::size_t kChunkFrom = 4 * kChunkVertices;
+using GeographicLib::Math;
 
-/// Longitudes (degrees) of the grid vertices strictly between lon_from and lon_to on the
-/// parallel `lat` (a row line, or a pole line, where the octant corners are the vertices), in
-/// the order met going from lon_from to lon_to. Computed as grid_vertex computes them, so that
-/// they are the cells' own vertices to the bit.
-void row_line_vertices(double lat, double lon_from, double lon_to, int level, std::vector<double>& out) {
-  out.clear();
-  const double lo = std::min(lon_from, lon_to), hi = std::max(lon_from, lon_to);
-  if (std::fabs(lat) == 90.0) {
-    for (double lon : {-90.0, 0.0, 90.0}) {
-      if (lon > lo && lon < hi) out.push_back(lon);
-    }
-  } else {
-    const double rows = static_cast<double>(grid::rows_per_octant(level));
-    const double lat_local = std::fabs(lat);
-    const auto r = static_cast<std::uint64_t>(std::llround((90.0 - lat_local) / 90.0 * rows));
-    const bool north = lat >= 0;  // the equator's vertices are the same from either side
-    const int first_octant = north ? 0 : 4;
-    if (r == 0 || std::fabs(grid::grid_vertex(first_octant, r, 0, level).lat) != lat_local) return;  // not a row line
-    for (int o = first_octant; o < first_octant + 4; ++o) {
-      const double origin = grid::lon_from_local(o, 0.0);
-      // The run's local longitudes (lon') in this octant.
-      double local_lo = north ? lo - origin : origin - hi;
-      double local_hi = north ? hi - origin : origin - lo;
-      local_lo = std::max(local_lo, 0.0);
-      local_hi = std::min(local_hi, 90.0);
-      if (local_lo > local_hi) continue;
-      const double per_degree = static_cast<double>(r) / 90.0;
-      const auto k_first = static_cast<std::uint64_t>(std::max(0.0, std::floor(local_lo * per_degree) - 1));
-      const auto k_last = std::min(r, static_cast<std::uint64_t>(std::ceil(local_hi * per_degree)) + 1);
-      for (std::uint64_t k = k_first; k <= k_last; ++k) {
-        const double lon = grid::grid_vertex(o, r, k, level).lon;
-        if (lon > lo && lon < hi) out.push_back(lon);
-      }
-    }
-  }
-  std::sort(out.begin(), out.end());
-  out.erase(std::unique(out.begin(), out.end()), out.end());
-  if (lon_to < lon_from) std::reverse(out.begin(), out.end());
+/// +1 or -1 when the edge lon1 -> lon2 (degrees) crosses the prime meridian eastwards or
+/// westwards, else 0: PolygonArea's rule (its private `transit`), so that the crossings, and
+/// hence the areas of rings around a pole, come out as PolygonArea counts them.
+int transit(double lon1, double lon2) {
+  const double lon12 = Math::AngDiff(lon1, lon2);
+  lon1 = Math::AngNormalize(lon1);
+  lon2 = Math::AngNormalize(lon2);
+  return lon12 > 0 && ((lon1 < 0 && lon2 >= 0) || (lon1 > 0 && lon2 == 0)) ? 1
+         : (lon12 < 0 && lon1 >= 0 && lon2 < 0)                              ? -1
+                                                                               : 0;
 }
 
-/// Rough area (square metres) inside a ring in lon/lat, of either orientation: the sphere's
-/// area between each edge and the equator by the trapezoid rule in sin(latitude), scaled to
-/// the ellipsoid's area. Good to a few percent, enough to resolve a multiple of the whole.
-double lonlat_ring_area(const std::vector<LonLat>& ring) {
-  double sum = 0;  // steradians, signed
-  const std::size_t n = ring.size();
-  for (std::size_t k = 0; k < n; ++k) {
-    const LonLat& p = ring[k];
-    const LonLat& q = ring[(k + 1) % n];
-    sum += (q.lon - p.lon) * grid::kDegree * 0.5 * (std::sin(p.lat * grid::kDegree) + std::sin(q.lat * grid::kDegree));
-  }
-  return std::fabs(sum) / (4 * grid::kPi) * GeographicLib::Geodesic::WGS84().EllipsoidArea();
-}
+/// One edge's terms for the region on its left, in fixed point (wrapping unsigned sums, so that
+/// the order of adding does not matter): the geodesic's area to the equator S12 (kAreaUnit),
+/// the crossings of the prime meridian, and a rough area (square metres: the trapezoid rule in
+/// sin(latitude) on the lon/lat edge, scaled to the ellipsoid) that settles which multiple of the
+/// ellipsoid's area the exact sum stands for.
+struct EdgeTerms {
+  std::uint64_t area = 0, rough = 0, crossings = 0;
 
-/// Adds ring[from] and the row-line vertices up to ring[from + 1] (not included): the tracer drops
-/// the vertices in the middle of runs along row lines; they are put back, so that every edge is
-/// one cell edge and neighbouring regions share their geodesic edges exactly. Runs along the pole
-/// lines get the octant corners back too, which keeps every edge there under 180 degrees of
-/// longitude.
-void add_edge_points(GeographicLib::PolygonArea& polygon, const std::vector<LonLat>& ring, std::size_t from, int level,
-                     std::vector<double>& scratch) {
-  const LonLat& a = ring[from];
-  const LonLat& b = ring[(from + 1) % ring.size()];
-  polygon.AddPoint(a.lat, a.lon);
-  if (a.lat == b.lat) {
-    row_line_vertices(a.lat, a.lon, b.lon, level, scratch);
-    for (double lon : scratch) polygon.AddPoint(a.lat, lon);
-  }
-}
-
-/// One piece of measuring work: edges [begin, end) of a ring (end - begin = its size: the whole
-/// ring), or with `ends` the ring of its chunks' first vertices.
-struct RingWork {
-  const std::vector<LonLat>* ring;
-  bool clockwise;
-  std::size_t begin, end;
-  bool ends = false;
+  EdgeTerms reversed() const { return {0 - area, 0 - rough, 0 - crossings}; }
 };
 
-/// The area on the left of a whole counter-clockwise ring (or the right of a clockwise one), in
-/// [0, area of the ellipsoid); or, for a chunk, its signed area (its edges closed by a geodesic).
-double measure(const RingWork& w, int level, std::vector<double>& scratch) {
-  GeographicLib::PolygonArea polygon(GeographicLib::Geodesic::WGS84());
-  const std::vector<LonLat>& ring = *w.ring;
-  const bool whole = !w.ends && w.end - w.begin == ring.size();
-  if (w.ends) {
-    for (std::size_t k = 0; k < ring.size(); k += kChunkVertices) polygon.AddPoint(ring[k].lat, ring[k].lon);
-  } else {
-    for (std::size_t k = w.begin; k < w.end; ++k) add_edge_points(polygon, ring, k, level, scratch);
-    if (!whole) polygon.AddPoint(ring[w.end % ring.size()].lat, ring[w.end % ring.size()].lon);
-  }
-  double perimeter = 0, area = 0;
-  // Whole rings: sign = false, the area on the ring's inner side (left, or right when reversed),
-  // never a negative remainder; so a ring around a pole gives the polar cap. Pieces: signed.
-  polygon.Compute(w.clockwise, !whole, perimeter, area);
-  return area;
+EdgeTerms edge_terms(const LonLat& from, const LonLat& to) {
+  static const GeographicLib::Geodesic& earth = GeographicLib::Geodesic::WGS84();
+  static const double m2_per_steradian = earth.EllipsoidArea() / (4 * grid::kPi);
+  double s12 = 0, azi1 = 0, azi2 = 0, m12 = 0, M12 = 0, M21 = 0, S12 = 0;
+  earth.GenInverse(from.lat, from.lon, to.lat, to.lon, GeographicLib::Geodesic::AREA, s12, azi1, azi2, m12, M12, M21,
+                   S12);
+  const double rough = (to.lon - from.lon) * grid::kDegree * 0.5 *
+                       (std::sin(from.lat * grid::kDegree) + std::sin(to.lat * grid::kDegree)) * m2_per_steradian;
+  EdgeTerms t;
+  t.area = static_cast<std::uint64_t>(std::llround(S12 / kAreaUnit));
+  t.rough = static_cast<std::uint64_t>(std::llround(rough));
+  t.crossings = static_cast<std::uint64_t>(static_cast<std::int64_t>(transit(from.lon, to.lon)));
+  return t;
 }
 
-/// A whole ring's area from its measure (or its pieces' sum), in [0, A): that area is known
-/// modulo the ellipsoid's, A: a ring that holds both poles' lines from -180 to 180 (the whole
-/// rectangle, less notches) encloses nearly A, which can come back as nearly 0. A rough area
-/// from the lon/lat ring tells the two apart.
-double settle(double area, const std::vector<LonLat>& ring) {
-  const double ellipsoid = GeographicLib::Geodesic::WGS84().EllipsoidArea();
-  area = std::fmod(area, ellipsoid);
-  if (area < 0) area += ellipsoid;
-  if (area < 0.5 * ellipsoid && lonlat_ring_area(ring) - area > 0.5 * ellipsoid) area += ellipsoid;
-  return area;
+/// Every site's sums, shared by the threads.
+struct SiteSums {
+  explicit SiteSums(std::size_t sites) : area(sites), rough(sites), crossings(sites) {
+    for (std::size_t s = 0; s < sites; ++s) area[s] = rough[s] = crossings[s] = 0;
+  }
+  std::vector<std::atomic<std::uint64_t>> area, rough, crossings;
+};
+
+/// A thread's recent sites' sums, added to the shared ones when a slot is taken by another site
+/// and at the end: consecutive outline cells mostly border the same few sites, and a few hundred
+/// sites' sums in shared atomics would be fought over by every core.
+class SumCache {
+ public:
+  explicit SumCache(SiteSums& shared) : shared_(shared) {}
+  ~SumCache() {
+    for (Slot& s : slots_) flush(s);
+  }
+  void add(std::int32_t site, const EdgeTerms& t) {
+    Slot& s = slots_[static_cast<std::size_t>(site) % kSlots];
+    if (s.site != site) {
+      flush(s);
+      s = Slot{site, {}};
+    }
+    s.sums.area += t.area;
+    s.sums.rough += t.rough;
+    s.sums.crossings += t.crossings;
+  }
+
+ private:
+  static constexpr std::size_t kSlots = 512;
+  struct Slot {
+    std::int32_t site = -1;
+    EdgeTerms sums;
+  };
+  void flush(const Slot& s) {
+    if (s.site < 0) return;
+    const auto k = static_cast<std::size_t>(s.site);
+    shared_.area[k].fetch_add(s.sums.area, std::memory_order_relaxed);
+    shared_.rough[k].fetch_add(s.sums.rough, std::memory_order_relaxed);
+    shared_.crossings[k].fetch_add(s.sums.crossings, std::memory_order_relaxed);
+  }
+  SiteSums& shared_;
+  Slot slots_[kSlots];
+};
+
+/// A region's area from its sums: PolygonArea's reduction of the S12 sum (modulo the ellipsoid's
+/// area A, half of A more for an odd number of crossings; counter-clockwise), then the multiple of
+/// A nearest the rough area, within [0, A].
+double settle(std::uint64_t area_sum, std::uint64_t rough_sum, std::uint64_t crossings) {
+  const double whole = GeographicLib::Geodesic::WGS84().EllipsoidArea();
+  double area = std::remainder(static_cast<double>(static_cast<std::int64_t>(area_sum)) * kAreaUnit, whole);
+  if (crossings & 1u) area += (area < 0 ? 1 : -1) * whole / 2;
+  area = -area;  // S12 sums clockwise areas; the region is on the left of its edges
+  const double rough = static_cast<double>(static_cast<std::int64_t>(rough_sum));
+  const double nearest = area + whole * std::round((-rough - area) / whole);
+  return std::min(whole, std::max(0.0, nearest));
 }
 
 }  // namespace
 
-std::vector<double> region_areas(const std::vector<Region>& regions, std::size_t first, std::size_t last, int level) {
-  // Every ring of the regions, as work: whole, or in chunks plus the ring of the chunks' ends.
-  struct RingPlace {
-    std::size_t region, work_begin, work_end;
-    bool hole;
-  };
-  std::vector<RingWork> work;
-  std::vector<RingPlace> rings;
-  const auto add_ring = [&](std::size_t region, const std::vector<LonLat>& ring, bool hole) {
-    const std::size_t begin = work.size();
-    if (ring.size() < kChunkFrom) {
-      work.push_back({&ring, hole, 0, ring.size()});
-    } else {
-      for (std::size_t k = 0; k < ring.size(); k += kChunkVertices) {
-        work.push_back({&ring, hole, k, std::min(ring.size(), k + kChunkVertices)});
-      }
-      work.push_back({&ring, hole, 0, 0, true});
-    }
-    rings.push_back({region, begin, work.size(), hole});
-  };
-  for (std::size_t s = first; s < last; ++s) {
-    for (const RegionPolygon& part : regions[s]) {
-      add_ring(s, part.shell, false);
-      for (const auto& hole : part.holes) add_ring(s, hole, true);
-    }
-  }
-  std::vector<double> measured(work.size(), 0.0);
+std::vector<double> region_areas(const label::Outlines& outlines) {
+  const int level = outlines.level;
+  const label::OutlineCells& cells = outlines.cells;
+  const auto n = static_cast<std::int64_t>(cells.size());
+  const auto sites = static_cast<std::size_t>(outlines.site_count);
+  SiteSums sums(sites);
   FirstException failure;
 #pragma omp parallel
   {
-    std::vector<double> scratch;
-#pragma omp for schedule(dynamic, 1)
-    for (std::int64_t k = 0; k < static_cast<std::int64_t>(work.size()); ++k) {
-      failure.run([&] { measured[static_cast<std::size_t>(k)] = measure(work[static_cast<std::size_t>(k)], level, scratch); });
+    SumCache cache(sums);
+#pragma omp for schedule(dynamic, 4096)
+    for (std::int64_t k = 0; k < n; ++k) {
+      failure.run([&] {
+        const label::OutlineCell& outline = cells[static_cast<std::size_t>(k)];
+        LonLat ring[grid::kMaxPolygonCorners];
+        int across[grid::kMaxPolygonCorners];
+        const int corners = drawn_ring(grid::cell_of(outline.code, level), level, ring, across);
+        grid::Code nb[3];
+        if (outline.boundary) grid::neighbours(outline.code, level, nb);
+        for (int e = 0; e < corners; ++e) {
+          const LonLat& from = ring[e];
+          const LonLat& to = ring[(e + 1) % corners];
+          // Edges on the rectangle's border belong to this region alone (as the tracer cuts it).
+          if (across[e] == kAcrossPoleLine || (std::fabs(from.lon) == 180.0 && std::fabs(to.lon) == 180.0)) {
+            cache.add(outline.site, edge_terms(from, to));
+            continue;
+          }
+          if (!outline.boundary) continue;
+          // An edge between two sites is solved by the cell of the lower site, for both.
+          const std::int32_t other = label::site_of_near(cells, static_cast<std::size_t>(k), nb[across[e]]);
+          if (other <= outline.site) continue;
+          const EdgeTerms t = edge_terms(from, to);
+          cache.add(outline.site, t);
+          cache.add(other, t.reversed());
+        }
+      });
     }
   }
   failure.rethrow();
-  std::vector<double> areas(last - first, 0.0);
-  for (const RingPlace& r : rings) {
-    double area = 0;
-    for (std::size_t k = r.work_begin; k < r.work_end; ++k) area += measured[k];
-    area = settle(area, *work[r.work_begin].ring);  // exact for a whole ring's [0, A) measure
-    areas[r.region - first] += r.hole ? -area : area;
+  std::vector<double> areas(sites, 0.0);
+  for (std::size_t s = 0; s < sites; ++s) {
+    if (outlines.cells_per_site[s] == 0) continue;
+    areas[s] = settle(sums.area[s].load(), sums.rough[s].load(), sums.crossings[s].load());
   }
   return areas;
 }

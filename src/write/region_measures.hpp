@@ -2,21 +2,30 @@
 // areas (area_m2) and the Voronoi edges' lengths (length_m).
 //
 // A region's area is that of the region whose cell vertices are joined by geodesics: the cells
-// then tile the ellipsoid exactly, so the areas add up to its area. Each ring is taken with the
-// region on its left, so a region around a pole gets its own area, not the rest of the Earth.
+// then tile the ellipsoid exactly, so the areas add up to its area. It is the area GeographicLib's
+// PolygonArea gives for the region's rings, each taken with the region on its left (so a region
+// around a pole gets its own area, not the rest of the Earth), holes subtracted; but it is
+// summed edge by edge: a ring's area is the sum over its edges of each geodesic's area to the
+// equator (S12), reduced modulo the ellipsoid's area with the ring's crossings of the prime
+// meridian. Those sums add over all rings of a region, and an edge between two regions counts for
+// both with opposite signs, so every cell edge between sites is solved once, straight from the
+// outline cells, without the traced rings.
 #pragma once
 
-#include <cstddef>
 #include <vector>
 
+#include "label/outline_cells.hpp"
 #include "write/region_tracer.hpp"
 
 namespace qtmv::write {
 
-/// Areas (square metres) of regions [first, last) of `regions`, traced at `level`, on all cores:
-/// rings are measured one a thread, long rings in chunks of consecutive edges whose areas add up
-/// (each chunk closed by a geodesic, the chunks' ends making a ring of their own).
-std::vector<double> region_areas(const std::vector<Region>& regions, std::size_t first, std::size_t last, int level);
+/// Areas (square metres) of the regions of all sites (outlines.site_count of them; 0 for a site
+/// without cells) on all cores, from the outline cells (whole level). Deterministic: the edges'
+/// areas are added in fixed point (kAreaUnit), so the result does not depend on the threads.
+std::vector<double> region_areas(const label::Outlines& outlines);
+
+/// The resolution (square metres) of the sums behind region_areas.
+constexpr double kAreaUnit = 1.0 / 1024;
 
 /// Geodesic length (metres) of the segment between two points (degrees).
 double geodesic_length(const LonLat& a, const LonLat& b);

@@ -38,7 +38,6 @@ using grid::Code;
 constexpr std::uint64_t kTransactionFeatures = 100000;  // features per transaction
 constexpr std::uint64_t kProgressEvery = 1024;          // features between progress calls
 constexpr std::size_t kEdgePairBlock = 4096;            // voronoi_edges pairs measured at once
-constexpr std::size_t kRegionBlock = 4096;              // regions measured at once
 
 // --- GDAL errors -----------------------------------------------------------------------------
 
@@ -536,34 +535,27 @@ void write_regions(Writer& w, const Input& in, double work) {
   trace("regions traced");
   w.layer_progress(0.3, 1.0);
 
+  const std::vector<double> areas = region_areas(in.outlines);
+  trace("regions measured");
+  w.layer_progress(0.5, 1.0);
+
   w.begin_features();
-  double measure_seconds = 0;  // of the regions' areas, on the helper thread (for the trace)
-  const auto measure = [&](std::size_t first, std::size_t last) {
-    const auto start = std::chrono::steady_clock::now();
-    std::vector<double> areas = region_areas(regions, first, last, level);
-    measure_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    return areas;
-  };
-  const auto write = [&](std::size_t first, std::size_t last, const std::vector<double>& areas) {
-    for (std::size_t s = first; s < last; ++s) {
-      const sites::SiteRecord& site = in.table.sites[s];
-      FeaturePtr feature(OGRFeature::CreateFeature(layer->GetLayerDefn()));
-      if (site.attributes && !field_map.empty()) {
-        if (feature->SetFieldsFrom(site.attributes.get(), field_map.data(), TRUE) != OGRERR_NONE) {
-          w.fail("cannot copy the attributes of site " + std::to_string(s));
-        }
+  for (std::size_t s = 0; s < static_cast<std::size_t>(in.site_count); ++s) {
+    const sites::SiteRecord& site = in.table.sites[s];
+    FeaturePtr feature(OGRFeature::CreateFeature(layer->GetLayerDefn()));
+    if (site.attributes && !field_map.empty()) {
+      if (feature->SetFieldsFrom(site.attributes.get(), field_map.data(), TRUE) != OGRERR_NONE) {
+        w.fail("cannot copy the attributes of site " + std::to_string(s));
       }
-      set_value(*feature, fid_index, fid_value(site.fid));
-      feature->SetField(cells_index, static_cast<GIntBig>(in.outlines.cells_per_site[s]));
-      feature->SetField(area_index, areas[s - first]);
-      feature->SetGeometryDirectly(make_multipolygon(regions[s]));  // empty for a site without cells
-      w.write(*feature);
     }
-    w.layer_progress(0.3 + 0.7 * static_cast<double>(last) / static_cast<double>(in.site_count), 1.0);
-  };
-  measure_ahead(static_cast<std::size_t>(in.site_count), kRegionBlock, measure, write);
-  trace("regions measured and written");
-  trace.note("of which measuring areas", measure_seconds);
+    set_value(*feature, fid_index, fid_value(site.fid));
+    feature->SetField(cells_index, static_cast<GIntBig>(in.outlines.cells_per_site[s]));
+    feature->SetField(area_index, areas[s]);
+    feature->SetGeometryDirectly(make_multipolygon(regions[s]));  // empty for a site without cells
+    w.write(*feature);
+    if ((s + 1) % kProgressEvery == 0) w.layer_progress(0.5 + 0.5 * static_cast<double>(s + 1) / static_cast<double>(in.site_count), 1.0);
+  }
+  trace("regions written");
   w.end_layer();
   trace("regions layer ended");
 }

@@ -1,0 +1,124 @@
+// Regions' geodesic areas summed edge by edge from the outline cells (region_measures), checked
+// against GeographicLib's PolygonArea of every cell, added up per site.
+#include <gtest/gtest.h>
+
+#include <GeographicLib/Geodesic.hpp>
+#include <GeographicLib/PolygonArea.hpp>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#include "grid/qtm.hpp"
+#include "label/outline_cells.hpp"
+#include "write/region_measures.hpp"
+
+namespace qtmv::write {
+namespace {
+
+using grid::Code;
+
+const double kEllipsoidArea = GeographicLib::Geodesic::WGS84().EllipsoidArea();
+
+/// Area (square metres) of a cell with its vertices joined by geodesics.
+double cell_area(Code code, int level) {
+  LonLat ring[grid::kMaxPolygonCorners];
+  const int n = grid::cell_polygon(grid::cell_of(code, level), level, ring);
+  GeographicLib::PolygonArea polygon(GeographicLib::Geodesic::WGS84());
+  for (int k = 0; k < n; ++k) polygon.AddPoint(ring[k].lat, ring[k].lon);
+  double perimeter = 0, area = 0;
+  polygon.Compute(false, false, perimeter, area);
+  return area;
+}
+
+/// Labels of a level for `sites` random sites, nearest by a rough lon/lat distance, and on top
+/// of them shapes that test the reduction: a cap around the north pole (one site), a band
+/// across +-180, and a ring (a region with a hole holding another site).
+std::vector<std::int32_t> scene(int level, std::int32_t sites, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> lon(-180, 180), lat(-90, 90);
+  std::vector<LonLat> at(static_cast<std::size_t>(sites));
+  for (auto& p : at) p = {lon(rng), lat(rng)};
+  std::vector<std::int32_t> labels(grid::cell_count(level));
+  for (Code code = 0; code < grid::cell_count(level); ++code) {
+    const LonLat c = grid::cell_centre(code, level);
+    std::int32_t best = 0;
+    double best_d = 1e300;
+    for (std::int32_t s = 0; s < sites; ++s) {
+      const double dx = std::remainder(c.lon - at[s].lon, 360.0) * std::cos(c.lat * grid::kDegree), dy = c.lat - at[s].lat;
+      if (dx * dx + dy * dy < best_d) best_d = dx * dx + dy * dy, best = s;
+    }
+    if (sites >= 4) {
+      if (c.lat > 70) best = 0;
+      if (std::fabs(c.lon) > 170 && std::fabs(c.lat) < 20) best = 1;
+      const double r = std::hypot(c.lon - 40, c.lat + 30);
+      if (r < 15 && r > 7) best = 2;
+      if (r <= 4) best = 3;
+    }
+    labels[code] = best;
+  }
+  return labels;
+}
+
+void expect_areas_of_cells(int level, std::int32_t sites, unsigned seed) {
+  const std::vector<std::int32_t> labels = scene(level, sites, seed);
+  std::vector<double> expected(static_cast<std::size_t>(sites), 0.0);
+  for (Code code = 0; code < grid::cell_count(level); ++code) expected[labels[code]] += cell_area(code, level);
+  const std::vector<double> got = region_areas(label::outlines_of_dense(level, labels.data(), nullptr, sites));
+  ASSERT_EQ(got.size(), expected.size());
+  double total = 0;
+  for (std::size_t s = 0; s < got.size(); ++s) {
+    // Sums of the same geodesics' areas in another order: round-off, and kAreaUnit an edge.
+    EXPECT_NEAR(got[s], expected[s], 1e-12 * kEllipsoidArea) << "level " << level << ", site " << s;
+    total += got[s];
+  }
+  EXPECT_NEAR(total, kEllipsoidArea, 1e-12 * kEllipsoidArea);
+}
+
+TEST(RegionMeasures, AreasEqualTheirCellsAreas) {
+  for (int level = 1; level <= 6; ++level) {
+    for (const std::int32_t sites : {1, 2, 5, 40}) expect_areas_of_cells(level, sites, 7u * level + sites);
+  }
+}
+
+TEST(RegionMeasures, OneSiteIsTheWholeEllipsoid) {
+  for (int level = 0; level <= 4; ++level) {
+    const std::vector<std::int32_t> labels(grid::cell_count(level), 0);
+    const std::vector<double> got = region_areas(label::outlines_of_dense(level, labels.data(), nullptr, 1));
+    EXPECT_NEAR(got[0], kEllipsoidArea, 1e-12 * kEllipsoidArea) << "level " << level;
+  }
+}
+
+TEST(RegionMeasures, SitesWithoutCellsHaveNoArea) {
+  const int level = 4;
+  std::vector<std::int32_t> labels = scene(level, 6, 3);
+  for (auto& s : labels) s = s == 5 ? 4 : s;  // site 5 loses its cells
+  const std::vector<double> got = region_areas(label::outlines_of_dense(level, labels.data(), nullptr, 6));
+  EXPECT_EQ(got[5], 0.0);
+  EXPECT_GT(got[4], 0.0);
+}
+
+TEST(RegionMeasures, SameBitsWhateverTheThreads) {
+#ifdef _OPENMP
+  const int level = 7;
+  const std::vector<std::int32_t> labels = scene(level, 300, 11);
+  const label::Outlines outlines = label::outlines_of_dense(level, labels.data(), nullptr, 300);
+  const int before = omp_get_max_threads();
+  omp_set_num_threads(1);
+  const std::vector<double> one = region_areas(outlines);
+  omp_set_num_threads(4);
+  const std::vector<double> four = region_areas(outlines);
+  omp_set_num_threads(before);
+  ASSERT_EQ(one.size(), four.size());
+  for (std::size_t s = 0; s < one.size(); ++s) EXPECT_EQ(one[s], four[s]) << "site " << s;
+#else
+  GTEST_SKIP() << "built without OpenMP";
+#endif
+}
+
+}  // namespace
+}  // namespace qtmv::write

@@ -14,10 +14,12 @@
 #include <cstdio>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <memory>
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "label/label_engine.hpp"
 #include "label/label_cuda.hpp"
@@ -289,6 +291,56 @@ struct Trace {
 /// Threads for the host's share of the build (the groups' plan): `asked`, or all when 0.
 int host_threads(int asked) {
   return asked > 0 ? asked : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+}
+
+/// Page-locked host memory (cudaMallocHost): device-to-host copies into it run at the bus's
+/// speed, where copies into pageable memory go through the driver's own staging on one thread.
+class PinnedBuffer {
+ public:
+  PinnedBuffer() = default;
+  PinnedBuffer(const PinnedBuffer&) = delete;
+  PinnedBuffer& operator=(const PinnedBuffer&) = delete;
+  ~PinnedBuffer() {
+    if (data_) (void)cudaFreeHost(data_);
+  }
+  /// At least `bytes` (kept once allocated).
+  void* get(std::size_t bytes) {
+    if (bytes > size_) {
+      if (data_) QTMV_CUDA_CHECK(cudaFreeHost(data_));
+      data_ = nullptr;
+      size_ = 0;
+      QTMV_CUDA_CHECK(cudaMallocHost(&data_, bytes));
+      size_ = bytes;
+    }
+    return data_;
+  }
+
+ private:
+  void* data_ = nullptr;
+  std::size_t size_ = 0;
+};
+
+/// memcpy on several threads: the destination's first touch (page faults) and the copy of
+/// gigabytes of outline cells, which one thread does at a few GB/s.
+void parallel_copy(void* to, const void* from, std::size_t bytes) {
+  constexpr std::size_t kPiece = std::size_t{16} << 20;
+  const std::size_t pieces = (bytes + kPiece - 1) / kPiece;
+  const std::size_t threads = std::min<std::size_t>(pieces, static_cast<std::size_t>(host_threads(0)));
+  const auto work = [&](std::size_t t) {
+    for (std::size_t k = t; k < pieces; k += threads) {
+      const std::size_t first = k * kPiece;
+      std::memcpy(static_cast<char*>(to) + first, static_cast<const char*>(from) + first,
+                  std::min(kPiece, bytes - first));
+    }
+  };
+  if (threads <= 1) {
+    work(0);
+    return;
+  }
+  std::vector<std::thread> pool;
+  for (std::size_t t = 1; t < threads; ++t) pool.emplace_back(work, t);
+  work(0);
+  for (std::thread& th : pool) th.join();
 }
 
 unsigned int blocks_for(std::uint64_t count) {
@@ -1277,6 +1329,7 @@ struct Labeller::Impl {
   DeviceArray<OutlineCell> select_cells;
   DeviceArray<std::uint32_t> select_count;
   DeviceArray<unsigned char> select_temp;
+  PinnedBuffer select_host;  ///< the outline cells' way to the host
   cudaEvent_t start = nullptr, stop = nullptr;
   /// QTMV_FAULT_CUDA_OOM, read by open() and again by reserve() (FaultStep).
   FaultStep injected_fault = FaultStep::none;
@@ -1626,8 +1679,15 @@ float Labeller::select_outline(grid::Code first, std::uint64_t count, OutlineCel
       out->reserve(at + static_cast<std::size_t>(pending + rate * 1.1 * static_cast<double>(count - done_cells)));
     }
     out->resize(at + pending);
-    QTMV_CUDA_CHECK(cudaMemcpy(out->data() + at, m.select_cells.get(), pending * sizeof(OutlineCell),
-                               cudaMemcpyDeviceToHost));
+    // Through page-locked memory in pieces, each copied on to the list on all cores.
+    constexpr std::uint64_t kStagedCells = std::uint64_t{1} << 22;  // 64 MiB
+    const std::uint64_t staged = std::min(pending, kStagedCells);
+    auto* host = static_cast<OutlineCell*>(m.select_host.get(staged * sizeof(OutlineCell)));
+    for (std::uint64_t done = 0; done < pending; done += staged) {
+      const std::uint64_t n = std::min(staged, pending - done);
+      QTMV_CUDA_CHECK(cudaMemcpy(host, m.select_cells.get() + done, n * sizeof(OutlineCell), cudaMemcpyDeviceToHost));
+      parallel_copy(out->data() + at + done, host, n * sizeof(OutlineCell));
+    }
     pending = 0;
   };
   for (std::uint64_t offset = 0; offset < count; offset += chunk) {

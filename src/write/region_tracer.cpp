@@ -17,10 +17,7 @@ namespace {
 using grid::Cell;
 using grid::Code;
 
-/// One directed boundary edge of a region, with the region on its left.
-struct Edge {
-  LonLat from, to;
-};
+using Edge = RegionTracer::Edge;
 
 /// An edge of the region of `site`.
 struct SiteEdge {
@@ -281,7 +278,7 @@ double planar_ring_area(const std::vector<LonLat>& ring) {
   return 0.5 * twice;
 }
 
-std::vector<Region> trace_regions(const label::Outlines& outlines, const std::function<void(double)>& step_done) {
+RegionTracer::RegionTracer(const label::Outlines& outlines, const std::function<void(double)>& step_done) {
   const auto done = [&](double fraction) {
     if (step_done) step_done(fraction);
   };
@@ -322,7 +319,7 @@ std::vector<Region> trace_regions(const label::Outlines& outlines, const std::fu
     }
   }
   failure.rethrow();
-  done(0.4);
+  done(0.5);
 
   // Bucketed by site (each thread's counts, then their places), and each site's edges sorted
   // as link_rings needs them: no two edges of a site are equal (a cell edge is drawn once).
@@ -351,7 +348,7 @@ std::vector<Region> trace_regions(const label::Outlines& outlines, const std::fu
     for (const SiteEdge& e : parts[static_cast<std::size_t>(t)]) edges[next[static_cast<std::size_t>(e.site)]++] = e.edge;
     std::vector<SiteEdge>().swap(parts[static_cast<std::size_t>(t)]);
   }
-  done(0.5);
+  done(0.6);
   // The largest sites' edges sorted on all cores, the others one site a thread.
   const std::size_t big = std::max<std::size_t>(std::size_t{1} << 16, at / 64);
   for (std::size_t s = 0; s < sites; ++s) {
@@ -363,14 +360,29 @@ std::vector<Region> trace_regions(const label::Outlines& outlines, const std::fu
     if (start[k + 1] - start[k] < big) std::sort(edges.begin() + start[k], edges.begin() + start[k + 1], edge_less);
   }
 
-  done(0.7);
-  std::vector<Region> regions(static_cast<std::size_t>(outlines.site_count));
+  edges_ = std::move(edges);
+  start_ = std::move(start);
+  done(1.0);
+}
+
+Region RegionTracer::trace(std::int32_t site) const {
+  const auto k = static_cast<std::size_t>(site);
+  return link_rings(edges_.data() + start_[k], start_[k + 1] - start_[k]);
+}
+
+std::vector<Region> trace_regions(const label::Outlines& outlines, const std::function<void(double)>& step_done) {
+  const auto done = [&](double fraction) {
+    if (step_done) step_done(fraction);
+  };
+  const RegionTracer tracer(outlines, [&](double f) { done(0.7 * f); });
+  std::vector<Region> regions(static_cast<std::size_t>(tracer.site_count()));
+  FirstException failure;
 #pragma omp parallel for schedule(dynamic, 1)
-  for (std::int32_t site = 0; site < outlines.site_count; ++site) {
-    const auto k = static_cast<std::size_t>(site);
-    failure.run([&] { regions[k] = link_rings(edges.data() + start[k], start[k + 1] - start[k]); });
+  for (std::int32_t site = 0; site < tracer.site_count(); ++site) {
+    failure.run([&] { regions[static_cast<std::size_t>(site)] = tracer.trace(site); });
   }
   failure.rethrow();
+  done(1.0);
   return regions;
 }
 

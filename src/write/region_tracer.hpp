@@ -35,12 +35,35 @@ struct RegionPolygon {
 /// The region of one site: its polygons (empty when the site has no cell).
 using Region = std::vector<RegionPolygon>;
 
-/// Traces the regions of all sites from the outline cells (label/outline_cells.hpp): the edges
-/// between sites are edges of boundary cells, the cuts at +-180 and along the poles' lines edges
-/// of row ends; a neighbour's site comes from label::site_of. Work and memory follow the outline
-/// cells. Returns outlines.site_count regions. `step_done` (may be empty) is called on the
-/// calling thread after each step (gather, bucket, sort, link) with the fraction done; it may
-/// throw to stop the tracing.
+/// The regions' boundary edges, gathered from the outline cells (label/outline_cells.hpp) and
+/// sorted per site, from which each region is traced on demand: the edges between sites are
+/// edges of boundary cells, the cuts at +-180 and along the poles' lines edges of row ends; a
+/// neighbour's site comes from label::site_of_near. Work and memory follow the outline cells,
+/// and a writer holds only the regions it is writing.
+class RegionTracer {
+ public:
+  /// Gathers the edges on all cores. `step_done` (may be empty) is called on the calling thread
+  /// after each step (gather, bucket, sort) with the fraction done; it may throw to stop.
+  explicit RegionTracer(const label::Outlines& outlines, const std::function<void(double)>& step_done = {});
+
+  std::int32_t site_count() const { return static_cast<std::int32_t>(start_.size()) - 1; }
+
+  /// The region of `site` (0 .. site_count() - 1): its edges linked into rings and grouped into
+  /// polygons. Const: callable from several threads at once.
+  Region trace(std::int32_t site) const;
+
+  /// One directed boundary edge, with the region on its left.
+  struct Edge {
+    LonLat from, to;
+  };
+
+ private:
+  std::vector<Edge> edges_;          // every site's edges, site after site
+  std::vector<std::size_t> start_;  // site s's edges: [start_[s], start_[s + 1])
+};
+
+/// All regions at once (RegionTracer, then every site on all cores). Returns
+/// outlines.site_count regions. `step_done` as for RegionTracer, and once more when linked.
 std::vector<Region> trace_regions(const label::Outlines& outlines, const std::function<void(double)>& step_done = {});
 
 /// The same from dense labels: labels[code] is the site id of cell `code` of `level`

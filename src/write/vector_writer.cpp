@@ -38,6 +38,7 @@ using grid::Code;
 constexpr std::uint64_t kTransactionFeatures = 100000;  // features per transaction
 constexpr std::uint64_t kProgressEvery = 1024;          // features between progress calls
 constexpr std::size_t kEdgePairBlock = 4096;            // voronoi_edges pairs measured at once
+constexpr std::size_t kRegionBlock = 2048;              // regions traced at once
 
 // --- GDAL errors -----------------------------------------------------------------------------
 
@@ -73,12 +74,12 @@ class StepTrace {
   std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
 };
 
-// --- measuring ahead of writing ----------------------------------------------------------------
+// --- working ahead of writing -----------------------------------------------------------------
 
-/// Runs measure(first, last), which returns the results of items first .. last - 1 (geodesics,
-/// in parallel with OpenMP), on a helper thread one block ahead of write(first, last, results)
-/// on this thread: OGR writes one feature at a time, so measuring the next block overlaps
-/// writing this one, and no more than two blocks are held. An exception from either side comes
+/// Runs measure(first, last), which returns the results of items first .. last - 1 (regions
+/// traced, pairs' lines linked and measured: in parallel with OpenMP), on a helper thread one
+/// block ahead of write(first, last, results) on this thread: OGR writes one feature at a time,
+/// so working on the next block overlaps writing this one, and no more than two blocks are held. An exception from either side comes
 /// out of here (after the helper has finished its block).
 template <class Measure, class Write>
 void measure_ahead(std::size_t count, std::size_t block, const Measure& measure, const Write& write) {
@@ -509,7 +510,6 @@ struct Input {
 };
 
 void write_regions(Writer& w, const Input& in, double work) {
-  const int level = in.outlines.level;
   const OGRFeatureDefn* source = in.table.definition();
   OGRLayer* layer = w.begin_layer("regions", wkbMultiPolygon, work);
 
@@ -531,31 +531,48 @@ void write_regions(Writer& w, const Input& in, double work) {
   const int area_index = w.add_field(area_field);
 
   StepTrace trace;
-  const std::vector<Region> regions = trace_regions(in.outlines, [&](double f) { w.layer_progress(0.3 * f, 1.0); });
-  trace("regions traced");
-  w.layer_progress(0.3, 1.0);
-
+  const RegionTracer tracer(in.outlines, [&](double f) { w.layer_progress(0.2 * f, 1.0); });
+  trace("regions' edges gathered");
   const std::vector<double> areas = region_areas(in.outlines);
   trace("regions measured");
-  w.layer_progress(0.5, 1.0);
+  w.layer_progress(0.4, 1.0);
 
+  // Blocks of regions traced on all cores on a helper thread while this one writes the block
+  // before (OGR writes one feature at a time): two blocks held, not every region's rings.
   w.begin_features();
-  for (std::size_t s = 0; s < static_cast<std::size_t>(in.site_count); ++s) {
-    const sites::SiteRecord& site = in.table.sites[s];
-    FeaturePtr feature(OGRFeature::CreateFeature(layer->GetLayerDefn()));
-    if (site.attributes && !field_map.empty()) {
-      if (feature->SetFieldsFrom(site.attributes.get(), field_map.data(), TRUE) != OGRERR_NONE) {
-        w.fail("cannot copy the attributes of site " + std::to_string(s));
-      }
+  double link_seconds = 0;  // on the helper thread (for the trace)
+  const auto link = [&](std::size_t first, std::size_t last) {
+    const auto start = std::chrono::steady_clock::now();
+    std::vector<Region> block(last - first);
+    FirstException failure;
+#pragma omp parallel for schedule(dynamic, 1)
+    for (std::int64_t s = static_cast<std::int64_t>(first); s < static_cast<std::int64_t>(last); ++s) {
+      failure.run([&] { block[static_cast<std::size_t>(s) - first] = tracer.trace(static_cast<std::int32_t>(s)); });
     }
-    set_value(*feature, fid_index, fid_value(site.fid));
-    feature->SetField(cells_index, static_cast<GIntBig>(in.outlines.cells_per_site[s]));
-    feature->SetField(area_index, areas[s]);
-    feature->SetGeometryDirectly(make_multipolygon(regions[s]));  // empty for a site without cells
-    w.write(*feature);
-    if ((s + 1) % kProgressEvery == 0) w.layer_progress(0.5 + 0.5 * static_cast<double>(s + 1) / static_cast<double>(in.site_count), 1.0);
-  }
-  trace("regions written");
+    failure.rethrow();
+    link_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return block;
+  };
+  const auto write = [&](std::size_t first, std::size_t last, const std::vector<Region>& block) {
+    for (std::size_t s = first; s < last; ++s) {
+      const sites::SiteRecord& site = in.table.sites[s];
+      FeaturePtr feature(OGRFeature::CreateFeature(layer->GetLayerDefn()));
+      if (site.attributes && !field_map.empty()) {
+        if (feature->SetFieldsFrom(site.attributes.get(), field_map.data(), TRUE) != OGRERR_NONE) {
+          w.fail("cannot copy the attributes of site " + std::to_string(s));
+        }
+      }
+      set_value(*feature, fid_index, fid_value(site.fid));
+      feature->SetField(cells_index, static_cast<GIntBig>(in.outlines.cells_per_site[s]));
+      feature->SetField(area_index, areas[s]);
+      feature->SetGeometryDirectly(make_multipolygon(block[s - first]));  // empty for a site without cells
+      w.write(*feature);
+    }
+    w.layer_progress(0.4 + 0.6 * static_cast<double>(last) / static_cast<double>(in.site_count), 1.0);
+  };
+  measure_ahead(static_cast<std::size_t>(in.site_count), kRegionBlock, link, write);
+  trace("regions traced and written");
+  trace.note("of which tracing", link_seconds);
   w.end_layer();
   trace("regions layer ended");
 }

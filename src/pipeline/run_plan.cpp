@@ -185,6 +185,9 @@ RunPlan plan_run(const std::string& destination, const VoronoiOptions& options) 
     if (!options.vector.dataset_options.empty() || !options.vector.layer_options.empty()) {
       throw VoronoiError("-dsco and -lco are for vector output; " + plan.format.driver + " output is a raster: use -co");
     }
+    if (options.vector.all_ring_vertices) {
+      throw VoronoiError("-vertices is for the regions of vector output; " + plan.format.driver + " output is a raster");
+    }
     try {
       write::raster_size(plan.level, plan.raster);  // -tr, -ts and -raster checked as the writer will
       write::check_raster_data_type(plan.raster.data_type);

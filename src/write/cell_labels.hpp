@@ -106,6 +106,9 @@ struct VectorLayers {
   std::vector<std::string> layers{"regions", "boundary_cells", "voronoi_edges"};
   std::vector<std::string> dataset_options;  ///< -dsco NAME=VALUE
   std::vector<std::string> layer_options;    ///< -lco NAME=VALUE
+  /// -vertices all: the regions' rings keep every cell vertex along parallels (see
+  /// RingVertices in region_tracer.hpp), so that their edges read as geodesics give area_m2.
+  bool all_ring_vertices = false;
 };
 
 /// Vector output (any OGR driver), all in EPSG:4326.

@@ -34,9 +34,10 @@ double clockwise_angle(double dx, double dy, double tx, double ty) {
   return a;
 }
 
-/// Drops vertices in the middle of straight runs along a parallel or a meridian (exactly
-/// equal latitudes or longitudes): rows of cells make long runs of them.
-std::vector<LonLat> drop_straight_runs(const std::vector<LonLat>& ring) {
+/// Drops vertices in the middle of straight runs along a meridian (exactly equal longitudes),
+/// and along a parallel (equal latitudes) unless `parallels` says to keep those: rows of cells
+/// make long runs of them.
+std::vector<LonLat> drop_straight_runs(const std::vector<LonLat>& ring, RingVertices parallels) {
   const std::size_t n = ring.size();
   std::vector<LonLat> out;
   out.reserve(n);
@@ -44,7 +45,8 @@ std::vector<LonLat> drop_straight_runs(const std::vector<LonLat>& ring) {
     const LonLat& prev = ring[(k + n - 1) % n];
     const LonLat& here = ring[k];
     const LonLat& next = ring[(k + 1) % n];
-    const bool along_parallel = prev.lat == here.lat && here.lat == next.lat;
+    const bool along_parallel =
+        parallels == RingVertices::corners && prev.lat == here.lat && here.lat == next.lat;
     const bool along_meridian = prev.lon == here.lon && here.lon == next.lon;
     if (!along_parallel && !along_meridian) out.push_back(here);
   }
@@ -174,7 +176,7 @@ class FirstEdgeIndex {
 
 /// Links one site's boundary edges, sorted by edge_less (so that the rings come out the same
 /// whatever order the edges came in), into rings and groups them into polygons.
-Region link_rings(const Edge* edges, std::size_t count) {
+Region link_rings(const Edge* edges, std::size_t count, RingVertices parallels) {
   std::vector<char> used(count, 0);
   const FirstEdgeIndex first_from(edges, count);  // a point's first edge: the vertex's id
   const auto next_edge = [&](std::size_t e, std::size_t first) {
@@ -210,7 +212,7 @@ Region link_rings(const Edge* edges, std::size_t count) {
       e = next_edge(e, vertex);
     }
     for (std::vector<LonLat>& simple : split_at_repeated_vertices(walk, position)) {
-      simple = drop_straight_runs(simple);
+      simple = drop_straight_runs(simple, parallels);
       if (simple.size() < 3) continue;
       (planar_ring_area(simple) > 0 ? shells : holes).push_back(std::move(simple));
     }
@@ -278,7 +280,9 @@ double planar_ring_area(const std::vector<LonLat>& ring) {
   return 0.5 * twice;
 }
 
-RegionTracer::RegionTracer(const label::Outlines& outlines, const std::function<void(double)>& step_done) {
+RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertices,
+                           const std::function<void(double)>& step_done)
+    : vertices_(vertices) {
   const auto done = [&](double fraction) {
     if (step_done) step_done(fraction);
   };
@@ -367,14 +371,14 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, const std::function<
 
 Region RegionTracer::trace(std::int32_t site) const {
   const auto k = static_cast<std::size_t>(site);
-  return link_rings(edges_.data() + start_[k], start_[k + 1] - start_[k]);
+  return link_rings(edges_.data() + start_[k], start_[k + 1] - start_[k], vertices_);
 }
 
 std::vector<Region> trace_regions(const label::Outlines& outlines, const std::function<void(double)>& step_done) {
   const auto done = [&](double fraction) {
     if (step_done) step_done(fraction);
   };
-  const RegionTracer tracer(outlines, [&](double f) { done(0.7 * f); });
+  const RegionTracer tracer(outlines, RingVertices::corners, [&](double f) { done(0.7 * f); });
   std::vector<Region> regions(static_cast<std::size_t>(tracer.site_count()));
   FirstException failure;
 #pragma omp parallel for schedule(dynamic, 1)

@@ -35,6 +35,14 @@ struct RegionPolygon {
 /// The region of one site: its polygons (empty when the site has no cell).
 using Region = std::vector<RegionPolygon>;
 
+/// Which vertices a region's rings keep where they run along a parallel (a row line of the grid, or
+/// a pole's line) over several cells.
+enum class RingVertices {
+  corners,  ///< only the run's ends: one straight lon/lat segment, as planar GIS draws it
+  all,      ///< every cell vertex: each ring edge one cell edge, for consumers that read edges as
+            ///< geodesics or great circles (PostGIS geography, BigQuery GEOGRAPHY, S2)
+};
+
 /// The regions' boundary edges, gathered from the outline cells (label/outline_cells.hpp) and
 /// sorted per site, from which each region is traced on demand: the edges between sites are
 /// edges of boundary cells, the cuts at +-180 and along the poles' lines edges of row ends; a
@@ -44,7 +52,10 @@ class RegionTracer {
  public:
   /// Gathers the edges on all cores. `step_done` (may be empty) is called on the calling thread
   /// after each step (gather, bucket, sort) with the fraction done; it may throw to stop.
-  explicit RegionTracer(const label::Outlines& outlines, const std::function<void(double)>& step_done = {});
+  /// `vertices`: what the rings keep along parallels (runs along meridians, which are geodesics,
+  /// keep their ends only).
+  explicit RegionTracer(const label::Outlines& outlines, RingVertices vertices = RingVertices::corners,
+                        const std::function<void(double)>& step_done = {});
 
   std::int32_t site_count() const { return static_cast<std::int32_t>(start_.size()) - 1; }
 
@@ -58,11 +69,13 @@ class RegionTracer {
   };
 
  private:
+  RingVertices vertices_;
   std::vector<Edge> edges_;          // every site's edges, site after site
   std::vector<std::size_t> start_;  // site s's edges: [start_[s], start_[s + 1])
 };
 
-/// All regions at once (RegionTracer, then every site on all cores). Returns
+/// All regions at once (RegionTracer with the rings' corners only, then every site on all
+/// cores). Returns
 /// outlines.site_count regions. `step_done` as for RegionTracer, and once more when linked.
 std::vector<Region> trace_regions(const label::Outlines& outlines, const std::function<void(double)>& step_done = {});
 

@@ -507,6 +507,7 @@ struct Input {
   const CellTileSource& cell_tiles;  ///< the cells layer's labels
   const sites::SiteTable& table;
   std::int32_t site_count;
+  bool all_ring_vertices;  ///< VectorOptions::all_ring_vertices
 };
 
 void write_regions(Writer& w, const Input& in, double work) {
@@ -531,7 +532,8 @@ void write_regions(Writer& w, const Input& in, double work) {
   const int area_index = w.add_field(area_field);
 
   StepTrace trace;
-  const RegionTracer tracer(in.outlines, [&](double f) { w.layer_progress(0.2 * f, 1.0); });
+  const RingVertices vertices = in.all_ring_vertices ? RingVertices::all : RingVertices::corners;
+  const RegionTracer tracer(in.outlines, vertices, [&](double f) { w.layer_progress(0.2 * f, 1.0); });
   trace("regions' edges gathered");
   const std::vector<double> areas = region_areas(in.outlines);
   trace("regions measured");
@@ -739,7 +741,7 @@ void write_vector(const std::string& path, const label::Outlines& outlines, cons
   const bool want_cells = std::find(layers.begin(), layers.end(), "cells") != layers.end();
   if (want_cells && !cell_tiles) throw std::invalid_argument("write_vector: the cells layer needs the cells' labels");
   const Code cells = grid::cell_count(outlines.level);
-  const Input in{outlines, cell_tiles, table, site_count};
+  const Input in{outlines, cell_tiles, table, site_count, options.all_ring_vertices};
   std::uint64_t boundary_count = 0;
   for (const label::OutlineCell& c : outlines.cells) boundary_count += c.boundary;
 

@@ -105,6 +105,8 @@ TEST(QtmvoronoiCli, UsageErrorsExit2WithTheUsage) {
       {"-ot", "Int8", "a.csv", "b.tif"},
       {"-ot", "CFloat32", "a.csv", "b.tif"},
       {"-layers", "regions,nope", "a.csv", "b.gpkg"},
+      {"-vertices", "some", "a.csv", "b.gpkg"},
+      {"-tile", "1/2", "-vertices", "all", "a.csv", "b.qtmt"},
       {"-device", "gpu", "a.csv", "b.gpkg"},
       {"-oo", "novalue", "a.csv", "b.gpkg"},
       {"--config", "ONLY_KEY"},
@@ -172,6 +174,9 @@ TEST(QtmvoronoiCore, ParsesOptions) {
   EXPECT_THROW(parse_command_line({"-ts", "10", "a", "b"}), UsageError);
   EXPECT_THROW(parse_command_line({"-layers", "regions,regions", "a", "b"}), UsageError);
   EXPECT_TRUE(parse_command_line({"a", "--help"}).help);
+  EXPECT_FALSE(o.run.vector.all_ring_vertices);
+  EXPECT_TRUE(parse_command_line({"-vertices", "ALL", "a", "b"}).run.vector.all_ring_vertices);
+  EXPECT_FALSE(parse_command_line({"-vertices", "corners", "a", "b"}).run.vector.all_ring_vertices);
 }
 
 TEST(QtmvoronoiCore, GuessesTheFormatFromGdalsDriverMetadata) {
@@ -529,6 +534,9 @@ TEST(QtmvoronoiCli, OptionsThatDoNotSuitTheFormatOrTheHost) {
   const Result memory = run(concat({"-level", "24", kCentres, dir + "/b.gpkg"}, kCsvOptions));
   EXPECT_EQ(memory.status, 1);
   EXPECT_NE(memory.err.find("needs about"), std::string::npos) << memory.err;
+  const Result vertices = run(concat({"-vertices", "all", kCentres, dir + "/v.tif"}, kCsvOptions));
+  EXPECT_EQ(vertices.status, 1);
+  EXPECT_NE(vertices.err.find("-vertices"), std::string::npos) << vertices.err;
   const Result guess = run(concat({kCentres, dir + "/c.unknownext"}, kCsvOptions));
   EXPECT_EQ(guess.status, 1);
   EXPECT_NE(guess.err.find("-of"), std::string::npos) << guess.err;

@@ -296,6 +296,63 @@ std::vector<std::unique_ptr<OGRGeometry>> check_region_areas(int level, const st
   return shapes;
 }
 
+/// Geodesic area (square metres) of a polygon read back: its rings' vertices joined by geodesics,
+/// the shell counter-clockwise, the holes clockwise.
+double geodesic_polygon_area(const OGRPolygon& polygon) {
+  double area = 0;
+  for (int r = 0; r < polygon.getNumInteriorRings() + 1; ++r) {
+    const OGRLinearRing* ring = r == 0 ? polygon.getExteriorRing() : polygon.getInteriorRing(r - 1);
+    GeographicLib::PolygonArea measure(GeographicLib::Geodesic::WGS84());
+    for (int k = 0; k + 1 < ring->getNumPoints(); ++k) measure.AddPoint(ring->getY(k), ring->getX(k));  // closed: last = first
+    double perimeter = 0, ring_area = 0;
+    measure.Compute(/*reverse=*/r > 0, /*sign=*/false, perimeter, ring_area);
+    area += r == 0 ? ring_area : -ring_area;
+  }
+  return area;
+}
+
+TEST_F(VectorTest, AllRingVerticesMakeTheGeodesicAreaTheRegionsArea) {
+  // A cap north of 70N, a band along the equator and the rest by octant: long runs along parallels.
+  const int level = 5;
+  std::vector<std::int32_t> labels(grid::cell_count(level));
+  for (Code code = 0; code < grid::cell_count(level); ++code) {
+    const LonLat c = grid::cell_centre(code, level);
+    labels[code] = c.lat > 70 ? 0 : std::fabs(c.lat) < 15 ? 1 : 2 + grid::cell_of(code, level).octant;
+  }
+  const std::int32_t sites = 10;
+  sites::SiteTable table;
+  for (std::int32_t s = 0; s < sites; ++s) table.sites.emplace_back().fid = fid_of(s);
+  // Geodesic area of each region read back, against area_m2; the largest gap (square metres).
+  const auto worst_gap = [&](bool all_vertices, const std::string& name, std::size_t* points) {
+    const TempPath out(name);
+    VectorOptions options;
+    options.layers = {"regions"};
+    options.all_ring_vertices = all_vertices;
+    write_vector(out.path, {level, labels.data(), nullptr, nullptr}, table, options);
+    auto ds = open_vector(out.path);
+    EXPECT_TRUE(ds);
+    double worst = 0;
+    *points = 0;
+    if (!ds) return worst;
+    for (auto& feature : *ds->GetLayerByName("regions")) {
+      const auto* multi = feature->GetGeometryRef()->toMultiPolygon();
+      double area = 0;
+      for (const OGRPolygon* part : *multi) {
+        area += geodesic_polygon_area(*part);
+        for (const OGRLinearRing* ring : *part) *points += static_cast<std::size_t>(ring->getNumPoints());
+      }
+      worst = std::max(worst, std::fabs(area - feature->GetFieldAsDouble("area_m2")));
+      EXPECT_TRUE(multi->IsValid()) << "site FID " << feature->GetFieldAsInteger64("site_fid");
+    }
+    return worst;
+  };
+  std::size_t all_points = 0, corner_points = 0;
+  EXPECT_LT(worst_gap(true, "all_vertices.gpkg", &all_points), 1e-9 * kEllipsoidArea);
+  // With the corners only, the long runs read as geodesics cut poleward: the areas differ.
+  EXPECT_GT(worst_gap(false, "corners.gpkg", &corner_points), 1e-3 * kEllipsoidArea);
+  EXPECT_GT(all_points, corner_points);
+}
+
 TEST_F(VectorTest, RegionsWithHolesAndLargePolarRegions) {
   // Site 1 a ring around (10, 10), site 0 outside it and again inside: polygons with holes.
   {

@@ -138,7 +138,8 @@ Options parse_command_line(const std::vector<std::string>& args) {
       return args[++i];
     };
     const bool shapes_output = name == "-of" || name == "-f" || name == "-lco" || name == "-dsco" || name == "-co" ||
-                               name == "-ot" || name == "-layers" || name == "-raster" || name == "-tr" || name == "-ts";
+                               name == "-ot" || name == "-layers" || name == "-raster" || name == "-tr" || name == "-ts" ||
+                               name == "-vertices";
     if (shapes_output && output_option.empty()) output_option = arg;
     // Reader, labeller and writer options.
     if (name == "-level") {
@@ -231,6 +232,10 @@ Options parse_command_line(const std::vector<std::string>& args) {
       }
       if (run.kind == OutputKind::raster) throw UsageError("-layers is for vector output, -raster for raster output");
       run.kind = OutputKind::vector;
+    } else if (name == "-vertices") {
+      const std::string v = lower(value());
+      if (v != "corners" && v != "all") throw UsageError("-vertices: '" + v + "' is not one of corners, all");
+      run.vector.all_ring_vertices = v == "all";
     } else if (name == "-raster") {
       const std::string v = lower(value());
       if (v == "qtm") {

@@ -5,7 +5,8 @@
 set -euo pipefail
 
 # parallel: GNU parallel, for the test of the tile jobs' example (examples/tiles_gnu_parallel.sh).
-packages=(cmake ninja-build g++ pkg-config perl parallel
+# dpkg-dev and file: cpack's Debian package (dpkg-shlibdeps finds its dependencies).
+packages=(cmake ninja-build g++ pkg-config perl parallel dpkg-dev file
           libgdal-dev libgeos-dev libsqlite3-dev libgeographiclib-dev libgtest-dev libbenchmark-dev)
 
 # Arguments: more packages a script needs (the demo: gdal-bin, for its picture).

@@ -1,0 +1,66 @@
+#!/usr/bin/env bash
+# The Debian package (`cpack -G DEB` in the build directory): its control fields, its files, its
+# dependencies against the libraries the tools load, apt's view of installing it on this system,
+# and the packaged tool, unpacked into a root of its own, against the build's tool.
+#
+#   deb_package_test.sh BUILD_DIR TESTDATA_DIR
+set -euo pipefail
+build=$1 testdata=$2
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+cpack -G DEB --config "$build/CPackConfig.cmake" -B "$work/out" > "$work/cpack.log" 2>&1 || { cat "$work/cpack.log"; fail "cpack"; }
+deb=$(ls "$work"/out/qtmvoronoi_*_*.deb)
+echo "package: $(basename "$deb")"
+[ "$(dpkg-deb -f "$deb" Package)" = qtmvoronoi ] || fail "Package is not qtmvoronoi"
+[ "$(dpkg-deb -f "$deb" Architecture)" = "$(dpkg --print-architecture)" ] || fail "Architecture"
+depends=$(dpkg-deb -f "$deb" Depends)
+echo "Depends: $depends"
+
+# The files a user expects.
+contents=$(dpkg-deb -c "$deb" | awk '{print $6}')
+for f in ./usr/bin/qtmvoronoi ./usr/bin/qtmcell ./usr/share/man/man1/qtmvoronoi.1.gz \
+         ./usr/share/man/man1/qtmcell.1.gz ./usr/share/doc/qtmvoronoi/README.md; do
+  grep -qx -- "$f" <<<"$contents" || fail "the package lacks $f"
+done
+dpkg-deb -x "$deb" "$work/root"
+
+# Every library a packaged tool links directly comes from a package the .deb depends on.
+depends_names=$(tr ',' '\n' <<<"$depends" | sed 's/^ *//; s/ .*//; s/:.*//')
+for tool in qtmvoronoi qtmcell; do
+  bin=$work/root/usr/bin/$tool
+  for soname in $(objdump -p "$bin" | awk '$1 == "NEEDED" {print $2}'); do
+    # "libx.so.1 => /path (addr)", or "/lib64/ld-linux-x86-64.so.2 (addr)" for the loader.
+    path=$(ldd "$bin" | awk -v s="$soname" '$1 == s {print $3} $1 ~ "/" s "$" {print $1}' | head -1)
+    [ -n "$path" ] || fail "$tool: $soname is not found on this system"
+    owner=""
+    for p in "$path" "$(readlink -f "$path")" "${path/#\/lib\//\/usr\/lib\/}" "${path/#\/usr\/lib\//\/lib\/}"; do
+      owner=$(dpkg -S "$p" 2>/dev/null | head -1 | cut -d: -f1) && [ -n "$owner" ] && break
+    done
+    [ -n "$owner" ] || fail "$tool: no package owns $path"
+    grep -qx -- "$owner" <<<"$depends_names" || fail "$tool needs $soname of package $owner, which Depends lacks"
+  done
+done
+
+# apt would install it here: every dependency can be met.
+apt-get -s install "$deb" > "$work/apt.log" 2>&1 || { cat "$work/apt.log"; fail "apt-get -s install"; }
+grep -q "^Inst qtmvoronoi" "$work/apt.log" || { cat "$work/apt.log"; fail "apt-get would not install the package"; }
+
+# The man page is the tool's, and man reads it.
+zcat "$work/root/usr/share/man/man1/qtmvoronoi.1.gz" | grep -q '^\.TH QTMVORONOI 1' || fail "qtmvoronoi.1.gz is not its man page"
+if command -v man > /dev/null; then
+  MANWIDTH=80 man -l "$work/root/usr/share/man/man1/qtmvoronoi.1.gz" 2> /dev/null | grep -q -- "-vertices" ||
+    fail "man cannot show the page"
+fi
+
+# The packaged tool does the main job as the build's does.
+packaged=$work/root/usr/bin/qtmvoronoi
+"$packaged" --version | grep -q "qtmvoronoi" || fail "--version"
+csv=(-oo X_POSSIBLE_NAMES=lon -oo Y_POSSIBLE_NAMES=lat -s_srs EPSG:4326)
+"$packaged" -q -level 7 -device cpu -of CSV -layers regions "${csv[@]}" "$testdata/country_centres.csv" "$work/packaged.csv"
+"$build/tools/qtmvoronoi/qtmvoronoi" -q -level 7 -device cpu -of CSV -layers regions "${csv[@]}" \
+  "$testdata/country_centres.csv" "$work/built.csv"
+cmp -s "$work/packaged.csv" "$work/built.csv" || fail "the packaged tool's regions differ from the build's"
+[ "$(wc -l < "$work/packaged.csv")" -gt 200 ] || fail "too few regions"
+echo "ok"

@@ -21,7 +21,9 @@ echo "Depends: $depends"
 # The files a user expects.
 contents=$(dpkg-deb -c "$deb" | awk '{print $6}')
 for f in ./usr/bin/qtmvoronoi ./usr/bin/qtmcell ./usr/share/man/man1/qtmvoronoi.1.gz \
-         ./usr/share/man/man1/qtmcell.1.gz ./usr/share/doc/qtmvoronoi/README.md; do
+         ./usr/share/man/man1/qtmcell.1.gz ./usr/share/doc/qtmvoronoi/README.md \
+         ./usr/share/qgis/python/plugins/qtmvoronoi_processing/metadata.txt \
+         ./usr/share/qgis/python/plugins/qtmvoronoi_processing/algorithms.py; do
   grep -qx -- "$f" <<<"$contents" || fail "the package lacks $f"
 done
 dpkg-deb -x "$deb" "$work/root"

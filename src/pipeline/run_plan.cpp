@@ -185,6 +185,11 @@ RunPlan plan_run(const std::string& destination, const VoronoiOptions& options) 
     if (!options.vector.dataset_options.empty() || !options.vector.layer_options.empty()) {
       throw VoronoiError("-dsco and -lco are for vector output; " + plan.format.driver + " output is a raster: use -co");
     }
+    if (options.read.layers.size() > 1) {
+      throw VoronoiError("-l names " + std::to_string(options.read.layers.size()) +
+                         " layers: a raster's FID band cannot tell their sites apart; write vector output, whose "
+                         "rows name each site's layer");
+    }
     if (options.vector.all_ring_vertices) {
       throw VoronoiError("-vertices is for the regions of vector output; " + plan.format.driver + " output is a raster");
     }

@@ -266,274 +266,293 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   if (const std::string warnings = errors.take(); !warnings.empty()) {
     say(Severity::warning, "'" + dataset_name + "': GDAL: " + warnings);
   }
-  OGRLayer* layer = nullptr;
-  std::string layer_name;
+  // --- the layers: the -sql result, the -l layers (several: composite sites), or the first ----
+  struct SourceLayer {
+    OGRLayer* layer;
+    std::string name;
+  };
+  std::vector<SourceLayer> layers;
   std::shared_ptr<OGRLayer> sql_result;  // released through the dataset
   if (!options.sql.empty()) {
     errors.take();
-    layer = dataset->ExecuteSQL(options.sql.c_str(), nullptr, options.dialect.empty() ? nullptr : options.dialect.c_str());
+    OGRLayer* layer = dataset->ExecuteSQL(options.sql.c_str(), nullptr, options.dialect.empty() ? nullptr : options.dialect.c_str());
     if (!layer) {
       throw ReadError(with_gdal_message("'" + dataset_name + "': -sql failed: " + options.sql, errors.take()));
     }
     sql_result.reset(layer, [ds = dataset.get()](OGRLayer* l) { ds->ReleaseResultSet(l); });
-    layer_name = "(-sql result)";
-  } else if (!options.layer.empty()) {
-    layer = dataset->GetLayerByName(options.layer.c_str());
-    if (!layer) {
-      std::string names;
-      for (int k = 0; k < dataset->GetLayerCount(); ++k) names += std::string(k ? ", " : "") + dataset->GetLayer(k)->GetName();
-      throw ReadError("'" + dataset_name + "' has no layer '" + options.layer + "'; its layers: " +
-                      (names.empty() ? "(none)" : names));
+    layers.push_back({layer, "(-sql result)"});
+  } else if (!options.layers.empty()) {
+    for (const std::string& name : options.layers) {
+      OGRLayer* layer = dataset->GetLayerByName(name.c_str());
+      if (!layer) {
+        std::string names;
+        for (int k = 0; k < dataset->GetLayerCount(); ++k) names += std::string(k ? ", " : "") + dataset->GetLayer(k)->GetName();
+        throw ReadError("'" + dataset_name + "' has no layer '" + name + "'; its layers: " + (names.empty() ? "(none)" : names));
+      }
+      layers.push_back({layer, layer->GetName()});
     }
   } else {
     if (dataset->GetLayerCount() == 0) throw ReadError("'" + dataset_name + "' has no layer");
-    layer = dataset->GetLayer(0);
+    layers.push_back({dataset->GetLayer(0), dataset->GetLayer(0)->GetName()});
   }
-  if (layer_name.empty()) layer_name = layer->GetName();
-  const std::string where_from = "'" + dataset_name + "', layer '" + layer_name + "'";
-  // GDAL opens a shapefile without its .dbf silently, with no fields: say the attributes are gone.
-  if (EQUAL(dataset->GetDriverName(), "ESRI Shapefile") && EQUAL(CPLGetExtension(dataset_name.c_str()), "shp")) {
-    VSIStatBufL dbf;
-    if (VSIStatL(CPLResetExtension(dataset_name.c_str(), "dbf"), &dbf) != 0 &&
-        VSIStatL(CPLResetExtension(dataset_name.c_str(), "DBF"), &dbf) != 0) {
-      say(Severity::warning, where_from + ": no .dbf beside the .shp; the sites have no attributes");
-    }
-  }
-  if (!options.where.empty()) {
-    errors.take();
-    if (layer->SetAttributeFilter(options.where.c_str()) != OGRERR_NONE) {
-      throw ReadError(with_gdal_message(where_from + ": bad -where: " + options.where, errors.take()));
-    }
-  }
+  std::string where_all = "'" + dataset_name + "', layer" + (layers.size() > 1 ? "s " : " ");
+  for (std::size_t k = 0; k < layers.size(); ++k) where_all += (k ? ", '" : "'") + layers[k].name + "'";
 
-  // --- CRS ------------------------------------------------------------------------------------------
-  OGRSpatialReference wgs84;
-  wgs84.importFromEPSG(4326);
-  wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  OGRSpatialReference source;
-  if (!options.source_srs.empty()) {
-    errors.take();
-    if (source.SetFromUserInput(options.source_srs.c_str()) != OGRERR_NONE) {
-      throw ReadError(with_gdal_message("-s_srs: cannot read '" + options.source_srs + "'", errors.take()));
-    }
-    source.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  } else if (const OGRSpatialReference* layer_srs = layer->GetSpatialRef()) {
-    source = *layer_srs;  // keeps the layer's data axis order
-  } else {
-    say(Severity::warning, where_from + ": the layer has no CRS; its coordinates are taken as EPSG:4326 (WGS84 lon/lat)");
-    source = wgs84;
-  }
-  std::unique_ptr<OGRCoordinateTransformation, OgrDeleter> transform;
-  if (!(source.IsSame(&wgs84) && source.GetDataAxisToSRSAxisMapping() == wgs84.GetDataAxisToSRSAxisMapping())) {
-    errors.take();
-    transform.reset(OGRCreateCoordinateTransformation(&source, &wgs84));
-    if (!transform) {
-      throw ReadError(with_gdal_message(where_from + ": no transformation from its CRS (" +
-                                            std::string(source.GetName() ? source.GetName() : "?") + ") to WGS84",
-                                        errors.take()));
-    }
-  }
-  const CoordinateRange range = coordinate_range(source);
-
-  // --- features --------------------------------------------------------------------------------------
   SiteSet out;
-  out.table.set_source(layer->GetLayerDefn(), dataset_name, layer_name);
   ReadSummary& summary = out.summary;
-  PolygonValidityCheck validity(options, source, where_from);
-  const GIntBig feature_count = layer->GetFeatureCount(FALSE);
-  report_progress(options.progress, 0.0, "reading sites");
-
-  // One warning a skipped feature, the first kMostListed of them; then a count (a CSV read without
-  // its coordinate columns would otherwise give a line per row).
-  auto skip = [&](GIntBig fid, const std::string& reason, std::uint64_t& counter) {
-    const std::string message = where_from + ", FID " + std::to_string(fid) + ": " + reason;
-    if (options.strict) throw ReadError(message + " (-strict)");
-    if (summary.skipped < PolygonValidityCheck::kMostListed) say(Severity::warning, message + "; feature skipped");
-    ++summary.skipped;
-    ++counter;
-  };
-
-  std::vector<grid::LonLat> lonlat;
-  std::vector<int> transformed_ok;
-  FidList wrapped;  // the features -wrap auto changed
-  std::chrono::steady_clock::duration rasterise{};  // tracing, filling and claims, within the read
-
-  // Sites are traced and filled in batches on all threads, each job (a feature, or a share of a
-  // large one's parts) by one thread's builder, and appended in feature order: the same geometry
-  // whatever the thread count.
-  const int threads = thread_count(options.threads);
-  std::vector<std::unique_ptr<SiteBuilder>> builders(static_cast<std::size_t>(threads));
-  std::vector<SiteJob> batch;
-  std::size_t batch_vertices = 0;
-  GIntBig wrapped_fid = -1;  // the last feature named in `wrapped`
   SiteGeometry& geometry = out.geometry;
   geometry.level = options.level;
-  auto build_batch = [&] {
-    if (batch.empty()) return;
-    const auto start = std::chrono::steady_clock::now();
-    const auto n = static_cast<std::int64_t>(batch.size());
-    std::vector<SiteGeometry> built(batch.size());
-    std::vector<std::size_t> short_way(batch.size(), 0);
-    FirstException failure;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
-    for (std::int64_t k = 0; k < n; ++k) {
-      failure.run([&] {
-        std::unique_ptr<SiteBuilder>& builder = builders[static_cast<std::size_t>(thread_index())];
-        if (!builder) builder = std::make_unique<SiteBuilder>(options.level, options.edges, options.wrap);
-        build_site(*builder, batch[static_cast<std::size_t>(k)]);
-        short_way[k] = builder->short_way_edges();
-        built[k] = builder->take_geometry();
-      });
-    }
-    failure.rethrow();
-    for (std::size_t k = 0; k < batch.size(); ++k) {
-      // A feature's shares come one after another: its first starts the site, the others add to it.
-      append_site(geometry, built[k], batch[k].starts_site ? geometry.site_count : geometry.site_count - 1);
-      const bool named = !batch[k].starts_site && wrapped_fid == batch[k].fid;
-      if (short_way[k] > 0 && !named) {
-        wrapped.add(batch[k].fid);
-        wrapped_fid = batch[k].fid;
+  std::chrono::steady_clock::duration rasterise{};  // tracing, filling and claims, within the read
+  const int threads = thread_count(options.threads);
+  std::vector<std::unique_ptr<SiteBuilder>> builders(static_cast<std::size_t>(threads));
+  std::string validity_text;  // the layers' invalid polygons, for the summary line
+  // Each layer's sites follow the layer before's (composite sites), each with its own CRS,
+  // checks and messages.
+  for (const SourceLayer& source_layer : layers) {
+  OGRLayer* const layer = source_layer.layer;
+  const std::string& layer_name = source_layer.name;
+  const std::uint64_t features_before = summary.features, sites_before = summary.sites,
+                      skipped_before = summary.skipped;
+    const std::string where_from = "'" + dataset_name + "', layer '" + layer_name + "'";
+    // GDAL opens a shapefile without its .dbf silently, with no fields: say the attributes are gone.
+    if (EQUAL(dataset->GetDriverName(), "ESRI Shapefile") && EQUAL(CPLGetExtension(dataset_name.c_str()), "shp")) {
+      VSIStatBufL dbf;
+      if (VSIStatL(CPLResetExtension(dataset_name.c_str(), "dbf"), &dbf) != 0 &&
+          VSIStatL(CPLResetExtension(dataset_name.c_str(), "DBF"), &dbf) != 0) {
+        say(Severity::warning, where_from + ": no .dbf beside the .shp; the sites have no attributes");
       }
     }
-    batch.clear();
-    batch_vertices = 0;
-    rasterise += std::chrono::steady_clock::now() - start;
-  };
-  errors.take();
-  layer->ResetReading();
-  for (OGRFeatureUniquePtr feature(layer->GetNextFeature()); feature; feature.reset(layer->GetNextFeature())) {
-    ++summary.features;
-    if (options.progress && feature_count > 0 && summary.features % 256 == 0 &&
-        !options.progress(std::min(1.0, static_cast<double>(summary.features) / feature_count), "reading sites")) {
-      throw Interrupted();
-    }
-    const GIntBig fid = feature->GetFID();
-    // A driver that cannot decode one feature (a corrupt geometry blob, say) reports it while
-    // reading that feature: skip it with GDAL's reason instead of failing the whole read.
-    if (errors.failed()) {
-      skip(fid, "unreadable feature (GDAL: " + errors.take() + ")", summary.skipped_unreadable);
-      continue;
-    }
-    std::unique_ptr<OGRGeometry> geometry(feature->StealGeometry());
-    if (!geometry || geometry->IsEmpty()) {
-      skip(fid, "empty geometry", summary.skipped_empty);
-      continue;
-    }
-    if (geometry->hasCurveGeometry()) geometry.reset(geometry->getLinearGeometry());
-    FeatureParts parts;
-    std::string reason;
-    if (!gather_parts(*geometry, parts, reason)) {
-      skip(fid, reason, summary.skipped_type);
-      continue;
-    }
-    if (parts.parts.empty()) {
-      skip(fid, "empty geometry", summary.skipped_empty);
-      continue;
-    }
-    // Checked before PROJ sees them (GDAL 3.6 hangs on EPSG:3857 coordinates near +-1e20).
-    std::size_t n = parts.x.size();
-    bool usable = true;
-    for (std::size_t k = 0; k < n && usable; ++k) {
-      const double x = parts.x[k], y = parts.y[k];
-      if (!std::isfinite(x) || !std::isfinite(y)) {
-        skip(fid, "NaN or infinite coordinate " + format_coordinate(x, y), summary.skipped_coordinate);
-        usable = false;
-      } else if (std::fabs(x) > range.limit_x || std::fabs(y) > range.limit_y) {
-        skip(fid, "coordinate " + format_coordinate(x, y) + " beyond " + range.describe + " of its CRS",
-             summary.skipped_coordinate);
-        usable = false;
+    if (!options.where.empty()) {
+      errors.take();
+      if (layer->SetAttributeFilter(options.where.c_str()) != OGRERR_NONE) {
+        throw ReadError(with_gdal_message(where_from + ": bad -where: " + options.where, errors.take()));
       }
     }
-    if (!usable) continue;
-    // Invalid polygons are named (or repaired, -makevalid) as the source gives them.
-    if (validity.inspect(fid, geometry)) {
-      parts = FeatureParts{};
-      if (!gather_parts(*geometry, parts, reason) || parts.parts.empty()) {
-        skip(fid, "nothing left after -makevalid", summary.skipped_empty);
+
+    // --- CRS ------------------------------------------------------------------------------------------
+    OGRSpatialReference wgs84;
+    wgs84.importFromEPSG(4326);
+    wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    OGRSpatialReference source;
+    if (!options.source_srs.empty()) {
+      errors.take();
+      if (source.SetFromUserInput(options.source_srs.c_str()) != OGRERR_NONE) {
+        throw ReadError(with_gdal_message("-s_srs: cannot read '" + options.source_srs + "'", errors.take()));
+      }
+      source.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+    } else if (const OGRSpatialReference* layer_srs = layer->GetSpatialRef()) {
+      source = *layer_srs;  // keeps the layer's data axis order
+    } else {
+      say(Severity::warning, where_from + ": the layer has no CRS; its coordinates are taken as EPSG:4326 (WGS84 lon/lat)");
+      source = wgs84;
+    }
+    std::unique_ptr<OGRCoordinateTransformation, OgrDeleter> transform;
+    if (!(source.IsSame(&wgs84) && source.GetDataAxisToSRSAxisMapping() == wgs84.GetDataAxisToSRSAxisMapping())) {
+      errors.take();
+      transform.reset(OGRCreateCoordinateTransformation(&source, &wgs84));
+      if (!transform) {
+        throw ReadError(with_gdal_message(where_from + ": no transformation from its CRS (" +
+                                              std::string(source.GetName() ? source.GetName() : "?") + ") to WGS84",
+                                          errors.take()));
+      }
+    }
+    const CoordinateRange range = coordinate_range(source);
+
+    // --- features --------------------------------------------------------------------------------------
+    const std::uint32_t layer_index = out.table.add_source(layer->GetLayerDefn(), dataset_name, layer_name);
+    PolygonValidityCheck validity(options, source, where_from);
+    const GIntBig feature_count = layer->GetFeatureCount(FALSE);
+    report_progress(options.progress, 0.0, "reading sites");
+
+    // One warning a skipped feature, the first kMostListed of them; then a count (a CSV read without
+    // its coordinate columns would otherwise give a line per row).
+    auto skip = [&](GIntBig fid, const std::string& reason, std::uint64_t& counter) {
+      const std::string message = where_from + ", FID " + std::to_string(fid) + ": " + reason;
+      if (options.strict) throw ReadError(message + " (-strict)");
+      if (summary.skipped < PolygonValidityCheck::kMostListed) say(Severity::warning, message + "; feature skipped");
+      ++summary.skipped;
+      ++counter;
+    };
+
+    std::vector<grid::LonLat> lonlat;
+    std::vector<int> transformed_ok;
+    FidList wrapped;  // the features -wrap auto changed
+
+    // Sites are traced and filled in batches on all threads, each job (a feature, or a share of a
+    // large one's parts) by one thread's builder, and appended in feature order: the same geometry
+    // whatever the thread count.
+    std::vector<SiteJob> batch;
+    std::size_t batch_vertices = 0;
+    GIntBig wrapped_fid = -1;  // the last feature named in `wrapped`
+    auto build_batch = [&] {
+      if (batch.empty()) return;
+      const auto start = std::chrono::steady_clock::now();
+      const auto n = static_cast<std::int64_t>(batch.size());
+      std::vector<SiteGeometry> built(batch.size());
+      std::vector<std::size_t> short_way(batch.size(), 0);
+      FirstException failure;
+  #pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+      for (std::int64_t k = 0; k < n; ++k) {
+        failure.run([&] {
+          std::unique_ptr<SiteBuilder>& builder = builders[static_cast<std::size_t>(thread_index())];
+          if (!builder) builder = std::make_unique<SiteBuilder>(options.level, options.edges, options.wrap);
+          build_site(*builder, batch[static_cast<std::size_t>(k)]);
+          short_way[k] = builder->short_way_edges();
+          built[k] = builder->take_geometry();
+        });
+      }
+      failure.rethrow();
+      for (std::size_t k = 0; k < batch.size(); ++k) {
+        // A feature's shares come one after another: its first starts the site, the others add to it.
+        append_site(geometry, built[k], batch[k].starts_site ? geometry.site_count : geometry.site_count - 1);
+        const bool named = !batch[k].starts_site && wrapped_fid == batch[k].fid;
+        if (short_way[k] > 0 && !named) {
+          wrapped.add(batch[k].fid);
+          wrapped_fid = batch[k].fid;
+        }
+      }
+      batch.clear();
+      batch_vertices = 0;
+      rasterise += std::chrono::steady_clock::now() - start;
+    };
+    errors.take();
+    layer->ResetReading();
+    for (OGRFeatureUniquePtr feature(layer->GetNextFeature()); feature; feature.reset(layer->GetNextFeature())) {
+      ++summary.features;
+      if (options.progress && feature_count > 0 && summary.features % 256 == 0 &&
+          !options.progress(std::min(1.0, static_cast<double>(summary.features) / feature_count), "reading sites")) {
+        throw Interrupted();
+      }
+      const GIntBig fid = feature->GetFID();
+      // A driver that cannot decode one feature (a corrupt geometry blob, say) reports it while
+      // reading that feature: skip it with GDAL's reason instead of failing the whole read.
+      if (errors.failed()) {
+        skip(fid, "unreadable feature (GDAL: " + errors.take() + ")", summary.skipped_unreadable);
         continue;
       }
-      n = parts.x.size();
-    }
-    if (transform) {
-      transformed_ok.assign(n, FALSE);
-      gdal::ErrorCapture transform_errors;
-      const std::vector<double> x0 = parts.x, y0 = parts.y;
-      transform->Transform(static_cast<int>(n), parts.x.data(), parts.y.data(), nullptr, transformed_ok.data());
+      std::unique_ptr<OGRGeometry> geometry(feature->StealGeometry());
+      if (!geometry || geometry->IsEmpty()) {
+        skip(fid, "empty geometry", summary.skipped_empty);
+        continue;
+      }
+      if (geometry->hasCurveGeometry()) geometry.reset(geometry->getLinearGeometry());
+      FeatureParts parts;
+      std::string reason;
+      if (!gather_parts(*geometry, parts, reason)) {
+        skip(fid, reason, summary.skipped_type);
+        continue;
+      }
+      if (parts.parts.empty()) {
+        skip(fid, "empty geometry", summary.skipped_empty);
+        continue;
+      }
+      // Checked before PROJ sees them (GDAL 3.6 hangs on EPSG:3857 coordinates near +-1e20).
+      std::size_t n = parts.x.size();
+      bool usable = true;
       for (std::size_t k = 0; k < n && usable; ++k) {
-        if (!transformed_ok[k] || !std::isfinite(parts.x[k]) || !std::isfinite(parts.y[k])) {
-          skip(fid, with_gdal_message("coordinate " + format_coordinate(x0[k], y0[k]) + " fails to transform to WGS84",
-                                      transform_errors.take()),
-               summary.skipped_transform);
+        const double x = parts.x[k], y = parts.y[k];
+        if (!std::isfinite(x) || !std::isfinite(y)) {
+          skip(fid, "NaN or infinite coordinate " + format_coordinate(x, y), summary.skipped_coordinate);
+          usable = false;
+        } else if (std::fabs(x) > range.limit_x || std::fabs(y) > range.limit_y) {
+          skip(fid, "coordinate " + format_coordinate(x, y) + " beyond " + range.describe + " of its CRS",
+               summary.skipped_coordinate);
           usable = false;
         }
       }
       if (!usable) continue;
-    }
-    lonlat.resize(n);
-    for (std::size_t k = 0; k < n && usable; ++k) {
-      double lat = parts.y[k];
-      if (std::fabs(lat) > 90.0) {
-        if (std::fabs(lat) > 90.0 + 1e-9) {
-          skip(fid, std::string("latitude beyond +-90") + (transform ? " after transformation" : "") + " at " +
-                        format_coordinate(parts.x[k], lat),
-               summary.skipped_coordinate);
-          usable = false;
-          break;
+      // Invalid polygons are named (or repaired, -makevalid) as the source gives them.
+      if (validity.inspect(fid, geometry)) {
+        parts = FeatureParts{};
+        if (!gather_parts(*geometry, parts, reason) || parts.parts.empty()) {
+          skip(fid, "nothing left after -makevalid", summary.skipped_empty);
+          continue;
         }
-        lat = lat > 0 ? 90.0 : -90.0;  // rounding in the transformation
+        n = parts.x.size();
       }
-      lonlat[k] = {parts.x[k], lat};
-    }
-    if (!usable) continue;
+      if (transform) {
+        transformed_ok.assign(n, FALSE);
+        gdal::ErrorCapture transform_errors;
+        const std::vector<double> x0 = parts.x, y0 = parts.y;
+        transform->Transform(static_cast<int>(n), parts.x.data(), parts.y.data(), nullptr, transformed_ok.data());
+        for (std::size_t k = 0; k < n && usable; ++k) {
+          if (!transformed_ok[k] || !std::isfinite(parts.x[k]) || !std::isfinite(parts.y[k])) {
+            skip(fid, with_gdal_message("coordinate " + format_coordinate(x0[k], y0[k]) + " fails to transform to WGS84",
+                                        transform_errors.take()),
+                 summary.skipped_transform);
+            usable = false;
+          }
+        }
+        if (!usable) continue;
+      }
+      lonlat.resize(n);
+      for (std::size_t k = 0; k < n && usable; ++k) {
+        double lat = parts.y[k];
+        if (std::fabs(lat) > 90.0) {
+          if (std::fabs(lat) > 90.0 + 1e-9) {
+            skip(fid, std::string("latitude beyond +-90") + (transform ? " after transformation" : "") + " at " +
+                          format_coordinate(parts.x[k], lat),
+                 summary.skipped_coordinate);
+            usable = false;
+            break;
+          }
+          lat = lat > 0 ? 90.0 : -90.0;  // rounding in the transformation
+        }
+        lonlat[k] = {parts.x[k], lat};
+      }
+      if (!usable) continue;
 
-    // --- one site, built with the next batch ---
-    SiteRecord record;
-    record.fid = fid;
-    for (const FeatureParts::Part& part : parts.parts) {
-      record.kind |= part.kind == FeatureParts::kPoint ? kPointSite : part.kind == FeatureParts::kLine ? kLineSite
-                                                                                                       : kPolygonSite;
+      // --- one site, built with the next batch ---
+      SiteRecord record;
+      record.fid = fid;
+      record.layer = layer_index;
+      for (const FeatureParts::Part& part : parts.parts) {
+        record.kind |= part.kind == FeatureParts::kPoint ? kPointSite : part.kind == FeatureParts::kLine ? kLineSite
+                                                                                                         : kPolygonSite;
+      }
+      record.attributes.reset(feature.release());
+      out.table.sites.push_back(std::move(record));
+      ++summary.sites;
+      batch_vertices += lonlat.size();
+      make_jobs(fid, std::move(lonlat), std::move(parts.parts), batch);
+      lonlat = {};
+      if (batch.size() >= kBatchSites || batch_vertices >= kBatchVertices) build_batch();
     }
-    record.attributes.reset(feature.release());
-    out.table.sites.push_back(std::move(record));
-    ++summary.sites;
-    batch_vertices += lonlat.size();
-    make_jobs(fid, std::move(lonlat), std::move(parts.parts), batch);
-    lonlat = {};
-    if (batch.size() >= kBatchSites || batch_vertices >= kBatchVertices) build_batch();
-  }
-  build_batch();
-  validity.finish();
-  if (summary.skipped > PolygonValidityCheck::kMostListed) {
-    say(Severity::warning, where_from + ": " + std::to_string(summary.skipped - PolygonValidityCheck::kMostListed) +
-                               " more skipped feature(s) not listed (" + std::to_string(summary.skipped) + " in all)");
-  }
-  summary.invalid_polygons = validity.invalid();
-  summary.repaired_polygons = validity.repaired();
-  // Drivers report a bad filter or a broken file while reading (GeoPackage's -where, say).
-  if (errors.failed()) {
-    throw ReadError(with_gdal_message(
-        where_from + (options.where.empty() ? ": reading failed" : ": bad -where: " + options.where), errors.take()));
-  }
-  if (const std::string pending = errors.take(); !pending.empty()) say(Severity::warning, where_from + ": GDAL: " + pending);
-  report_progress(options.progress, 1.0, "reading sites");
-  // A user must never get a silently different geometry.
-  summary.wrapped_features = wrapped.count();
-  if (wrapped.count() > 0) {
-    say(Severity::warning, where_from + ": " + std::to_string(wrapped.count()) +
-                               " feature(s) have edges more than 180 degrees of longitude long joined the short way "
-                               "across +-180 (-wrap auto; -wrap none reads them as written) (FIDs " + wrapped.text() +
-                               ")");
-  }
+    build_batch();
+    validity.finish();
+    if (summary.skipped > PolygonValidityCheck::kMostListed) {
+      say(Severity::warning, where_from + ": " + std::to_string(summary.skipped - PolygonValidityCheck::kMostListed) +
+                                 " more skipped feature(s) not listed (" + std::to_string(summary.skipped) + " in all)");
+    }
+    summary.invalid_polygons += validity.invalid();
+    summary.repaired_polygons += validity.repaired();
+    validity_text += validity.summary_text();
+    // Drivers report a bad filter or a broken file while reading (GeoPackage's -where, say).
+    if (errors.failed()) {
+      throw ReadError(with_gdal_message(
+          where_from + (options.where.empty() ? ": reading failed" : ": bad -where: " + options.where), errors.take()));
+    }
+    if (const std::string pending = errors.take(); !pending.empty()) say(Severity::warning, where_from + ": GDAL: " + pending);
+    report_progress(options.progress, 1.0, "reading sites");
+    // A user must never get a silently different geometry.
+    summary.wrapped_features += wrapped.count();
+    if (wrapped.count() > 0) {
+      say(Severity::warning, where_from + ": " + std::to_string(wrapped.count()) +
+                                 " feature(s) have edges more than 180 degrees of longitude long joined the short way "
+                                 "across +-180 (-wrap auto; -wrap none reads them as written) (FIDs " + wrapped.text() +
+                                 ")");
+    }
 
-  if (summary.sites == 0) {
-    // A table of coordinates read without open options has no geometry at all: say how to read it.
-    const bool no_geometry_field = layer->GetLayerDefn()->GetGeomFieldCount() == 0;
-    throw ReadError(where_from + ": no usable site (" + std::to_string(summary.features) + " features read, " +
-                    std::to_string(summary.skipped) + " skipped)" +
-                    (no_geometry_field && summary.features > 0
-                         ? "; the layer has no geometry column: for a CSV of coordinates, name them with "
-                           "-oo X_POSSIBLE_NAMES=lon -oo Y_POSSIBLE_NAMES=lat"
-                         : ""));
+    if (summary.sites == sites_before) {
+      // A table of coordinates read without open options has no geometry at all: say how to read it.
+      const bool no_geometry_field = layer->GetLayerDefn()->GetGeomFieldCount() == 0;
+      throw ReadError(where_from + ": no usable site (" + std::to_string(summary.features - features_before) +
+                      " features read, " + std::to_string(summary.skipped - skipped_before) + " skipped)" +
+                      (no_geometry_field && summary.features > 0
+                           ? "; the layer has no geometry column: for a CSV of coordinates, name them with "
+                             "-oo X_POSSIBLE_NAMES=lon -oo Y_POSSIBLE_NAMES=lat"
+                           : ""));
+    }
   }
 
   // --- claims, counts, summary --------------------------------------------------------------------
@@ -552,17 +571,17 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   }
   summary.sites_without_own_cell = without_cell.count();
   if (without_cell.count() > 0 && options.warn_sites_without_cell) {
-    say(Severity::warning, where_from + ": " + std::to_string(without_cell.count()) +
+    say(Severity::warning, where_all + ": " + std::to_string(without_cell.count()) +
                                " site(s) have no cell of their own at level " + std::to_string(options.level) +
                                " (FIDs " + without_cell.text() + "); they are still written");
   }
-  std::string line = where_from + ": " + std::to_string(summary.features) + " features, " +
+  std::string line = where_all + ": " + std::to_string(summary.features) + " features, " +
                      std::to_string(summary.sites) + " sites, " + std::to_string(out.geometry.pieces.size()) +
                      " pieces, " + std::to_string(out.geometry.site_cells.size()) + " site cells, " +
                      std::to_string(out.geometry.fixed_cells.size()) + " fixed cells and " +
                      std::to_string(out.geometry.fixed_nodes.size()) + " fixed nodes at level " +
                      std::to_string(options.level);
-  line += validity.summary_text();
+  line += validity_text;
   if (summary.skipped > 0) {
     line += "; " + std::to_string(summary.skipped) + " features skipped (" + std::to_string(summary.skipped_empty) +
             " empty, " + std::to_string(summary.skipped_type) + " unsupported type, " +

@@ -36,7 +36,9 @@ using qtmv::Severity;
 
 /// What to read and how to read it: the reader options a caller of the pipeline gives.
 struct SourceOptions {
-  std::string layer;             ///< -l: layer name; empty: the first layer
+  /// -l: the layers to read; several make composite sites (each layer's after the one before,
+  /// FIDs their layer's); empty: the first layer.
+  std::vector<std::string> layers;
   std::string where;             ///< -where: attribute filter (OGR SQL expression)
   std::string sql;               ///< -sql: statement whose result set is read instead of a layer
   std::string dialect;           ///< -dialect: SQL dialect of -sql ("OGRSQL", "SQLITE", ...)

@@ -27,9 +27,11 @@ struct SiteRecord {
   std::uint64_t site_cells = 0;   ///< distinct cells the site passes through
   std::uint64_t fixed_cells = 0;  ///< cells inside its polygons that it holds
   bool has_own_cell = false;    ///< false: every cell it has went to another site (it is still written)
+  std::uint32_t layer = 0;      ///< the source layer it was read from (SiteTable::definition(layer), ...)
 };
 
-/// The sites in id order (site id = index), and the field definitions they share.
+/// The sites in id order (site id = index), and the source layers they were read from: one, or
+/// several for composite sites (several -l), each with its own field definitions.
 class SiteTable {
  public:
   SiteTable() = default;
@@ -39,18 +41,30 @@ class SiteTable {
   SiteTable& operator=(const SiteTable&) = delete;
   ~SiteTable();
 
-  /// Sets the field definitions (a reference is kept) and the source's description.
+  /// Sets the only source layer: its field definitions (a reference is kept) and its names.
   void set_source(OGRFeatureDefn* definition, std::string dataset, std::string layer);
-  /// The fields of every site, or null before set_source.
-  const OGRFeatureDefn* definition() const { return definition_; }
-  const std::string& dataset() const { return dataset_; }
-  const std::string& layer() const { return layer_; }
+  /// Adds a source layer; returns the index its sites hold in SiteRecord::layer.
+  std::uint32_t add_source(OGRFeatureDefn* definition, std::string dataset, std::string layer);
+
+  /// The source layers (0 before set_source or add_source).
+  std::size_t source_count() const { return sources_.size(); }
+  /// The fields of source layer k's sites (of every site when there is one layer), or null
+  /// when there is no such layer.
+  const OGRFeatureDefn* definition(std::size_t k = 0) const {
+    return k < sources_.size() ? sources_[k].definition : nullptr;
+  }
+  const std::string& dataset(std::size_t k = 0) const { return sources_.at(k).dataset; }
+  const std::string& layer(std::size_t k = 0) const { return sources_.at(k).layer; }
 
   std::vector<SiteRecord> sites;
 
  private:
-  OGRFeatureDefn* definition_ = nullptr;
-  std::string dataset_, layer_;
+  struct Source {
+    OGRFeatureDefn* definition = nullptr;
+    std::string dataset, layer;
+  };
+  void release_sources();
+  std::vector<Source> sources_;
 };
 
 }  // namespace qtmv::sites

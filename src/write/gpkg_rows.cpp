@@ -182,6 +182,7 @@ void GpkgRows::flush() {
       const RowValue& v = values_[r * (columns_ - 1) + c];
       rc = v.kind == RowValue::Kind::integer ? sqlite3_bind_int64(statement, parameter, v.integer)
            : v.kind == RowValue::Kind::real  ? sqlite3_bind_double(statement, parameter, v.real)
+           : v.kind == RowValue::Kind::text  ? sqlite3_bind_text(statement, parameter, v.text, -1, SQLITE_STATIC)
                                              : sqlite3_bind_null(statement, parameter);
       ++parameter;
     }

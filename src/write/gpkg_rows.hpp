@@ -32,15 +32,18 @@ struct sqlite3_stmt;
 
 namespace qtmv::write {
 
-/// One attribute of a row: null, an integer or a real.
+/// One attribute of a row: null, an integer, a real or a text (not copied: it must outlive the
+/// rows' writing).
 struct RowValue {
-  enum class Kind { null, integer, real };
+  enum class Kind { null, integer, real, text };
   Kind kind = Kind::null;
   std::int64_t integer = 0;
   double real = 0;
+  const char* text = nullptr;
 
-  static RowValue of(std::int64_t v) { return {Kind::integer, v, 0}; }
-  static RowValue of(double v) { return {Kind::real, 0, v}; }
+  static RowValue of(std::int64_t v) { return {Kind::integer, v, 0, nullptr}; }
+  static RowValue of(double v) { return {Kind::real, 0, v, nullptr}; }
+  static RowValue of(const std::string& v) { return {Kind::text, 0, 0, v.c_str()}; }
 };
 
 class GpkgRows {

@@ -259,6 +259,7 @@ void set_value(OGRFeature& feature, int field, const RowValue& value) {
     case RowValue::Kind::null: feature.SetFieldNull(field); break;
     case RowValue::Kind::integer: feature.SetField(field, static_cast<GIntBig>(value.integer)); break;
     case RowValue::Kind::real: feature.SetField(field, value.real); break;
+    case RowValue::Kind::text: feature.SetField(field, value.text); break;
   }
 }
 
@@ -508,20 +509,46 @@ struct Input {
   const sites::SiteTable& table;
   std::int32_t site_count;
   bool all_ring_vertices;  ///< VectorOptions::all_ring_vertices
+
+  /// Composite sites (several source layers): every layer says which layer its sites came from.
+  bool composite() const { return table.source_count() > 1; }
+  /// The name of the source layer of site s, as a field value.
+  RowValue layer_of(std::size_t s) const { return RowValue::of(table.layer(table.sites[s].layer)); }
 };
 
 void write_regions(Writer& w, const Input& in, double work) {
-  const OGRFeatureDefn* source = in.table.definition();
   OGRLayer* layer = w.begin_layer("regions", wkbMultiPolygon, work);
 
-  // The source's fields first, as ogr2ogr would copy them.
-  std::vector<int> field_map;
-  if (source) {
-    for (int f = 0; f < source->GetFieldCount(); ++f) {
-      OGRFieldDefn copy(source->GetFieldDefn(f));
-      field_map.push_back(w.add_field(copy));
+  // The source's fields first, as ogr2ogr would copy them; of several source layers (composite
+  // sites), the union of their fields by name (a name's first layer gives its type), and then
+  // site_layer, the layer of each site.
+  OGRFeatureDefn fields("fields");
+  std::vector<std::vector<int>> field_maps(in.table.source_count());  // per layer: field -> union field
+  for (std::size_t k = 0; k < in.table.source_count(); ++k) {
+    const OGRFeatureDefn* source = in.table.definition(k);
+    for (int f = 0; source && f < source->GetFieldCount(); ++f) {
+      int u = fields.GetFieldIndex(source->GetFieldDefn(f)->GetNameRef());
+      if (u < 0) {
+        fields.AddFieldDefn(source->GetFieldDefn(f));
+        u = fields.GetFieldCount() - 1;
+      }
+      field_maps[k].push_back(u);
     }
   }
+  std::vector<int> written(static_cast<std::size_t>(fields.GetFieldCount()));
+  for (int u = 0; u < fields.GetFieldCount(); ++u) {
+    OGRFieldDefn copy(fields.GetFieldDefn(u));
+    written[static_cast<std::size_t>(u)] = w.add_field(copy);
+  }
+  for (auto& map : field_maps) {
+    for (int& u : map) u = written[static_cast<std::size_t>(u)];
+  }
+  int layer_index = -1;
+  if (in.composite()) {
+    OGRFieldDefn layer_field(unique_field_name("site_layer", &fields).c_str(), OFTString);
+    layer_index = w.add_field(layer_field);
+  }
+  const OGRFeatureDefn* source = &fields;
   OGRFieldDefn fid_field(unique_field_name("site_fid", source).c_str(), OFTInteger64);
   OGRFieldDefn cells_field(unique_field_name("cells", source).c_str(), OFTInteger64);
   OGRFieldDefn area_field(unique_field_name("area_m2", source).c_str(), OFTReal);
@@ -559,11 +586,13 @@ void write_regions(Writer& w, const Input& in, double work) {
     for (std::size_t s = first; s < last; ++s) {
       const sites::SiteRecord& site = in.table.sites[s];
       FeaturePtr feature(OGRFeature::CreateFeature(layer->GetLayerDefn()));
+      const std::vector<int>& field_map = field_maps[site.layer];
       if (site.attributes && !field_map.empty()) {
         if (feature->SetFieldsFrom(site.attributes.get(), field_map.data(), TRUE) != OGRERR_NONE) {
           w.fail("cannot copy the attributes of site " + std::to_string(s));
         }
       }
+      if (layer_index >= 0) set_value(*feature, layer_index, in.layer_of(s));
       set_value(*feature, fid_index, fid_value(site.fid));
       feature->SetField(cells_index, static_cast<GIntBig>(in.outlines.cells_per_site[s]));
       feature->SetField(area_index, areas[s]);
@@ -584,15 +613,19 @@ void write_boundary_cells(Writer& w, const Input& in, double work, std::uint64_t
   OGRLayer* layer = w.begin_layer("boundary_cells", wkbPolygon, work, /*per_cell=*/true);
   OGRFieldDefn code_field("code", OFTInteger64);
   OGRFieldDefn fid_field("site_fid", OFTInteger64);
-  const int code_index = w.add_field(code_field);
-  const int fid_index = w.add_field(fid_field);
+  std::vector<int> fields{w.add_field(code_field), w.add_field(fid_field)};
+  if (in.composite()) {
+    OGRFieldDefn layer_field("site_layer", OFTString);
+    fields.push_back(w.add_field(layer_field));
+  }
   w.begin_features();
-  CellRows rows(w, layer, {code_index, fid_index});
+  CellRows rows(w, layer, fields);
   std::uint64_t done = 0;
   for (const label::OutlineCell& cell : in.outlines.cells) {
     if (!cell.boundary) continue;
-    const RowValue values[] = {RowValue::of(static_cast<std::int64_t>(cell.code)),
-                               fid_value(in.table.sites[static_cast<std::size_t>(cell.site)].fid)};
+    const auto site = static_cast<std::size_t>(cell.site);
+    const RowValue values[] = {RowValue::of(static_cast<std::int64_t>(cell.code)), fid_value(in.table.sites[site].fid),
+                               in.composite() ? in.layer_of(site) : RowValue{}};
     rows.add(cell.code, level, values);
     if (++done % kProgressEvery == 0) w.layer_progress(static_cast<double>(done), static_cast<double>(count));
   }
@@ -609,6 +642,12 @@ void write_voronoi_edges(Writer& w, const Input& in, double work) {
   const int a_index = w.add_field(a_field);
   const int b_index = w.add_field(b_field);
   const int length_index = w.add_field(length_field);
+  int layer_a_index = -1, layer_b_index = -1;
+  if (in.composite()) {
+    OGRFieldDefn layer_a("layer_a", OFTString), layer_b("layer_b", OFTString);
+    layer_a_index = w.add_field(layer_a);
+    layer_b_index = w.add_field(layer_b);
+  }
 
   StepTrace trace;
   const std::vector<EdgeRef> edges = gather_edges(in.outlines);
@@ -652,6 +691,10 @@ void write_voronoi_edges(Writer& w, const Input& in, double work) {
       set_value(*feature, a_index, fid_value(in.table.sites[a].fid));
       set_value(*feature, b_index, fid_value(in.table.sites[b].fid));
       feature->SetField(length_index, lines.length_m);
+      if (in.composite()) {
+        set_value(*feature, layer_a_index, in.layer_of(a));
+        set_value(*feature, layer_b_index, in.layer_of(b));
+      }
       w.write(*feature);
     }
     w.layer_progress(0.2 + 0.8 * static_cast<double>(last) / static_cast<double>(pairs), 1.0);
@@ -670,12 +713,14 @@ void write_cells(Writer& w, const Input& in, double work) {
   OGRFieldDefn distance_field("distance_m", OFTReal);
   OGRFieldDefn boundary_field("boundary", OFTInteger);
   boundary_field.SetSubType(OFSTBoolean);
-  const int code_index = w.add_field(code_field);
-  const int fid_index = w.add_field(fid_field);
-  const int distance_index = w.add_field(distance_field);
-  const int boundary_index = w.add_field(boundary_field);
+  std::vector<int> fields{w.add_field(code_field), w.add_field(fid_field), w.add_field(distance_field),
+                          w.add_field(boundary_field)};
+  if (in.composite()) {
+    OGRFieldDefn layer_field("site_layer", OFTString);
+    fields.push_back(w.add_field(layer_field));
+  }
   w.begin_features();
-  CellRows rows(w, layer, {code_index, fid_index, distance_index, boundary_index});
+  CellRows rows(w, layer, fields);
   const Code cells = grid::cell_count(level);
   Code next = 0;
   in.cell_tiles([&](const CellTile& tile) {
@@ -691,7 +736,8 @@ void write_cells(Writer& w, const Input& in, double work) {
           RowValue::of(static_cast<std::int64_t>(code)),
           fid_value(in.table.sites[static_cast<std::size_t>(site)].fid),
           tile.distance_m ? RowValue::of(static_cast<double>(tile.distance_m[k])) : RowValue{},
-          RowValue::of(std::int64_t{tile.boundary[k] != 0 ? 1 : 0})};
+          RowValue::of(std::int64_t{tile.boundary[k] != 0 ? 1 : 0}),
+          in.composite() ? in.layer_of(static_cast<std::size_t>(site)) : RowValue{}};
       rows.add(code, level, values);
       if ((code + 1) % kProgressEvery == 0) w.layer_progress(static_cast<double>(code + 1), static_cast<double>(cells));
     }

@@ -15,6 +15,11 @@
 //   cells           every cell as a Polygon: code, site_fid, distance_m (Real, metres; null when
 //                   not computed), boundary (Integer, boolean subtype).
 //
+// Composite sites (several source layers, SiteTable::source_count() > 1): regions take the union
+// of the layers' fields by name (a name's first layer gives its type) and a site_layer field
+// (String) naming each site's layer; boundary_cells and cells get site_layer too, voronoi_edges
+// layer_a and layer_b. FIDs stay those of their layer.
+//
 // Field names: the source's fields keep their names; one of ours whose name a source field
 // already has (compared without case) is written as "qtmv_<name>" instead (then
 // "qtmv_<name>_2", ...), e.g. a source field `cells` leaves ours as `qtmv_cells`.

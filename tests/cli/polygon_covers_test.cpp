@@ -28,7 +28,7 @@ std::string wkt_csv(const std::string& name, const std::vector<std::string>& wkt
 void expect_cover_labels_as_cells(const std::string& source, const std::string& layer, int level) {
   sites::ReadOptions read;
   read.level = level;
-  read.layer = layer;
+  if (!layer.empty()) read.layers = {layer};
   const sites::SiteSet set = sites::read_sites(source, read);
   const label::LabelInput with_nodes = set.geometry.input();
   ASSERT_GT(with_nodes.fixed_node_count, 0u) << source;

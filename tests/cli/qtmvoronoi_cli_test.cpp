@@ -13,6 +13,7 @@
 #include <fstream>
 #include <memory>
 #include <random>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -64,7 +65,7 @@ Reference reference(const std::string& source, int level, const std::vector<std:
                     const std::string& layer = "") {
   qtmv::sites::ReadOptions ro;
   ro.level = level;
-  ro.layer = layer;
+  if (!layer.empty()) ro.layers = {layer};
   ro.open_options = open_options;
   Reference r;
   r.sites = qtmv::sites::read_sites(source, ro);
@@ -127,7 +128,7 @@ TEST(QtmvoronoiCore, ParsesOptions) {
                                      "-lco", "X=1", "-dsco", "Y=2", "-layers", "regions, cells", "-overwrite", "-q",
                                      "src.shp", "dst.gpkg"});
   EXPECT_EQ(o.run.level, 7);
-  EXPECT_EQ(o.run.read.layer, "layer");
+  EXPECT_EQ(o.run.read.layers, (std::vector<std::string>{"layer"}));
   EXPECT_EQ(o.run.read.where, "a > 1");
   EXPECT_EQ(o.run.read.source_srs, "EPSG:3857");
   EXPECT_EQ(o.run.read.open_options, (std::vector<std::string>{"A=1", "B=2"}));
@@ -697,3 +698,103 @@ TEST(QtmvoronoiLibrary, RasterStoppedMidStreamLeavesNothing) {
 }
 
 }  // namespace
+
+namespace {
+
+/// A GeoPackage of the country centres (points, "towns"), ten countries (polygons, "areas") and
+/// both in one layer ("merged", towns then areas, each with the FID it has in its own layer).
+std::string composite_source(const std::string& dir) {
+  const std::string path = dir + "/composite.gpkg";
+  GDALAllRegister();
+  GDALDatasetUniquePtr centres = open(kCentres, GDAL_OF_VECTOR);
+  char* csv_options[] = {const_cast<char*>("X_POSSIBLE_NAMES=lon"), const_cast<char*>("Y_POSSIBLE_NAMES=lat"), nullptr};
+  centres.reset(GDALDataset::Open(kCentres.c_str(), GDAL_OF_VECTOR, nullptr, csv_options));
+  GDALDatasetUniquePtr countries = open(kCountries, GDAL_OF_VECTOR);
+  GDALDriver* gpkg = GetGDALDriverManager()->GetDriverByName("GPKG");
+  GDALDatasetUniquePtr out(gpkg->Create(path.c_str(), 0, 0, 0, GDT_Unknown, nullptr));
+  OGRSpatialReference wgs84;
+  wgs84.SetWellKnownGeogCS("WGS84");
+  wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  OGRLayer* towns = out->CreateLayer("towns", &wgs84, wkbPoint);
+  OGRLayer* areas = out->CreateLayer("areas", &wgs84, wkbMultiPolygon);
+  OGRLayer* merged = out->CreateLayer("merged", &wgs84, wkbUnknown);
+  OGRFieldDefn name("name", OFTString);
+  for (OGRLayer* l : {towns, areas, merged}) l->CreateField(&name);
+  const auto copy = [&](OGRLayer* from, OGRLayer* to, int count, const char* name_field) {
+    int n = 0;
+    for (auto& f : *from) {
+      if (n++ == count) break;
+      for (OGRLayer* target : {to, merged}) {
+        OGRFeatureUniquePtr g(OGRFeature::CreateFeature(target->GetLayerDefn()));
+        g->SetField("name", f->GetFieldAsString(name_field));
+        g->SetGeometry(f->GetGeometryRef());
+        EXPECT_EQ(target->CreateFeature(g.get()), OGRERR_NONE);
+      }
+    }
+  };
+  copy(centres->GetLayer(0), towns, 60, "name");
+  copy(countries->GetLayerByName("countries_110m"), areas, 10, "name");
+  return path;
+}
+
+/// The regions' rows (cells, area, geometry as WKT) in FID order.
+std::vector<std::string> region_rows(const std::string& path) {
+  std::vector<std::string> rows;
+  GDALDatasetUniquePtr ds = open(path, GDAL_OF_VECTOR);
+  if (!ds) return rows;
+  for (auto& f : *ds->GetLayerByName("regions")) {
+    // (Each value copied at once: OGR reuses one buffer for a feature's numbers as text.)
+    std::ostringstream row;
+    row.precision(17);
+    row << f->GetFieldAsString("name") << " " << f->GetFieldAsInteger64("cells") << " " << f->GetFieldAsDouble("area_m2")
+        << " " << f->GetGeometryRef()->exportToWkt();
+    rows.push_back(row.str());
+  }
+  return rows;
+}
+
+}  // namespace
+
+TEST(QtmvoronoiCli, CompositeSitesFromSeveralLayersLabelAsOneMergedLayer) {
+  const std::string dir = test_dir();
+  const std::string source = composite_source(dir);
+  const Result composite = run({"-level", "7", "-l", "towns", "-l", "areas", "-layers", "regions,voronoi_edges,boundary_cells",
+                                source, dir + "/composite_out.gpkg"});
+  ASSERT_EQ(composite.status, 0) << composite.err;
+  const Result merged = run({"-level", "7", "-l", "merged", "-layers", "regions", source, dir + "/merged_out.gpkg"});
+  ASSERT_EQ(merged.status, 0) << merged.err;
+  // The same sites in the same order: the same regions, row by row.
+  const std::vector<std::string> a = region_rows(dir + "/composite_out.gpkg");
+  ASSERT_EQ(a.size(), 70u);
+  EXPECT_EQ(a, region_rows(dir + "/merged_out.gpkg"));
+
+  // Each row names its site's layer and keeps the FID of that layer.
+  GDALDatasetUniquePtr ds = open(dir + "/composite_out.gpkg", GDAL_OF_VECTOR);
+  ASSERT_TRUE(ds);
+  int row = 0;
+  for (auto& f : *ds->GetLayerByName("regions")) {
+    const bool town = row < 60;
+    EXPECT_STREQ(f->GetFieldAsString("site_layer"), town ? "towns" : "areas") << row;
+    EXPECT_EQ(f->GetFieldAsInteger64("site_fid"), town ? row + 1 : row - 60 + 1) << row;
+    ++row;
+  }
+  int mixed = 0;
+  for (auto& f : *ds->GetLayerByName("voronoi_edges")) {
+    mixed += std::string(f->GetFieldAsString("layer_a")) != f->GetFieldAsString("layer_b");
+  }
+  EXPECT_GT(mixed, 0) << "no edge between a town and an area";
+  std::set<std::string> boundary_layers;
+  for (auto& f : *ds->GetLayerByName("boundary_cells")) boundary_layers.insert(f->GetFieldAsString("site_layer"));
+  EXPECT_EQ(boundary_layers, (std::set<std::string>{"areas", "towns"}));
+
+  // Bad input as for one layer; a raster cannot tell the layers apart.
+  const Result missing = run({"-l", "towns", "-l", "nope", source, dir + "/x.gpkg"});
+  EXPECT_EQ(missing.status, 1);
+  EXPECT_NE(missing.err.find("has no layer 'nope'"), std::string::npos) << missing.err;
+  EXPECT_EQ(run({"-l", "towns", "-l", "towns", source, dir + "/x.gpkg"}).status, 2);
+  const Result raster = run({"-level", "6", "-l", "towns", "-l", "areas", source, dir + "/x.tif"});
+  EXPECT_EQ(raster.status, 1);
+  EXPECT_NE(raster.err.find("-l names 2 layers"), std::string::npos) << raster.err;
+  EXPECT_FALSE(fs::exists(dir + "/x.gpkg"));
+  EXPECT_FALSE(fs::exists(dir + "/x.tif"));
+}

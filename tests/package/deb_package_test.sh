@@ -34,11 +34,11 @@ for tool in qtmvoronoi qtmcell; do
   bin=$work/root/usr/bin/$tool
   for soname in $(objdump -p "$bin" | awk '$1 == "NEEDED" {print $2}'); do
     # "libx.so.1 => /path (addr)", or "/lib64/ld-linux-x86-64.so.2 (addr)" for the loader.
-    path=$(ldd "$bin" | awk -v s="$soname" '$1 == s {print $3} $1 ~ "/" s "$" {print $1}' | head -1)
+    path=$(ldd "$bin" | awk -v s="$soname" '$1 == s {print $3; exit} $1 ~ "/" s "$" {print $1; exit}')
     [ -n "$path" ] || fail "$tool: $soname is not found on this system"
     owner=""
     for p in "$path" "$(readlink -f "$path")" "${path/#\/lib\//\/usr\/lib\/}" "${path/#\/usr\/lib\//\/lib\/}"; do
-      owner=$(dpkg -S "$p" 2>/dev/null | head -1 | cut -d: -f1) && [ -n "$owner" ] && break
+      owner=$(dpkg -S "$p" 2>/dev/null | awk -F: 'NR == 1 {print $1}') && [ -n "$owner" ] && break
     done
     [ -n "$owner" ] || fail "$tool: no package owns $path"
     grep -qx -- "$owner" <<<"$depends_names" || fail "$tool needs $soname of package $owner, which Depends lacks"
@@ -50,15 +50,18 @@ apt-get -s install "$deb" > "$work/apt.log" 2>&1 || { cat "$work/apt.log"; fail 
 grep -q "^Inst qtmvoronoi" "$work/apt.log" || { cat "$work/apt.log"; fail "apt-get would not install the package"; }
 
 # The man page is the tool's, and man reads it.
-zcat "$work/root/usr/share/man/man1/qtmvoronoi.1.gz" | grep -q '^\.TH QTMVORONOI 1' || fail "qtmvoronoi.1.gz is not its man page"
+# (Outputs are read whole before grep: `grep -q` in a pipe under pipefail can fail the pipe.)
+page=$(zcat "$work/root/usr/share/man/man1/qtmvoronoi.1.gz")
+grep -q '^\.TH QTMVORONOI 1' <<<"$page" || fail "qtmvoronoi.1.gz is not its man page"
 if command -v man > /dev/null; then
-  MANWIDTH=80 man -l "$work/root/usr/share/man/man1/qtmvoronoi.1.gz" 2> /dev/null | grep -q -- "-vertices" ||
-    fail "man cannot show the page"
+  shown=$(MANWIDTH=80 man -l "$work/root/usr/share/man/man1/qtmvoronoi.1.gz" 2> /dev/null || true)
+  grep -q -- "-vertices" <<<"$shown" || fail "man cannot show the page"
 fi
 
 # The packaged tool does the main job as the build's does.
 packaged=$work/root/usr/bin/qtmvoronoi
-"$packaged" --version | grep -q "qtmvoronoi" || fail "--version"
+version_line=$("$packaged" --version)
+grep -q "qtmvoronoi" <<<"$version_line" || fail "--version"
 csv=(-oo X_POSSIBLE_NAMES=lon -oo Y_POSSIBLE_NAMES=lat -s_srs EPSG:4326)
 "$packaged" -q -level 7 -device cpu -of CSV -layers regions "${csv[@]}" "$testdata/country_centres.csv" "$work/packaged.csv"
 "$build/tools/qtmvoronoi/qtmvoronoi" -q -level 7 -device cpu -of CSV -layers regions "${csv[@]}" \

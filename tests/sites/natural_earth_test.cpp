@@ -22,7 +22,7 @@ constexpr int kLevel = 8;
 
 SiteSet read_layer(const std::string& layer, WrapMode wrap = WrapMode::automatic) {
   ReadOptions o = test::options_at(kLevel, nullptr);
-  o.layer = layer;
+  o.layers = {layer};
   o.wrap = wrap;
   return read_sites(kCountries, o);
 }
@@ -138,12 +138,12 @@ TEST(NaturalEarth, OneThreadAndSeveralReadTheSame) {
     SiteSet got[2];
     for (int k = 0; k < 2; ++k) {
       ReadOptions o = test::options_at(kLevel, nullptr);
-      o.layer = "countries_110m";
+      o.layers = {"countries_110m"};
       o.threads = k == 0 ? 1 : 4;
       if (as_lines) o.sql = "SELECT ST_Boundary(geom) AS geom, name FROM countries_110m";
-      if (as_lines) o.layer.clear();
+      if (as_lines) o.layers.clear();
       if (source == 2) {
-        o.layer.clear();
+        o.layers.clear();
         got[k] = read_sites(large_multipolygon_csv(), o);
         EXPECT_EQ(got[k].geometry.site_count, 3);
         continue;

@@ -189,7 +189,7 @@ TEST(OgrSiteReader, LayerWhereSqlAndClaims) {
   }
   std::vector<std::string> messages;
   ReadOptions o = options_at(6, &messages);
-  o.layer = "second";
+  o.layers = {"second"};
   o.distance = DistanceRule::cell;
   SiteSet set = read_sites(path, o);
   ASSERT_EQ(set.geometry.site_count, 5);
@@ -263,7 +263,7 @@ TEST(OgrSiteReaderBadInput, MissingUnreadableFileLayerWhereSql) {
 
   const std::string path = make_dataset(temp_path("ok.gpkg"), "GPKG", "cities", "EPSG:4326", {{"POINT (1 2)", "a"}});
   ReadOptions bad = o;
-  bad.layer = "towns";
+  bad.layers = {"towns"};
   EXPECT_EQ(error_of(path, bad), "'" + path + "' has no layer 'towns'; its layers: cities");
   bad = o;
   bad.where = "nosuchfield = 3";
@@ -371,6 +371,50 @@ TEST(OgrSiteReaderBadInput, NoUsableSiteIsAnError) {
   ReadOptions o = options_at(4, nullptr);
   o.where = "name = 'nobody'";
   EXPECT_EQ(error_of(path, o), "'" + path + "', layer 'none': no usable site (0 features read, 0 skipped)");
+}
+
+TEST(OgrSiteReader, SeveralLayersAreCompositeSitesEachInItsOwnCrs) {
+  // Layer "merc" in Web Mercator (two points), then a layer "lonlat" added in EPSG:4326 (a line).
+  const double R = 6378137.0;
+  const std::string path = make_dataset(temp_path("composite.gpkg"), "GPKG", "merc", "EPSG:3857",
+                                        {{"POINT (0 0)", "a"}, {"POINT (" + std::to_string(R * M_PI / 2) + " 0)", "b"}});
+  {
+    GDALDatasetUniquePtr ds(GDALDataset::Open(path.c_str(), GDAL_OF_VECTOR | GDAL_OF_UPDATE));
+    ASSERT_TRUE(ds);
+    OGRSpatialReference wgs84;
+    wgs84.SetWellKnownGeogCS("WGS84");
+    OGRLayer* layer = ds->CreateLayer("lonlat", &wgs84, wkbLineString, nullptr);
+    OGRFieldDefn kind("kind", OFTInteger);
+    layer->CreateField(&kind);
+    OGRFeatureUniquePtr f(OGRFeature::CreateFeature(layer->GetLayerDefn()));
+    f->SetField("kind", 7);
+    OGRGeometry* line = nullptr;
+    OGRGeometryFactory::createFromWkt("LINESTRING (10 40, 20 40)", nullptr, &line);
+    f->SetGeometryDirectly(line);
+    ASSERT_EQ(layer->CreateFeature(f.get()), OGRERR_NONE);
+  }
+  std::vector<std::string> messages;
+  ReadOptions o = options_at(9, &messages);
+  o.layers = {"merc", "lonlat"};
+  const SiteSet set = read_sites(path, o);
+  ASSERT_EQ(set.geometry.site_count, 3);
+  ASSERT_EQ(set.table.source_count(), 2u);
+  EXPECT_EQ(set.table.layer(0), "merc");
+  EXPECT_EQ(set.table.layer(1), "lonlat");
+  EXPECT_EQ(set.table.definition(1)->GetFieldIndex("kind"), 0);
+  const std::vector<std::uint32_t> layers{set.table.sites[0].layer, set.table.sites[1].layer, set.table.sites[2].layer};
+  EXPECT_EQ(layers, (std::vector<std::uint32_t>{0, 0, 1}));
+  EXPECT_EQ(set.table.sites[2].fid, 1);  // the FID in its own layer
+  EXPECT_EQ(set.table.sites[2].kind, static_cast<unsigned>(kLineSite));
+  const auto cells = test::site_cells_by_site(set.geometry);
+  EXPECT_EQ(*cells[1].begin(), grid::lonlat_to_code(90, 0, 9));  // transformed from its layer's CRS
+  EXPECT_TRUE(cells[2].count(grid::lonlat_to_code(15, 40, 9)));  // the line, read as lon/lat
+  bool named_both = false;
+  for (const std::string& m : messages) named_both |= m.find("layers 'merc', 'lonlat'") != std::string::npos;
+  EXPECT_TRUE(named_both);
+  // A layer without a usable site is named, as when it is read alone.
+  o.where = "name = 'zz'";
+  EXPECT_NE(error_of(path, o).find("layer 'merc': no usable site"), std::string::npos) << error_of(path, o);
 }
 
 }  // namespace

@@ -101,7 +101,7 @@ int main(int argc, char** argv) {
       VSIUnlink(path.c_str());
     }
     if (!lines.empty()) {
-      options.layer = layer;
+      options.layers = {layer};
       const double s =
           median_seconds(lines, options, repeat, &summary, &pieces, &site_cells, &fixed_cells, &fixed_nodes);
       std::printf("dataset    level %d, %d thread(s): %llu sites, %zu pieces, %zu site cells, %zu fixed cells, %zu "

@@ -145,7 +145,11 @@ Options parse_command_line(const std::vector<std::string>& args) {
     if (name == "-level") {
       run.level = parse_int(arg, value(), 0, 24, "a level from 0 to 24");
     } else if (name == "-l") {
-      run.read.layer = value();
+      const std::string& layer = value();
+      if (std::find(run.read.layers.begin(), run.read.layers.end(), layer) != run.read.layers.end()) {
+        throw UsageError("-l: layer '" + layer + "' named twice");
+      }
+      run.read.layers.push_back(layer);
     } else if (name == "-where") {
       run.read.where = value();
     } else if (name == "-sql") {
@@ -271,7 +275,7 @@ Options parse_command_line(const std::vector<std::string>& args) {
   if (!run.read.sql.empty() && !run.read.where.empty()) {
     throw UsageError("-sql and -where exclude each other: put the condition in the -sql statement");
   }
-  if (!run.read.sql.empty() && !run.read.layer.empty()) {
+  if (!run.read.sql.empty() && !run.read.layers.empty()) {
     throw UsageError("-sql and -l exclude each other: the -sql statement names its tables");
   }
   if (tr || ts) {

@@ -9,6 +9,7 @@ build=$1 testdata=$2
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 fail() { echo "FAIL: $*" >&2; exit 1; }
+trap 'echo "FAIL: line $LINENO: $BASH_COMMAND" >&2' ERR
 
 cpack -G DEB --config "$build/CPackConfig.cmake" -B "$work/out" > "$work/cpack.log" 2>&1 || { cat "$work/cpack.log"; fail "cpack"; }
 deb=$(ls "$work"/out/qtmvoronoi_*_*.deb)
@@ -17,6 +18,9 @@ echo "package: $(basename "$deb")"
 [ "$(dpkg-deb -f "$deb" Architecture)" = "$(dpkg --print-architecture)" ] || fail "Architecture"
 depends=$(dpkg-deb -f "$deb" Depends)
 echo "Depends: $depends"
+
+# No pipe here ends before its writer does (`head`, `grep -q`, awk's `exit`): under pipefail the
+# writer's SIGPIPE would fail the test at random.
 
 # The files a user expects.
 contents=$(dpkg-deb -c "$deb" | awk '{print $6}')
@@ -34,7 +38,7 @@ for tool in qtmvoronoi qtmcell; do
   bin=$work/root/usr/bin/$tool
   for soname in $(objdump -p "$bin" | awk '$1 == "NEEDED" {print $2}'); do
     # "libx.so.1 => /path (addr)", or "/lib64/ld-linux-x86-64.so.2 (addr)" for the loader.
-    path=$(ldd "$bin" | awk -v s="$soname" '$1 == s {print $3; exit} $1 ~ "/" s "$" {print $1; exit}')
+    path=$(ldd "$bin" | awk -v s="$soname" '!found && $1 == s {print $3; found = 1} !found && $1 ~ "/" s "$" {print $1; found = 1}')
     [ -n "$path" ] || fail "$tool: $soname is not found on this system"
     owner=""
     for p in "$path" "$(readlink -f "$path")" "${path/#\/lib\//\/usr\/lib\/}" "${path/#\/usr\/lib\//\/lib\/}"; do

@@ -13,6 +13,7 @@
 #include <omp.h>
 #endif
 
+#include "geodesic_reference.hpp"
 #include "grid/qtm.hpp"
 #include "label/outline_cells.hpp"
 #include "write/region_measures.hpp"
@@ -22,18 +23,9 @@ namespace {
 
 using grid::Code;
 
-const double kEllipsoidArea = GeographicLib::Geodesic::WGS84().EllipsoidArea();
+using test::kEllipsoidArea;
 
-/// Area (square metres) of a cell with its vertices joined by geodesics.
-double cell_area(Code code, int level) {
-  LonLat ring[grid::kMaxPolygonCorners];
-  const int n = grid::cell_polygon(grid::cell_of(code, level), level, ring);
-  GeographicLib::PolygonArea polygon(GeographicLib::Geodesic::WGS84());
-  for (int k = 0; k < n; ++k) polygon.AddPoint(ring[k].lat, ring[k].lon);
-  double perimeter = 0, area = 0;
-  polygon.Compute(false, false, perimeter, area);
-  return area;
-}
+using test::cell_area;
 
 /// Labels of a level for `sites` random sites, nearest by a rough lon/lat distance, and on top
 /// of them shapes that test the reduction: a cap around the north pole (one site), a band

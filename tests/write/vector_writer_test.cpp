@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "../test_temp_dir.hpp"
+#include "geodesic_reference.hpp"
 #include "grid/qtm.hpp"
 #include "label/synthetic_sites.hpp"
 #include "label/labeller.hpp"
@@ -30,7 +31,7 @@ namespace {
 using grid::Code;
 using grid::LonLat;
 
-const double kEllipsoidArea = GeographicLib::Geodesic::WGS84().EllipsoidArea();
+using test::kEllipsoidArea;
 
 std::int64_t fid_of(std::int32_t site) { return 100 + 7 * static_cast<std::int64_t>(site); }
 
@@ -102,16 +103,7 @@ GDALDatasetUniquePtr open_vector(const std::string& path) {
   return GDALDatasetUniquePtr(GDALDataset::Open(path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY));
 }
 
-/// Area (square metres) of a cell with its vertices joined by geodesics.
-double cell_area(Code code, int level) {
-  LonLat ring[grid::kMaxPolygonCorners];
-  const int n = grid::cell_polygon(grid::cell_of(code, level), level, ring);
-  GeographicLib::PolygonArea polygon(GeographicLib::Geodesic::WGS84());
-  for (int k = 0; k < n; ++k) polygon.AddPoint(ring[k].lat, ring[k].lon);
-  double perimeter = 0, area = 0;
-  polygon.Compute(false, false, perimeter, area);
-  return area;
-}
+using test::cell_area;
 
 class VectorTest : public ::testing::Test {
  protected:

@@ -523,7 +523,8 @@ void write_regions(Writer& w, const Input& in, double work) {
   // sites), the union of their fields by name (a name's first layer gives its type), and then
   // site_layer, the layer of each site.
   OGRFeatureDefn fields("fields");
-  std::vector<std::vector<int>> field_maps(in.table.source_count());  // per layer: field -> union field
+  // Per source layer: its fields' places in the union (one empty map for a table without a source).
+  std::vector<std::vector<int>> field_maps(std::max<std::size_t>(1, in.table.source_count()));
   for (std::size_t k = 0; k < in.table.source_count(); ++k) {
     const OGRFeatureDefn* source = in.table.definition(k);
     for (int f = 0; source && f < source->GetFieldCount(); ++f) {

@@ -12,7 +12,7 @@ from .tool import run_tool
 
 DISTANCES = ["exact", "cell"]
 DEVICES = ["auto", "cpu", "cuda", "cuda:all"]
-LAYERS = ["regions", "voronoi_edges", "boundary_cells", "cells"]
+LAYER_NAMES = ["regions", "voronoi_edges", "boundary_cells", "cells"]
 LAYOUTS = ["qtm", "lonlat"]
 DATA_TYPES = ["default", "Byte", "UInt16", "Int16", "UInt32", "Int32", "Float32", "Float64"]
 # Formats the tool reads a layer from as it is; others, and selections, go through a copy.
@@ -79,13 +79,13 @@ class VoronoiRegions(QtmvoronoiAlgorithm):
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add_common_parameters()
         self.addParameter(QgsProcessingParameterEnum(
-            self.LAYERS, "Layers to write", LAYERS, allowMultiple=True, defaultValue=[0]))
+            self.LAYERS, "Layers to write", LAYER_NAMES, allowMultiple=True, defaultValue=[0]))
         self.addParameter(QgsProcessingParameterVectorDestination(
             self.OUTPUT, "Voronoi regions", QgsProcessing.TypeVectorPolygon))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         arguments, source = self.common_arguments(parameters, context, feedback)
-        layers = [LAYERS[k] for k in self.parameterAsEnums(parameters, self.LAYERS, context)] or ["regions"]
+        layers = [LAYER_NAMES[k] for k in self.parameterAsEnums(parameters, self.LAYERS, context)] or ["regions"]
         output = self.parameterAsOutputLayer(parameters, self.OUTPUT, context)
         run_tool(arguments + ["-layers", ",".join(layers), source, output], feedback)
         if os.path.splitext(output)[1].lower() == ".gpkg":

@@ -308,11 +308,15 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   std::string validity_text;  // the layers' invalid polygons, for the summary line
   // Each layer's sites follow the layer before's (composite sites), each with its own CRS,
   // checks and messages.
-  for (const SourceLayer& source_layer : layers) {
-  OGRLayer* const layer = source_layer.layer;
-  const std::string& layer_name = source_layer.name;
-  const std::uint64_t features_before = summary.features, sites_before = summary.sites,
-                      skipped_before = summary.skipped;
+  OGRSpatialReference wgs84;
+  wgs84.importFromEPSG(4326);
+  wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  report_progress(options.progress, 0.0, "reading sites");
+  for (std::size_t layer_number = 0; layer_number < layers.size(); ++layer_number) {
+    OGRLayer* const layer = layers[layer_number].layer;
+    const std::string& layer_name = layers[layer_number].name;
+    const std::uint64_t features_before = summary.features, sites_before = summary.sites,
+                        skipped_before = summary.skipped;
     const std::string where_from = "'" + dataset_name + "', layer '" + layer_name + "'";
     // GDAL opens a shapefile without its .dbf silently, with no fields: say the attributes are gone.
     if (EQUAL(dataset->GetDriverName(), "ESRI Shapefile") && EQUAL(CPLGetExtension(dataset_name.c_str()), "shp")) {
@@ -330,9 +334,6 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
     }
 
     // --- CRS ------------------------------------------------------------------------------------------
-    OGRSpatialReference wgs84;
-    wgs84.importFromEPSG(4326);
-    wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
     OGRSpatialReference source;
     if (!options.source_srs.empty()) {
       errors.take();
@@ -362,7 +363,6 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
     const std::uint32_t layer_index = out.table.add_source(layer->GetLayerDefn(), dataset_name, layer_name);
     PolygonValidityCheck validity(options, source, where_from);
     const GIntBig feature_count = layer->GetFeatureCount(FALSE);
-    report_progress(options.progress, 0.0, "reading sites");
 
     // One warning a skipped feature, the first kMostListed of them; then a count (a CSV read without
     // its coordinate columns would otherwise give a line per row).
@@ -420,7 +420,10 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
     for (OGRFeatureUniquePtr feature(layer->GetNextFeature()); feature; feature.reset(layer->GetNextFeature())) {
       ++summary.features;
       if (options.progress && feature_count > 0 && summary.features % 256 == 0 &&
-          !options.progress(std::min(1.0, static_cast<double>(summary.features) / feature_count), "reading sites")) {
+          !options.progress((static_cast<double>(layer_number) +
+                             std::min(1.0, static_cast<double>(summary.features - features_before) / feature_count)) /
+                                static_cast<double>(layers.size()),
+                            "reading sites")) {
         throw Interrupted();
       }
       const GIntBig fid = feature->GetFID();
@@ -533,7 +536,6 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
           where_from + (options.where.empty() ? ": reading failed" : ": bad -where: " + options.where), errors.take()));
     }
     if (const std::string pending = errors.take(); !pending.empty()) say(Severity::warning, where_from + ": GDAL: " + pending);
-    report_progress(options.progress, 1.0, "reading sites");
     // A user must never get a silently different geometry.
     summary.wrapped_features += wrapped.count();
     if (wrapped.count() > 0) {
@@ -554,6 +556,8 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
                            : ""));
     }
   }
+
+  report_progress(options.progress, 1.0, "reading sites");
 
   // --- claims, counts, summary --------------------------------------------------------------------
   for (const auto& builder : builders) summary.vertex_steps += builder ? builder->vertex_steps() : 0;

@@ -115,7 +115,6 @@ double settle(std::uint64_t area_sum, std::uint64_t rough_sum, std::uint64_t cro
 }  // namespace
 
 std::vector<double> region_areas(const label::Outlines& outlines) {
-  const int level = outlines.level;
   const label::OutlineCells& cells = outlines.cells;
   const auto n = static_cast<std::int64_t>(cells.size());
   const auto sites = static_cast<std::size_t>(outlines.site_count);
@@ -127,28 +126,17 @@ std::vector<double> region_areas(const label::Outlines& outlines) {
 #pragma omp for schedule(dynamic, 4096)
     for (std::int64_t k = 0; k < n; ++k) {
       failure.run([&] {
-        const label::OutlineCell& outline = cells[static_cast<std::size_t>(k)];
-        LonLat ring[grid::kMaxPolygonCorners];
-        int across[grid::kMaxPolygonCorners];
-        const int corners = drawn_ring(grid::cell_of(outline.code, level), level, ring, across);
-        grid::Code nb[3];
-        if (outline.boundary) grid::neighbours(outline.code, level, nb);
-        for (int e = 0; e < corners; ++e) {
-          const LonLat& from = ring[e];
-          const LonLat& to = ring[(e + 1) % corners];
-          // Edges on the rectangle's border belong to this region alone (as the tracer cuts it).
-          if (across[e] == kAcrossPoleLine || (std::fabs(from.lon) == 180.0 && std::fabs(to.lon) == 180.0)) {
-            cache.add(outline.site, edge_terms(from, to));
-            continue;
+        const std::int32_t site = cells[static_cast<std::size_t>(k)].site;
+        const auto add = [&](const LonLat& from, const LonLat& to, std::int32_t other) {
+          if (other == kBorderEdge) {
+            cache.add(site, edge_terms(from, to));
+          } else if (other > site) {  // an edge between two sites: solved by the lower site's cell, for both
+            const EdgeTerms t = edge_terms(from, to);
+            cache.add(site, t);
+            cache.add(other, t.reversed());
           }
-          if (!outline.boundary) continue;
-          // An edge between two sites is solved by the cell of the lower site, for both.
-          const std::int32_t other = label::site_of_near(cells, static_cast<std::size_t>(k), nb[across[e]]);
-          if (other <= outline.site) continue;
-          const EdgeTerms t = edge_terms(from, to);
-          cache.add(outline.site, t);
-          cache.add(other, t.reversed());
-        }
+        };
+        visit_region_edges(outlines, static_cast<std::size_t>(k), add);
       });
     }
   }

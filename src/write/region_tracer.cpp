@@ -301,24 +301,9 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertice
 #pragma omp for schedule(static)
     for (std::int64_t k = 0; k < n; ++k) {
       failure.run([&] {
-        const label::OutlineCell& outline = cells[static_cast<std::size_t>(k)];
-        const Cell cell = grid::cell_of(outline.code, level);
-        LonLat ring[grid::kMaxPolygonCorners];
-        int across[grid::kMaxPolygonCorners];
-        const int corners = drawn_ring(cell, level, ring, across);
-        Code nb[3];
-        grid::neighbours(outline.code, level, nb);
-        for (int e = 0; e < corners; ++e) {
-          const LonLat& from = ring[e];
-          const LonLat& to = ring[(e + 1) % corners];
-          const bool on_border = across[e] == kAcrossPoleLine ||
-                                 (std::fabs(from.lon) == 180.0 && std::fabs(to.lon) == 180.0);  // cut at +-180
-          // Only a boundary cell has a neighbour of another site.
-          if (on_border || (outline.boundary &&
-                            label::site_of_near(cells, static_cast<std::size_t>(k), nb[across[e]]) != outline.site)) {
-            local.push_back({outline.site, {from, to}});
-          }
-        }
+        const std::int32_t site = cells[static_cast<std::size_t>(k)].site;
+        const auto add = [&](const LonLat& from, const LonLat& to, std::int32_t) { local.push_back({site, {from, to}}); };
+        visit_region_edges(outlines, static_cast<std::size_t>(k), add);
       });
     }
   }

@@ -14,6 +14,7 @@
 // valid in the OGC simple-features sense.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <vector>
@@ -97,6 +98,34 @@ int drawn_ring(const grid::Cell& c, int level, LonLat ring[grid::kMaxPolygonCorn
 
 /// drawn_ring's corner count and `across`, without the coordinates.
 int drawn_edges(const grid::Cell& c, int across[grid::kMaxPolygonCorners]);
+
+/// The site across a region edge on the lon/lat rectangle's border (latitude +-90, or the cut at
+/// +-180): none; the edge bounds its own region only.
+constexpr std::int32_t kBorderEdge = -1;
+
+/// Visits the edges of the k-th outline cell, as drawn, that bound its site's region (the region
+/// on their left): visit(from, to, other), `other` the site across the edge or kBorderEdge. Only
+/// a boundary cell has a neighbour of another site; any cell may have border edges. The regions'
+/// tracing and their areas both walk the outlines by this one rule.
+template <class Visit>
+void visit_region_edges(const label::Outlines& outlines, std::size_t k, const Visit& visit) {
+  const label::OutlineCell& outline = outlines.cells[k];
+  LonLat ring[grid::kMaxPolygonCorners];
+  int across[grid::kMaxPolygonCorners];
+  const int corners = drawn_ring(grid::cell_of(outline.code, outlines.level), outlines.level, ring, across);
+  grid::Code nb[3];
+  if (outline.boundary) grid::neighbours(outline.code, outlines.level, nb);
+  for (int e = 0; e < corners; ++e) {
+    const LonLat& from = ring[e];
+    const LonLat& to = ring[(e + 1) % corners];
+    if (across[e] == kAcrossPoleLine || (std::fabs(from.lon) == 180.0 && std::fabs(to.lon) == 180.0)) {
+      visit(from, to, kBorderEdge);
+    } else if (outline.boundary) {
+      const std::int32_t other = label::site_of_near(outlines.cells, k, nb[across[e]]);
+      if (other != outline.site) visit(from, to, other);
+    }
+  }
+}
 
 /// Exact equality and a strict order of lon/lat points (degrees): the grid computes a shared
 /// vertex to the same bits from every cell around it.

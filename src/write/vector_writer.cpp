@@ -76,17 +76,17 @@ class StepTrace {
 
 // --- working ahead of writing -----------------------------------------------------------------
 
-/// Runs measure(first, last), which returns the results of items first .. last - 1 (regions
-/// traced, pairs' lines linked and measured: in parallel with OpenMP), on a helper thread one
-/// block ahead of write(first, last, results) on this thread: OGR writes one feature at a time,
-/// so working on the next block overlaps writing this one, and no more than two blocks are held. An exception from either side comes
-/// out of here (after the helper has finished its block).
-template <class Measure, class Write>
-void measure_ahead(std::size_t count, std::size_t block, const Measure& measure, const Write& write) {
-  using Results = decltype(measure(std::size_t{0}, std::size_t{0}));
+/// Runs work(first, last), which returns the results of items first .. last - 1 (regions traced,
+/// pairs' lines linked and measured: in parallel with OpenMP), on a helper thread one block ahead
+/// of write(first, last, results) on this thread: OGR writes one feature at a time, so working on
+/// the next block overlaps writing this one, and no more than two blocks are held. An exception
+/// from either side comes out of here (after the helper has finished its block).
+template <class Work, class Write>
+void work_ahead(std::size_t count, std::size_t block, const Work& work, const Write& write) {
+  using Results = decltype(work(std::size_t{0}, std::size_t{0}));
   const auto ahead = [&](std::size_t first) {
-    return std::async(std::launch::async, [&measure, first, last = std::min(count, first + block)] {
-      return measure(first, last);
+    return std::async(std::launch::async, [&work, first, last = std::min(count, first + block)] {
+      return work(first, last);
     });
   };
   std::future<Results> next;
@@ -602,7 +602,7 @@ void write_regions(Writer& w, const Input& in, double work) {
     }
     w.layer_progress(0.4 + 0.6 * static_cast<double>(last) / static_cast<double>(in.site_count), 1.0);
   };
-  measure_ahead(static_cast<std::size_t>(in.site_count), kRegionBlock, link, write);
+  work_ahead(static_cast<std::size_t>(in.site_count), kRegionBlock, link, write);
   trace("regions traced and written");
   trace.note("of which tracing", link_seconds);
   w.end_layer();
@@ -700,7 +700,7 @@ void write_voronoi_edges(Writer& w, const Input& in, double work) {
     }
     w.layer_progress(0.2 + 0.8 * static_cast<double>(last) / static_cast<double>(pairs), 1.0);
   };
-  measure_ahead(pairs, kEdgePairBlock, measure, write);
+  work_ahead(pairs, kEdgePairBlock, measure, write);
   trace("edges linked and written");
   w.end_layer();
   trace("edges layer ended");

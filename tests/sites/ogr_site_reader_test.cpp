@@ -2,6 +2,8 @@
 // octant edges; lines and polygons; multi-geometries; CRS handling; bad input and its messages.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cpl_conv.h>
 #include <cpl_vsi.h>
 
@@ -396,7 +398,17 @@ TEST(OgrSiteReader, SeveralLayersAreCompositeSitesEachInItsOwnCrs) {
   std::vector<std::string> messages;
   ReadOptions o = options_at(9, &messages);
   o.layers = {"merc", "lonlat"};
+  std::vector<double> progress;
+  o.progress = [&](double f, const char*) {
+    progress.push_back(f);
+    return true;
+  };
   const SiteSet set = read_sites(path, o);
+  // One progress for the read of all layers: it never goes back, and ends at 1.
+  ASSERT_FALSE(progress.empty());
+  EXPECT_TRUE(std::is_sorted(progress.begin(), progress.end()));
+  EXPECT_EQ(progress.back(), 1.0);
+  o.progress = {};
   ASSERT_EQ(set.geometry.site_count, 3);
   ASSERT_EQ(set.table.source_count(), 2u);
   EXPECT_EQ(set.table.layer(0), "merc");

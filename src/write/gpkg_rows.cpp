@@ -10,43 +10,14 @@
 #include <sqlite3.h>
 
 #include "write/cell_labels.hpp"
+#include "write/sqlite_statement.hpp"
 
 namespace qtmv::write {
 namespace {
 
-constexpr std::size_t kRowsPerStatement = 64;  // 3 to 5 columns: far under SQLite's 32766 parameters
-// Header (8), envelope (32), WKB polygon of one ring (9 + 4) with at most 5 points (16 each).
-constexpr std::size_t kMaxBlob = 8 + 32 + 13 + (grid::kMaxPolygonCorners + 1) * 16;
-
-std::string quoted(const std::string& name) {
-  std::string out = "\"";
-  for (char c : name) out += c == '"' ? std::string("\"\"") : std::string(1, c);
-  return out + "\"";
-}
-
-/// A prepared statement, finalised on the way out.
-class Statement {
- public:
-  Statement(sqlite3* db, const std::string& sql) {
-    if (sqlite3_prepare_v2(db, sql.c_str(), -1, &statement_, nullptr) != SQLITE_OK) {
-      sqlite3_finalize(statement_);
-      throw WriteError("SQLite cannot prepare '" + sql + "': " + sqlite3_errmsg(db));
-    }
-  }
-  ~Statement() { sqlite3_finalize(statement_); }
-  Statement(const Statement&) = delete;
-  Statement& operator=(const Statement&) = delete;
-  sqlite3_stmt* get() const { return statement_; }
-  sqlite3_stmt* release() { return std::exchange(statement_, nullptr); }
-  /// Binds a text parameter (1-based) and returns this.
-  Statement& text(int index, const std::string& value) {
-    sqlite3_bind_text(statement_, index, value.c_str(), static_cast<int>(value.size()), SQLITE_TRANSIENT);
-    return *this;
-  }
-
- private:
-  sqlite3_stmt* statement_ = nullptr;
-};
+constexpr std::size_t kRowsPerStatement = 64;  // rows of one INSERT (fewer when SQLite's parameter limit says)
+constexpr std::uint32_t kSrsId = 4326;
+constexpr std::size_t kHeaderBytes = 8, kEnvelopeBytes = 32;  // "GP", version, flags, srs_id; 4 doubles
 
 /// Little-endian stores, whatever the host's order.
 unsigned char* put_u32(unsigned char* out, std::uint32_t v) {
@@ -62,17 +33,89 @@ unsigned char* put_f64(unsigned char* out, double v) {
 
 }  // namespace
 
+// --- GpkgGeometry ------------------------------------------------------------------------------
+
+void GpkgGeometry::u32(std::uint32_t v) {
+  unsigned char b[4];
+  put_u32(b, v);
+  bytes_.insert(bytes_.end(), b, b + 4);
+}
+
+void GpkgGeometry::point(const grid::LonLat& p) {
+  unsigned char b[16];
+  put_f64(put_f64(b, p.lon), p.lat);
+  bytes_.insert(bytes_.end(), b, b + 16);
+  if (!any_point_) {
+    min_x_ = max_x_ = p.lon, min_y_ = max_y_ = p.lat;
+    any_point_ = true;
+    return;
+  }
+  min_x_ = std::min(min_x_, p.lon), max_x_ = std::max(max_x_, p.lon);
+  min_y_ = std::min(min_y_, p.lat), max_y_ = std::max(max_y_, p.lat);
+}
+
+void GpkgGeometry::begin(std::uint32_t type, std::uint32_t parts) {
+  bytes_.assign(kHeaderBytes + kEnvelopeBytes, 0);  // filled by end()
+  any_point_ = false;
+  bytes_.push_back(1);  // WKB little-endian
+  u32(type);
+  u32(parts);
+}
+
+void GpkgGeometry::polygon(std::uint32_t rings) {
+  bytes_.push_back(1);
+  u32(kPolygon);
+  u32(rings);
+}
+
+void GpkgGeometry::ring(const grid::LonLat* points, std::size_t n) {
+  u32(static_cast<std::uint32_t>(n + 1));
+  for (std::size_t k = 0; k < n; ++k) point(points[k]);
+  point(points[0]);
+}
+
+void GpkgGeometry::line(const grid::LonLat* points, std::size_t n) {
+  bytes_.push_back(1);
+  u32(2);  // LineString
+  u32(static_cast<std::uint32_t>(n));
+  for (std::size_t k = 0; k < n; ++k) point(points[k]);
+}
+
+void GpkgGeometry::end() {
+  unsigned char* out = bytes_.data();
+  *out++ = 'G';
+  *out++ = 'P';
+  *out++ = 0;  // version
+  if (!any_point_) {
+    // Empty: the empty bit, no envelope (GDAL writes none for an empty geometry).
+    *out++ = 0x10 | 0x01;
+    put_u32(out, kSrsId);
+    bytes_.erase(bytes_.begin() + kHeaderBytes, bytes_.begin() + kHeaderBytes + kEnvelopeBytes);
+    return;
+  }
+  *out++ = 0x02 | 0x01;  // envelope [min x, max x, min y, max y], little-endian
+  out = put_u32(out, kSrsId);
+  for (double v : {min_x_, max_x_, min_y_, max_y_}) out = put_f64(out, v);
+}
+
+// --- GpkgRows ----------------------------------------------------------------------------------
+
 std::unique_ptr<GpkgRows> GpkgRows::open(GDALDataset& dataset, OGRLayer& layer, const std::vector<int>& fields) {
   if (!CPLTestBool(CPLGetConfigOption("QTMV_GPKG_DIRECT_ROWS", "YES"))) return nullptr;
   if (!dataset.GetDriver() || !EQUAL(dataset.GetDriver()->GetDescription(), "GPKG")) return nullptr;
-  // GDAL makes the table at the first feature or at a sync.
+  // GDAL makes the table (and its R-tree, when it has a spatial index) at the first feature or at a sync.
   if (layer.SyncToDisk() != OGRERR_NONE) return nullptr;
   auto* db = static_cast<sqlite3*>(dataset.GetInternalHandle("SQLITE_HANDLE"));
   if (!db) return nullptr;
   const std::string table = layer.GetName();
+  const char* geometry = layer.GetGeometryColumn();
+  if (!geometry || !*geometry) return nullptr;
+  const std::string rtree = "rtree_" + table + "_" + geometry;
 
-  // No rows yet, and no trigger but GDAL's feature counters (an R-tree's would need our rows).
-  std::string count_trigger_sql;
+  // No rows yet, and no trigger but GDAL's: the feature counters, and its R-tree's (of which only
+  // the insert trigger fires on an INSERT).
+  std::vector<std::pair<std::string, std::string>> paused;
+  bool indexed = false;
   {
     Statement triggers(db, "SELECT name, sql FROM sqlite_master WHERE type = 'trigger' AND lower(tbl_name) = lower(?)");
     triggers.text(1, table);
@@ -80,21 +123,29 @@ std::unique_ptr<GpkgRows> GpkgRows::open(GDALDataset& dataset, OGRLayer& layer, 
       const auto* name = reinterpret_cast<const char*>(sqlite3_column_text(triggers.get(), 0));
       const auto* sql = reinterpret_cast<const char*>(sqlite3_column_text(triggers.get(), 1));
       const std::string n = name ? name : "";
-      if (n == "trigger_delete_feature_count_" + table) continue;
-      if (n != "trigger_insert_feature_count_" + table || !sql) return nullptr;
-      count_trigger_sql = sql;
+      if (n == "trigger_delete_feature_count_" + table || n == rtree + "_delete" ||
+          n.rfind(rtree + "_update", 0) == 0) {
+        continue;
+      }
+      if ((n != "trigger_insert_feature_count_" + table && n != rtree + "_insert") || !sql) return nullptr;
+      indexed = indexed || n == rtree + "_insert";
+      paused.emplace_back(n, sql);
     }
     Statement rows(db, "SELECT 1 FROM " + quoted(table) + " LIMIT 1");
     if (sqlite3_step(rows.get()) != SQLITE_DONE) return nullptr;
+    if (indexed) {
+      Statement shadow(db, "SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name IN (?1, ?2, ?3)");
+      shadow.text(1, rtree + "_node").text(2, rtree + "_rowid").text(3, rtree + "_parent");
+      if (shadow.integer() != 3) return nullptr;
+    }
   }
 
-  const char* geometry = layer.GetGeometryColumn();
-  if (!geometry || !*geometry) return nullptr;
   std::string head = "INSERT INTO " + quoted(table) + " (" + quoted(geometry);
   for (int f : fields) head += ", " + quoted(layer.GetLayerDefn()->GetFieldDefn(f)->GetNameRef());
   head += ") VALUES ";
   std::unique_ptr<GpkgRows> rows(new GpkgRows(db, table, head, fields.size() + 1));
-  rows->count_trigger_sql_ = std::move(count_trigger_sql);
+  rows->paused_triggers_ = std::move(paused);
+  if (indexed) rows->rtree_ = rtree;
   return rows;
 }
 
@@ -103,9 +154,11 @@ GpkgRows::GpkgRows(sqlite3* db, std::string table, std::string insert_head, std:
       table_(std::move(table)),
       insert_head_(std::move(insert_head)),
       columns_(columns),
-      blobs_(kRowsPerStatement * kMaxBlob),
-      blob_size_(kRowsPerStatement),
-      values_(kRowsPerStatement * (columns - 1)) {}
+      rows_per_statement_(std::clamp<std::size_t>(
+          static_cast<std::size_t>(sqlite3_limit(db, SQLITE_LIMIT_VARIABLE_NUMBER, -1)) / columns, 1, kRowsPerStatement)) {
+  geometries_.reserve(rows_per_statement_);
+  values_.reserve(rows_per_statement_ * (columns - 1));
+}
 
 GpkgRows::~GpkgRows() { sqlite3_finalize(full_); }
 
@@ -118,48 +171,36 @@ void GpkgRows::exec(const std::string& sql) {
 }
 
 void GpkgRows::add(const grid::LonLat* ring, int corners, const RowValue* values) {
-  // The blob GDAL's GPkgGeometryFromOGR makes for a Polygon: "GP", version 0, flags (xy
-  // envelope, little-endian), srs_id 4326, envelope (min x, max x, min y, max y), then WKB.
-  double lo_x = ring[0].lon, hi_x = lo_x, lo_y = ring[0].lat, hi_y = lo_y;
-  for (int k = 1; k < corners; ++k) {
-    lo_x = std::min(lo_x, ring[k].lon);
-    hi_x = std::max(hi_x, ring[k].lon);
-    lo_y = std::min(lo_y, ring[k].lat);
-    hi_y = std::max(hi_y, ring[k].lat);
-  }
-  unsigned char* const blob = blobs_.data() + pending_ * kMaxBlob;
-  unsigned char* out = blob;
-  *out++ = 'G';
-  *out++ = 'P';
-  *out++ = 0;     // version
-  *out++ = 0x03;  // envelope [minx, maxx, miny, maxy], little-endian
-  out = put_u32(out, 4326);
-  for (double v : {lo_x, hi_x, lo_y, hi_y}) out = put_f64(out, v);
-  *out++ = 1;  // WKB little-endian
-  out = put_u32(out, 3);  // Polygon
-  out = put_u32(out, 1);  // one ring
-  out = put_u32(out, static_cast<std::uint32_t>(corners + 1));
-  for (int k = 0; k <= corners; ++k) {
-    out = put_f64(out, ring[k % corners].lon);
-    out = put_f64(out, ring[k % corners].lat);
-  }
-  blob_size_[pending_] = static_cast<int>(out - blob);
-  std::copy(values, values + (columns_ - 1), values_.begin() + static_cast<std::ptrdiff_t>(pending_ * (columns_ - 1)));
+  cell_.begin(GpkgGeometry::kPolygon, 1);
+  cell_.ring(ring, static_cast<std::size_t>(corners));
+  cell_.end();
+  add(cell_, values);
+}
 
-  if (rows_ + pending_ == 0) {
-    min_x_ = lo_x, max_x_ = hi_x, min_y_ = lo_y, max_y_ = hi_y;
-  } else {
-    min_x_ = std::min(min_x_, lo_x), max_x_ = std::max(max_x_, hi_x);
-    min_y_ = std::min(min_y_, lo_y), max_y_ = std::max(max_y_, hi_y);
+void GpkgRows::add(const GpkgGeometry& geometry, const RowValue* values) {
+  blobs_.insert(blobs_.end(), geometry.data(), geometry.data() + geometry.size());
+  geometries_.push_back({blobs_.size(), geometry.empty(), geometry.min_x(), geometry.max_x(), geometry.min_y(),
+                         geometry.max_y()});
+  values_.insert(values_.end(), values, values + (columns_ - 1));
+  if (!geometry.empty()) {
+    if (!any_extent_) {
+      min_x_ = geometry.min_x(), max_x_ = geometry.max_x(), min_y_ = geometry.min_y(), max_y_ = geometry.max_y();
+      any_extent_ = true;
+    } else {
+      min_x_ = std::min(min_x_, geometry.min_x()), max_x_ = std::max(max_x_, geometry.max_x());
+      min_y_ = std::min(min_y_, geometry.min_y()), max_y_ = std::max(max_y_, geometry.max_y());
+    }
   }
-  if (++pending_ == kRowsPerStatement) flush();
+  if (geometries_.size() == rows_per_statement_) flush();
 }
 
 void GpkgRows::flush() {
-  if (pending_ == 0) return;
-  if (rows_ == 0 && !count_trigger_sql_.empty()) {
-    // GDAL drops it too while it writes (it counts one row at a time), and puts it back after.
-    exec("DROP TRIGGER " + quoted("trigger_insert_feature_count_" + table_));
+  const std::size_t pending = geometries_.size();
+  if (pending == 0) return;
+  if (rows_ == 0) {
+    // GDAL drops its counter too while it writes (it counts one row at a time), and puts it
+    // back after; the R-tree is filled at the end.
+    for (const auto& trigger : paused_triggers_) exec("DROP TRIGGER " + quoted(trigger.first));
   }
   const auto insert_sql = [&](std::size_t rows) {
     std::string sql = insert_head_;
@@ -171,13 +212,16 @@ void GpkgRows::flush() {
     return sql;
   };
   std::unique_ptr<Statement> partial;  // the last rows of the table
-  if (pending_ == kRowsPerStatement && !full_) full_ = Statement(db_, insert_sql(kRowsPerStatement)).release();
-  if (pending_ < kRowsPerStatement) partial = std::make_unique<Statement>(db_, insert_sql(pending_));
+  if (pending == rows_per_statement_ && !full_) full_ = Statement(db_, insert_sql(rows_per_statement_)).release();
+  if (pending < rows_per_statement_) partial = std::make_unique<Statement>(db_, insert_sql(pending));
   sqlite3_stmt* statement = partial ? partial->get() : full_;
 
   int parameter = 1, rc = SQLITE_OK;
-  for (std::size_t r = 0; r < pending_ && rc == SQLITE_OK; ++r) {
-    rc = sqlite3_bind_blob(statement, parameter++, blobs_.data() + r * kMaxBlob, blob_size_[r], SQLITE_STATIC);
+  std::size_t start = 0;
+  for (std::size_t r = 0; r < pending && rc == SQLITE_OK; ++r) {
+    const std::size_t end = geometries_[r].end;
+    rc = sqlite3_bind_blob(statement, parameter++, blobs_.data() + start, static_cast<int>(end - start), SQLITE_STATIC);
+    start = end;
     for (std::size_t c = 0; c + 1 < columns_ && rc == SQLITE_OK; ++c) {
       const RowValue& v = values_[r * (columns_ - 1) + c];
       rc = v.kind == RowValue::Kind::integer ? sqlite3_bind_int64(statement, parameter, v.integer)
@@ -191,27 +235,41 @@ void GpkgRows::flush() {
   rc = sqlite3_step(statement);
   sqlite3_reset(statement);
   if (rc != SQLITE_DONE) fail("cannot insert rows into " + quoted(table_));
-  rows_ += pending_;
-  pending_ = 0;
+  if (!rtree_.empty()) {
+    // One INSERT of several rows into an AUTOINCREMENT table: consecutive FIDs ending at the last.
+    const std::int64_t first = sqlite3_last_insert_rowid(db_) - static_cast<std::int64_t>(pending) + 1;
+    for (std::size_t r = 0; r < pending; ++r) {
+      const PendingGeometry& g = geometries_[r];
+      if (!g.empty) rtree_entries_.push_back(rtree_entry(first + static_cast<std::int64_t>(r), g.min_x, g.max_x, g.min_y, g.max_y));
+    }
+  }
+  rows_ += pending;
+  blobs_.clear();
+  geometries_.clear();
+  values_.clear();
 }
 
 void GpkgRows::finish() {
   flush();
   if (rows_ == 0) return;  // nothing changed: GDAL too leaves the table's entries as they are
-  if (!count_trigger_sql_.empty()) {
-    exec(count_trigger_sql_);
+  if (!rtree_.empty()) bulk_load_rtree(db_, rtree_, std::move(rtree_entries_));
+  for (const auto& trigger : paused_triggers_) exec(trigger.second);
+  if (std::any_of(paused_triggers_.begin(), paused_triggers_.end(),
+                  [&](const auto& t) { return t.first == "trigger_insert_feature_count_" + table_; })) {
     Statement count(db_, "UPDATE gpkg_ogr_contents SET feature_count = ? WHERE lower(table_name) = lower(?)");
     sqlite3_bind_int64(count.get(), 1, static_cast<sqlite3_int64>(rows_));
     count.text(2, table_);
-    if (sqlite3_step(count.get()) != SQLITE_DONE) fail("cannot set the feature count");
+    count.run("set the feature count");
   }
-  Statement extent(db_,
-                   "UPDATE gpkg_contents SET min_x = ?, min_y = ?, max_x = ?, max_y = ? "
-                   "WHERE lower(table_name) = lower(?) AND lower(data_type) = 'features'");
-  int k = 1;
-  for (double v : {min_x_, min_y_, max_x_, max_y_}) sqlite3_bind_double(extent.get(), k++, v);
-  extent.text(5, table_);
-  if (sqlite3_step(extent.get()) != SQLITE_DONE) fail("cannot set the extent");
+  if (any_extent_) {
+    Statement extent(db_,
+                     "UPDATE gpkg_contents SET min_x = ?, min_y = ?, max_x = ?, max_y = ? "
+                     "WHERE lower(table_name) = lower(?) AND lower(data_type) = 'features'");
+    int k = 1;
+    for (double v : {min_x_, min_y_, max_x_, max_y_}) sqlite3_bind_double(extent.get(), k++, v);
+    extent.text(5, table_);
+    extent.run("set the extent");
+  }
   // As GDAL stamps a changed table: OGR_CURRENT_DATE when set (reproducible files), else now.
   const char* fixed_date = CPLGetConfigOption("OGR_CURRENT_DATE", nullptr);
   Statement stamp(db_, std::string("UPDATE gpkg_contents SET last_change = ") +
@@ -219,7 +277,7 @@ void GpkgRows::finish() {
                            " WHERE lower(table_name) = lower(?)");
   if (fixed_date) stamp.text(1, fixed_date);
   stamp.text(fixed_date ? 2 : 1, table_);
-  if (sqlite3_step(stamp.get()) != SQLITE_DONE) fail("cannot set the time of the last change");
+  stamp.run("set the time of the last change");
 }
 
 }  // namespace qtmv::write

@@ -1,29 +1,34 @@
-// Polygon rows written straight into a GeoPackage feature table, through the SQLite connection of
-// the GDAL dataset that made the table: the writers' path for the per-cell layers (millions of
-// rows).
+// Rows written straight into a GeoPackage feature table, through the SQLite connection of the
+// GDAL dataset that made the table: the writers' path for every layer of a GeoPackage (regions,
+// Voronoi edges and the per-cell layers' millions of rows).
 //
 // Why: GDAL 3.6's GeoPackage driver takes about 1.6 us per CreateFeature (one INSERT statement a
-// row, Integer64 fields bound as text and converted back by SQLite, per-feature checks); INSERT
-// statements of 64 rows each take about 0.25 us a row, so the 6 million boundary cells of level
-// 11 take about 1.5 s instead of 10 s (bench/RESULTS.md, "qtmvoronoi end to end").
+// row, Integer64 fields bound as text and converted back by SQLite, per-feature checks) plus the
+// building of each OGRGeometry; INSERT statements of 64 rows each take about 0.25 us a row, so the
+// 6 million boundary cells of level 11 take about 1.5 s instead of 10 s (bench/RESULTS.md,
+// "qtmvoronoi end to end"). A table with a spatial index gets its R-tree filled at once at the end
+// (gpkg_rtree.hpp) instead of one row at a time by GDAL's trigger.
 //
 // The file is the one GDAL would have written: the rows in the same order with the same FIDs
-// (the table's AUTOINCREMENT), geometry blobs as GDAL makes them (the "GP" header, version 0,
-// little-endian, xy envelope, then the WKB Polygon), gpkg_contents' extent and last_change, and
-// gpkg_ogr_contents' feature count. GDAL's trigger that counts features one insert at a time is
-// dropped while the rows go in and put back from its own SQL afterwards, as GDAL itself does.
+// (the table's AUTOINCREMENT), geometry blobs as GDAL makes them (GpkgGeometry), gpkg_contents'
+// extent and last_change, gpkg_ogr_contents' feature count, and the same boxes in the R-tree
+// (its nodes differ: packed rather than grown). GDAL's triggers that count features and index
+// them one insert at a time are dropped while the rows go in and put back from their own SQL
+// afterwards, as GDAL itself does with the first.
 //
-// Only for a table that GDAL has just made, empty and without a spatial index (an R-tree would
-// miss these rows): GpkgRows::open returns null otherwise, and for other drivers, and when the
+// Only for a table that GDAL has just made, empty, with no trigger but GDAL's own (the counters
+// and its R-tree's): GpkgRows::open returns null otherwise, and for other drivers, and when the
 // configuration option QTMV_GPKG_DIRECT_ROWS is NO; the caller then writes OGR features.
 #pragma once
 
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "grid/qtm.hpp"
+#include "write/gpkg_rtree.hpp"
 
 class GDALDataset;
 class OGRLayer;
@@ -46,6 +51,43 @@ struct RowValue {
   static RowValue of(const std::string& v) { return {Kind::text, 0, 0, v.c_str()}; }
 };
 
+/// A geometry as the GeoPackage blob GDAL's GPkgGeometryFromOGR makes for a 2D geometry in
+/// EPSG:4326: "GP", version 0, flags (little-endian, and an xy envelope or, for an empty geometry,
+/// the empty bit and no envelope), srs_id 4326, the envelope (min x, max x, min y, max y), then
+/// the geometry as WKB, little-endian. Built by begin(), the parts, end().
+class GpkgGeometry {
+ public:
+  static constexpr std::uint32_t kPolygon = 3, kMultiLineString = 5, kMultiPolygon = 6;  ///< WKB types
+
+  /// Starts a geometry of WKB type `type` with `parts` parts (a Polygon's rings, a multi-geometry's members).
+  void begin(std::uint32_t type, std::uint32_t parts);
+  /// A Polygon member of a MultiPolygon, with `rings` rings to follow.
+  void polygon(std::uint32_t rings);
+  /// A ring of `n` points (degrees; not closed: written closed).
+  void ring(const grid::LonLat* points, std::size_t n);
+  /// A LineString member of a MultiLineString, of `n` points (degrees).
+  void line(const grid::LonLat* points, std::size_t n);
+  /// Ends the geometry: writes its header.
+  void end();
+
+  const unsigned char* data() const { return bytes_.data(); }
+  std::size_t size() const { return bytes_.size(); }
+  bool empty() const { return !any_point_; }
+  /// The envelope (degrees); meaningful when not empty().
+  double min_x() const { return min_x_; }
+  double max_x() const { return max_x_; }
+  double min_y() const { return min_y_; }
+  double max_y() const { return max_y_; }
+
+ private:
+  void u32(std::uint32_t v);
+  void point(const grid::LonLat& p);
+
+  std::vector<unsigned char> bytes_;
+  bool any_point_ = false;
+  double min_x_ = 0, max_x_ = 0, min_y_ = 0, max_y_ = 0;
+};
+
 class GpkgRows {
  public:
   /// Rows for `layer` of `dataset` (GeoPackage only), with its polygon geometry and the
@@ -58,11 +100,13 @@ class GpkgRows {
   GpkgRows(const GpkgRows&) = delete;
   GpkgRows& operator=(const GpkgRows&) = delete;
 
-  /// Adds a row: the polygon of `corners` points (a ring not closed) and one value per field.
+  /// Adds a row: its geometry (ended) and one value per field.
+  void add(const GpkgGeometry& geometry, const RowValue* values);
+  /// Adds a row whose geometry is the polygon of `corners` points (a ring not closed).
   void add(const grid::LonLat* ring, int corners, const RowValue* values);
 
-  /// Writes the rows still held, puts the counting trigger back, sets the feature count, the
-  /// extent and the time of the last change. Throws WriteError on an SQLite failure.
+  /// Writes the rows still held, fills the R-tree, puts GDAL's triggers back, sets the feature
+  /// count, the extent and the time of the last change. Throws WriteError on an SQLite failure.
   void finish();
 
  private:
@@ -71,17 +115,29 @@ class GpkgRows {
   void exec(const std::string& sql);
   [[noreturn]] void fail(const std::string& what) const;
 
+  /// A pending row's geometry: where its blob ends in blobs_, and its envelope.
+  struct PendingGeometry {
+    std::size_t end;
+    bool empty;
+    double min_x, max_x, min_y, max_y;
+  };
+
   sqlite3* db_;
   std::string table_, insert_head_;  // INSERT INTO "t" ("geom", "a", ...) VALUES
   std::size_t columns_;               // geometry and attributes
-  sqlite3_stmt* full_ = nullptr;      // the statement for kRowsPerStatement rows
-  std::vector<unsigned char> blobs_;  // the pending rows' geometry blobs
-  std::vector<int> blob_size_;
+  std::size_t rows_per_statement_;    // up to 64, fewer for many columns (SQLite's parameter limit)
+  sqlite3_stmt* full_ = nullptr;      // the statement for rows_per_statement_ rows
+  std::vector<unsigned char> blobs_;  // the pending rows' geometry blobs, one after another
+  std::vector<PendingGeometry> geometries_;
   std::vector<RowValue> values_;  // the pending rows' attributes
-  std::size_t pending_ = 0;
   std::uint64_t rows_ = 0;
+  bool any_extent_ = false;
   double min_x_ = 0, min_y_ = 0, max_x_ = 0, max_y_ = 0;
-  std::string count_trigger_sql_;  // GDAL's insert trigger, dropped while the rows go in
+  GpkgGeometry cell_;  // add()'s polygon of a ring
+  /// GDAL's triggers that fire on INSERT (name, SQL): dropped while the rows go in.
+  std::vector<std::pair<std::string, std::string>> paused_triggers_;
+  std::string rtree_;                  // the table's R-tree ("rtree_<table>_<geometry>"), or empty
+  std::vector<RTreeEntry> rtree_entries_;  // its entries, loaded at finish()
 };
 
 }  // namespace qtmv::write

@@ -213,6 +213,13 @@ PairLines link_pair(const EdgeRef* begin, const EdgeRef* end, int level) {
   return out;
 }
 
+/// A pair's lines linked ahead of writing, and their GeoPackage blob for direct rows (the lines
+/// then dropped).
+struct MeasuredPair {
+  PairLines lines;
+  GpkgGeometry geometry;
+};
+
 // --- OGR helpers -----------------------------------------------------------------------------
 
 OGRLinearRing* make_ring(const LonLat* points, std::size_t n) {
@@ -232,6 +239,17 @@ OGRMultiPolygon* make_multipolygon(const Region& region) {
     multi->addGeometryDirectly(polygon);
   }
   return multi;
+}
+
+/// A region as the GeoPackage blob of its MultiPolygon (what make_multipolygon gives OGR).
+void region_geometry(const Region& region, GpkgGeometry& out) {
+  out.begin(GpkgGeometry::kMultiPolygon, static_cast<std::uint32_t>(region.size()));
+  for (const RegionPolygon& part : region) {
+    out.polygon(static_cast<std::uint32_t>(1 + part.holes.size()));
+    out.ring(part.shell.data(), part.shell.size());
+    for (const auto& hole : part.holes) out.ring(hole.data(), hole.size());
+  }
+  out.end();
 }
 
 /// Sets the feature's polygon (made by cell_feature) to the ring of `n` points, in place.
@@ -325,8 +343,6 @@ class Writer {
     if (per_cell && EQUAL(driver_name_.c_str(), "GPKG") && lco.FetchNameValue("SPATIAL_INDEX") == nullptr) {
       lco.SetNameValue("SPATIAL_INDEX", "NO");
     }
-    const char* spatial_index = lco.FetchNameValue("SPATIAL_INDEX");
-    no_spatial_index_ = spatial_index && !CPLTestBool(spatial_index);
     layer_ = dataset_->CreateLayer(name, &srs_, type, lco.List());
     if (!layer_) fail("cannot create the layer");
     check("creating the layer");
@@ -366,10 +382,9 @@ class Writer {
     count_row();
   }
 
-  /// Rows straight into the current layer's GeoPackage table (see gpkg_rows.hpp), for a layer
-  /// without a spatial index; null where that does not apply.
+  /// Rows straight into the current layer's GeoPackage table (see gpkg_rows.hpp); null where
+  /// that does not apply.
   std::unique_ptr<GpkgRows> direct_rows(const std::vector<int>& fields) {
-    if (!no_spatial_index_) return nullptr;
     std::unique_ptr<GpkgRows> rows = guard([&] { return GpkgRows::open(*dataset_, *layer_, fields); });
     check("preparing the layer's rows");
     return rows;
@@ -453,7 +468,7 @@ class Writer {
   OGRLayer* layer_ = nullptr;
   std::string layer_name_, driver_name_;
   CPLStringList field_types_;  ///< the driver's GDAL_DMD_CREATIONFIELDDATATYPES (empty: not stated)
-  bool transactions_ = false, transaction_open_ = false, no_spatial_index_ = false;
+  bool transactions_ = false, transaction_open_ = false;
   std::uint64_t in_transaction_ = 0, since_progress_ = 0;
   double total_work_, work_done_ = 0, layer_work_ = 0, layer_done_ = 0;
 };
@@ -516,6 +531,55 @@ struct Input {
   RowValue layer_of(std::size_t s) const { return RowValue::of(table.layer(table.sites[s].layer)); }
 };
 
+/// Whether the sources' values can go into direct GeoPackage rows exactly as OGR would write
+/// them: every field of `fields` (the union) Integer, Integer64, Real or String, without the
+/// Float32 subtype or a default value (which an unset field would take), of the same type in every
+/// layer that has it (`source_index[k][u]`: layer k's field for union field u, or -1), and every
+/// string valid UTF-8 within its field's width (GDAL warns and mends such values).
+bool plain_source_values(const Input& in, const OGRFeatureDefn& fields, const std::vector<std::vector<int>>& source_index) {
+  for (int u = 0; u < fields.GetFieldCount(); ++u) {
+    const OGRFieldDefn* f = fields.GetFieldDefn(u);
+    const OGRFieldType type = f->GetType();
+    if ((type != OFTInteger && type != OFTInteger64 && type != OFTReal && type != OFTString) ||
+        f->GetSubType() == OFSTFloat32 || f->GetDefault() != nullptr) {
+      return false;
+    }
+    for (std::size_t k = 0; k < in.table.source_count(); ++k) {
+      const int sf = source_index[k][static_cast<std::size_t>(u)];
+      if (sf >= 0 && in.table.definition(k)->GetFieldDefn(sf)->GetType() != type) return false;
+    }
+  }
+  for (const sites::SiteRecord& site : in.table.sites) {
+    if (!site.attributes) continue;
+    for (int u = 0; u < fields.GetFieldCount(); ++u) {
+      const OGRFieldDefn* f = fields.GetFieldDefn(u);
+      const int sf = source_index[site.layer][static_cast<std::size_t>(u)];
+      if (f->GetType() != OFTString || sf < 0 || !site.attributes->IsFieldSetAndNotNull(sf)) continue;
+      const char* text = site.attributes->GetRawFieldRef(sf)->String;
+      if (!CPLIsUTF8(text, -1) || (f->GetWidth() > 0 && CPLStrlenUTF8(text) > f->GetWidth())) return false;
+    }
+  }
+  return true;
+}
+
+/// Field `sf` of a site's source feature as a row value (plain_source_values' types only).
+RowValue source_value(const OGRFeature* feature, int sf) {
+  if (sf < 0 || !feature || !feature->IsFieldSetAndNotNull(sf)) return {};
+  switch (feature->GetFieldDefnRef(sf)->GetType()) {
+    case OFTInteger:
+    case OFTInteger64: return RowValue::of(static_cast<std::int64_t>(feature->GetFieldAsInteger64(sf)));
+    case OFTReal: return RowValue::of(feature->GetFieldAsDouble(sf));
+    default: return {RowValue::Kind::text, 0, 0, feature->GetRawFieldRef(sf)->String};
+  }
+}
+
+/// A block of regions traced ahead of writing: their rings for OGR features, or their GeoPackage
+/// blobs for direct rows.
+struct TracedRegions {
+  std::vector<Region> regions;
+  std::vector<GpkgGeometry> geometries;
+};
+
 void write_regions(Writer& w, const Input& in, double work) {
   OGRLayer* layer = w.begin_layer("regions", wkbMultiPolygon, work);
 
@@ -523,8 +587,10 @@ void write_regions(Writer& w, const Input& in, double work) {
   // sites), the union of their fields by name (a name's first layer gives its type), and then
   // site_layer, the layer of each site.
   OGRFeatureDefn fields("fields");
-  // Per source layer: its fields' places in the union (one empty map for a table without a source).
-  std::vector<std::vector<int>> field_maps(std::max<std::size_t>(1, in.table.source_count()));
+  // Per source layer: its fields' places in the union (one empty map for a table without a
+  // source), and the other way round: the layer's field for each union field (or -1).
+  const std::size_t source_layers = std::max<std::size_t>(1, in.table.source_count());
+  std::vector<std::vector<int>> field_maps(source_layers), source_index(source_layers);
   for (std::size_t k = 0; k < in.table.source_count(); ++k) {
     const OGRFeatureDefn* source = in.table.definition(k);
     for (int f = 0; source && f < source->GetFieldCount(); ++f) {
@@ -535,6 +601,10 @@ void write_regions(Writer& w, const Input& in, double work) {
       }
       field_maps[k].push_back(u);
     }
+  }
+  for (std::size_t k = 0; k < source_layers; ++k) {
+    source_index[k].assign(static_cast<std::size_t>(fields.GetFieldCount()), -1);
+    for (std::size_t f = 0; f < field_maps[k].size(); ++f) source_index[k][static_cast<std::size_t>(field_maps[k][f])] = static_cast<int>(f);
   }
   std::vector<int> written(static_cast<std::size_t>(fields.GetFieldCount()));
   for (int u = 0; u < fields.GetFieldCount(); ++u) {
@@ -567,25 +637,54 @@ void write_regions(Writer& w, const Input& in, double work) {
   trace("regions measured");
   w.layer_progress(0.4, 1.0);
 
-  // Blocks of regions traced on all cores on a helper thread while this one writes the block
-  // before (OGR writes one feature at a time): two blocks held, not every region's rings.
   w.begin_features();
+  // Direct GeoPackage rows: the union's fields, then site_layer, site_fid, cells, area_m2.
+  std::vector<int> row_fields = written;
+  if (layer_index >= 0) row_fields.push_back(layer_index);
+  row_fields.insert(row_fields.end(), {fid_index, cells_index, area_index});
+  const std::unique_ptr<GpkgRows> direct =
+      plain_source_values(in, fields, source_index) ? w.direct_rows(row_fields) : nullptr;
+
+  // Blocks of regions traced (and made blobs of, for direct rows) on all cores on a helper thread
+  // while this one writes the block before: two blocks held, not every region's rings.
   double link_seconds = 0;  // on the helper thread (for the trace)
   const auto link = [&](std::size_t first, std::size_t last) {
     const auto start = std::chrono::steady_clock::now();
-    std::vector<Region> block(last - first);
+    TracedRegions block;
+    block.regions.resize(last - first);
+    if (direct) block.geometries.resize(last - first);
     FirstException failure;
 #pragma omp parallel for schedule(dynamic, 1)
     for (std::int64_t s = static_cast<std::int64_t>(first); s < static_cast<std::int64_t>(last); ++s) {
-      failure.run([&] { block[static_cast<std::size_t>(s) - first] = tracer.trace(static_cast<std::int32_t>(s)); });
+      failure.run([&] {
+        Region& region = block.regions[static_cast<std::size_t>(s) - first];
+        region = tracer.trace(static_cast<std::int32_t>(s));
+        if (direct) {
+          region_geometry(region, block.geometries[static_cast<std::size_t>(s) - first]);
+          region = {};
+        }
+      });
     }
     failure.rethrow();
     link_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return block;
   };
-  const auto write = [&](std::size_t first, std::size_t last, const std::vector<Region>& block) {
+  std::vector<RowValue> values(row_fields.size());
+  const auto write = [&](std::size_t first, std::size_t last, const TracedRegions& block) {
     for (std::size_t s = first; s < last; ++s) {
       const sites::SiteRecord& site = in.table.sites[s];
+      if (direct) {
+        const std::vector<int>& index = source_index[site.layer];
+        for (std::size_t u = 0; u < written.size(); ++u) values[u] = source_value(site.attributes.get(), index[u]);
+        std::size_t v = written.size();
+        if (layer_index >= 0) values[v++] = in.layer_of(s);
+        values[v++] = fid_value(site.fid);
+        values[v++] = RowValue::of(static_cast<std::int64_t>(in.outlines.cells_per_site[s]));
+        values[v++] = RowValue::of(areas[s]);
+        w.guard([&] { direct->add(block.geometries[s - first], values.data()); });
+        w.count_row();
+        continue;
+      }
       FeaturePtr feature(OGRFeature::CreateFeature(layer->GetLayerDefn()));
       const std::vector<int>& field_map = field_maps[site.layer];
       if (site.attributes && !field_map.empty()) {
@@ -597,7 +696,7 @@ void write_regions(Writer& w, const Input& in, double work) {
       set_value(*feature, fid_index, fid_value(site.fid));
       feature->SetField(cells_index, static_cast<GIntBig>(in.outlines.cells_per_site[s]));
       feature->SetField(area_index, areas[s]);
-      feature->SetGeometryDirectly(make_multipolygon(block[s - first]));  // empty for a site without cells
+      feature->SetGeometryDirectly(make_multipolygon(block.regions[s - first]));  // empty for a site without cells
       w.write(*feature);
     }
     w.layer_progress(0.4 + 0.6 * static_cast<double>(last) / static_cast<double>(in.site_count), 1.0);
@@ -605,6 +704,10 @@ void write_regions(Writer& w, const Input& in, double work) {
   work_ahead(static_cast<std::size_t>(in.site_count), kRegionBlock, link, write);
   trace("regions traced and written");
   trace.note("of which tracing", link_seconds);
+  if (direct) {
+    w.guard([&] { direct->finish(); });
+    trace("regions' R-tree filled");
+  }
   w.end_layer();
   trace("regions layer ended");
 }
@@ -662,25 +765,42 @@ void write_voronoi_edges(Writer& w, const Input& in, double work) {
   w.layer_progress(0.2, 1.0);
 
   w.begin_features();
+  std::vector<int> row_fields{a_index, b_index, length_index};
+  if (in.composite()) row_fields.insert(row_fields.end(), {layer_a_index, layer_b_index});
+  const std::unique_ptr<GpkgRows> direct = w.direct_rows(row_fields);
   FeaturePtr feature(OGRFeature::CreateFeature(layer->GetLayerDefn()));
   const auto measure = [&](std::size_t first, std::size_t last) {
-    std::vector<PairLines> block(last - first);
+    std::vector<MeasuredPair> block(last - first);
     FirstException failure;
 #pragma omp parallel for schedule(dynamic, 16)
     for (std::int64_t p = static_cast<std::int64_t>(first); p < static_cast<std::int64_t>(last); ++p) {
       failure.run([&] {
-        block[static_cast<std::size_t>(p) - first] =
-            link_pair(edges.data() + pair_start[p], edges.data() + pair_start[p + 1], level);
+        MeasuredPair& out = block[static_cast<std::size_t>(p) - first];
+        out.lines = link_pair(edges.data() + pair_start[p], edges.data() + pair_start[p + 1], level);
+        if (direct) {
+          out.geometry.begin(GpkgGeometry::kMultiLineString, static_cast<std::uint32_t>(out.lines.lines.size()));
+          for (const auto& line : out.lines.lines) out.geometry.line(line.data(), line.size());
+          out.geometry.end();
+          out.lines.lines = {};
+        }
       });
     }
     failure.rethrow();
     return block;
   };
-  const auto write = [&](std::size_t first, std::size_t last, const std::vector<PairLines>& block) {
+  const auto write = [&](std::size_t first, std::size_t last, const std::vector<MeasuredPair>& block) {
     for (std::size_t p = first; p < last; ++p) {
-      const PairLines& lines = block[p - first];
+      const PairLines& lines = block[p - first].lines;
       const std::uint64_t key = edges[pair_start[p]].key;
       const auto a = static_cast<std::size_t>(key >> 32), b = static_cast<std::size_t>(key & 0xffffffffu);
+      if (direct) {
+        const RowValue values[] = {fid_value(in.table.sites[a].fid), fid_value(in.table.sites[b].fid),
+                                   RowValue::of(lines.length_m), in.composite() ? in.layer_of(a) : RowValue{},
+                                   in.composite() ? in.layer_of(b) : RowValue{}};
+        w.guard([&] { direct->add(block[p - first].geometry, values); });
+        w.count_row();
+        continue;
+      }
       auto* multi = new OGRMultiLineString;
       for (const auto& line : lines.lines) {
         auto* ls = new OGRLineString;
@@ -702,6 +822,10 @@ void write_voronoi_edges(Writer& w, const Input& in, double work) {
   };
   work_ahead(pairs, kEdgePairBlock, measure, write);
   trace("edges linked and written");
+  if (direct) {
+    w.guard([&] { direct->finish(); });
+    trace("edges' R-tree filled");
+  }
   w.end_layer();
   trace("edges layer ended");
 }
@@ -805,11 +929,11 @@ void write_vector(const std::string& path, const label::Outlines& outlines, cons
   // Progress shares: each layer's expected time in microseconds, from the level 11 run of
   // bench/RESULTS.md ("qtmvoronoi end to end") on 2 cores: regions trace and measure every cell, then write a
   // feature per site; boundary_cells and cells cost per row; voronoi_edges gathers over every
-  // cell and writes about 3 pairs per site. In GeoPackage the close builds the R-trees of regions
-  // and voronoi_edges, about 9 us per feature.
+  // cell and writes about 3 pairs per site. In GeoPackage through OGR features (not direct rows)
+  // the close builds the R-trees of regions and voronoi_edges, about 9 us per feature.
   const double cell_count = static_cast<double>(cells), sites = static_cast<double>(site_count);
   const double outline_count = static_cast<double>(outlines.cells.size());
-  const bool rtrees = EQUAL(options.driver.c_str(), "GPKG");
+  const bool rtrees = EQUAL(options.driver.c_str(), "GPKG") && !CPLTestBool(CPLGetConfigOption("QTMV_GPKG_DIRECT_ROWS", "YES"));
   std::vector<double> work;
   double close_work = 1;
   for (const std::string& name : layers) {

@@ -31,12 +31,14 @@
 //
 // GeoPackage: boundary_cells and cells (millions of polygons at the finer levels) are created
 // without a spatial index (SPATIAL_INDEX=NO) unless options.layer_options names SPATIAL_INDEX:
-// GDAL 3.6 fills SQLite's R-tree one row at a time, which costs about 9 us per feature and
-// would make the index most of the run (53 s of 64 s for 6 M boundary cells at level 11). The
-// index can be added later with `ogrinfo out.gpkg -sql "SELECT CreateSpatialIndex('boundary_cells','geom')"`.
-// regions and voronoi_edges keep GDAL's default (an R-tree). Without an index, the per-cell
-// layers' rows go straight into their GeoPackage tables (gpkg_rows.hpp): the same file, six times
-// faster than OGR features; the configuration option QTMV_GPKG_DIRECT_ROWS=NO turns that off.
+// even filled at once (gpkg_rtree.hpp), an R-tree costs about 2.5 us a row, more than the row.
+// The index can be added later with `ogrinfo out.gpkg -sql "SELECT CreateSpatialIndex('boundary_cells','geom')"`.
+// regions and voronoi_edges keep GDAL's default (an R-tree). Every layer's rows go straight into
+// its GeoPackage table (gpkg_rows.hpp) and its R-tree is packed at the end: the same file as OGR
+// features would give, several times faster. The regions go through OGR features when a source
+// field is of another type than Integer, Integer64, Real or String or has a default value (the
+// direct rows would not write what OGR does); the configuration option QTMV_GPKG_DIRECT_ROWS=NO
+// sends every layer through OGR.
 //
 // Transactions of about 100 000 features where the driver has efficient ones (GeoPackage).
 // On failure the dataset is closed and left as it is: the caller removes it (the pipeline

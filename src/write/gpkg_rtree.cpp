@@ -1,0 +1,191 @@
+#include "write/gpkg_rtree.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include "write/sqlite_statement.hpp"
+
+namespace qtmv::write {
+namespace {
+
+constexpr std::size_t kCellBytes = 8 + 4 * 4;  // id, then min x, max x, min y, max y (float32)
+constexpr std::size_t kNodeHeader = 4;         // depth (root only), cell count
+// SQLite's rounding of a double bound to float32 (rtree.c): scaled by one float ulp towards or
+// away from zero when the nearest float lies on the wrong side.
+constexpr double kTowardsZero = 1.0 - 1.0 / 8388608.0;
+constexpr double kAwayFromZero = 1.0 + 1.0 / 8388608.0;
+
+float rounded_down(double d) {
+  float f = static_cast<float>(d);
+  if (f > d) f = static_cast<float>(d * (d < 0 ? kAwayFromZero : kTowardsZero));
+  return f;
+}
+
+float rounded_up(double d) {
+  float f = static_cast<float>(d);
+  if (f < d) f = static_cast<float>(d * (d < 0 ? kTowardsZero : kAwayFromZero));
+  return f;
+}
+
+/// A box in the tree being packed: a row's entry in a leaf, or a node one level up.
+struct Box {
+  std::int64_t id;  ///< the row's id, or the node's index in its level
+  float min_x, max_x, min_y, max_y;
+  double centre_x() const { return (static_cast<double>(min_x) + max_x) / 2; }
+  double centre_y() const { return (static_cast<double>(min_y) + max_y) / 2; }
+};
+
+/// A node: its box and its children, a run of the level below.
+struct Node {
+  Box box;
+  std::size_t first, count;
+};
+
+/// Packs `items` into nodes of up to `capacity` (Sort-Tile-Recursive: vertical slices by the
+/// boxes' centres in x, each sorted in y and cut into full nodes). Reorders `items` so that each
+/// node's children are a run; ties are broken by id, so the packing is deterministic.
+std::vector<Node> pack(std::vector<Box>& items, std::size_t capacity) {
+  const std::size_t nodes = (items.size() + capacity - 1) / capacity;
+  const auto slices = static_cast<std::size_t>(std::ceil(std::sqrt(static_cast<double>(nodes))));
+  const std::size_t per_slice = slices * capacity;
+  const auto by = [](auto centre) {
+    return [centre](const Box& a, const Box& b) {
+      const double ca = centre(a), cb = centre(b);
+      return ca < cb || (ca == cb && a.id < b.id);
+    };
+  };
+  std::sort(items.begin(), items.end(), by([](const Box& b) { return b.centre_x(); }));
+  std::vector<Node> out;
+  out.reserve(nodes);
+  for (std::size_t slice = 0; slice < items.size(); slice += per_slice) {
+    const auto end = items.begin() + static_cast<std::ptrdiff_t>(std::min(items.size(), slice + per_slice));
+    std::sort(items.begin() + static_cast<std::ptrdiff_t>(slice), end, by([](const Box& b) { return b.centre_y(); }));
+    for (std::size_t first = slice; first < static_cast<std::size_t>(end - items.begin()); first += capacity) {
+      const std::size_t count = std::min(capacity, static_cast<std::size_t>(end - items.begin()) - first);
+      Box box = items[first];
+      for (std::size_t k = first + 1; k < first + count; ++k) {
+        box.min_x = std::min(box.min_x, items[k].min_x);
+        box.max_x = std::max(box.max_x, items[k].max_x);
+        box.min_y = std::min(box.min_y, items[k].min_y);
+        box.max_y = std::max(box.max_y, items[k].max_y);
+      }
+      box.id = static_cast<std::int64_t>(out.size());
+      out.push_back({box, first, count});
+    }
+  }
+  return out;
+}
+
+unsigned char* put_be(unsigned char* out, std::uint64_t v, int bytes) {
+  for (int k = bytes - 1; k >= 0; --k) *out++ = static_cast<unsigned char>(v >> (8 * k));
+  return out;
+}
+
+unsigned char* put_cell(unsigned char* out, std::int64_t id, const Box& box) {
+  out = put_be(out, static_cast<std::uint64_t>(id), 8);
+  for (float v : {box.min_x, box.max_x, box.min_y, box.max_y}) {
+    std::uint32_t bits;
+    std::memcpy(&bits, &v, sizeof bits);
+    out = put_be(out, bits, 4);
+  }
+  return out;
+}
+
+}  // namespace
+
+RTreeEntry rtree_entry(std::int64_t id, double min_x, double max_x, double min_y, double max_y) {
+  return {id, rounded_down(min_x), rounded_up(max_x), rounded_down(min_y), rounded_up(max_y)};
+}
+
+void bulk_load_rtree(sqlite3* db, const std::string& name, std::vector<RTreeEntry> entries) {
+  const std::string where = "R-tree " + quoted(name);
+  const auto node_table = quoted(name + "_node"), rowid_table = quoted(name + "_rowid");
+  const auto parent_table = quoted(name + "_parent");
+  if (Statement(db, "SELECT count(*) FROM " + rowid_table).integer() != 0 ||
+      Statement(db, "SELECT count(*) FROM " + node_table).integer() != 1) {
+    throw WriteError(where + " is not empty: it cannot be loaded at once");
+  }
+  const auto node_size = static_cast<std::size_t>(Statement(db, "SELECT length(data) FROM " + node_table + " WHERE nodeno = 1").integer());
+  const std::size_t capacity = node_size > kNodeHeader ? (node_size - kNodeHeader) / kCellBytes : 0;
+  if (capacity < 2 || capacity > 0xffff) throw WriteError(where + ": unexpected node size " + std::to_string(node_size));
+  if (entries.empty()) return;
+
+  // Levels from the leaves up: levels[0] are the leaves, whose children are the entries.
+  std::vector<Box> items;
+  items.reserve(entries.size());
+  for (const RTreeEntry& e : entries) items.push_back({e.id, e.min_x, e.max_x, e.min_y, e.max_y});
+  entries = {};
+  std::vector<std::vector<Node>> levels;
+  std::vector<Box> boxes;  // the current level's nodes as items of the level above
+  levels.push_back(pack(items, capacity));
+  while (levels.back().size() > 1) {
+    boxes.clear();
+    for (const Node& n : levels.back()) boxes.push_back(n.box);
+    std::vector<Node> above = pack(boxes, capacity);
+    // pack() reordered the boxes: put the nodes of this level in the same order.
+    std::vector<Node> reordered;
+    reordered.reserve(boxes.size());
+    for (const Box& b : boxes) reordered.push_back(levels.back()[static_cast<std::size_t>(b.id)]);
+    levels.back() = std::move(reordered);
+    levels.push_back(std::move(above));
+  }
+
+  // Node numbers: the root 1, then level by level downwards.
+  std::vector<std::vector<std::int64_t>> number(levels.size());
+  std::int64_t next = 1;
+  for (std::size_t l = levels.size(); l-- > 0;) {
+    for (std::size_t k = 0; k < levels[l].size(); ++k) number[l].push_back(next++);
+  }
+
+  // Writing into the shadow tables is refused in SQLite's defensive mode: off while loading.
+  int defensive = 0;
+  sqlite3_db_config(db, SQLITE_DBCONFIG_DEFENSIVE, -1, &defensive);
+  if (defensive) sqlite3_db_config(db, SQLITE_DBCONFIG_DEFENSIVE, 0, nullptr);
+  struct Restore {
+    sqlite3* db;
+    int defensive;
+    ~Restore() {
+      if (defensive) sqlite3_db_config(db, SQLITE_DBCONFIG_DEFENSIVE, 1, nullptr);
+    }
+  } restore{db, defensive};
+
+  Statement root(db, "UPDATE " + node_table + " SET data = ?1 WHERE nodeno = 1");
+  Statement node(db, "INSERT INTO " + node_table + " (nodeno, data) VALUES (?1, ?2)");
+  Statement parent(db, "INSERT INTO " + parent_table + " (nodeno, parentnode) VALUES (?1, ?2)");
+  Statement rowid(db, "INSERT INTO " + rowid_table + " (rowid, nodeno) VALUES (?1, ?2)");
+  const std::string write_rowid = "write a row's leaf in " + where, write_parent = "write a node's parent in " + where,
+                    write_node = "write a node of " + where;
+  std::vector<unsigned char> blob(node_size);
+  for (std::size_t l = levels.size(); l-- > 0;) {
+    for (std::size_t k = 0; k < levels[l].size(); ++k) {
+      const Node& n = levels[l][k];
+      const std::int64_t nodeno = number[l][k];
+      std::fill(blob.begin(), blob.end(), 0);
+      unsigned char* out = put_be(blob.data(), nodeno == 1 ? levels.size() - 1 : 0, 2);
+      out = put_be(out, n.count, 2);
+      for (std::size_t c = n.first; c < n.first + n.count; ++c) {
+        if (l == 0) {
+          out = put_cell(out, items[c].id, items[c]);
+          sqlite3_bind_int64(rowid.get(), 1, items[c].id);
+          sqlite3_bind_int64(rowid.get(), 2, nodeno);
+          rowid.run(write_rowid);
+        } else {
+          const std::int64_t child = number[l - 1][c];
+          out = put_cell(out, child, levels[l - 1][c].box);
+          sqlite3_bind_int64(parent.get(), 1, child);
+          sqlite3_bind_int64(parent.get(), 2, nodeno);
+          parent.run(write_parent);
+        }
+      }
+      Statement& statement = nodeno == 1 ? root : node;
+      const int blob_parameter = nodeno == 1 ? 1 : 2;
+      if (nodeno != 1) sqlite3_bind_int64(node.get(), 1, nodeno);
+      sqlite3_bind_blob(statement.get(), blob_parameter, blob.data(), static_cast<int>(blob.size()), SQLITE_STATIC);
+      statement.run(write_node);
+      if (nodeno == 1 && sqlite3_changes(db) != 1) throw WriteError(where + ": no root node");
+    }
+  }
+}
+
+}  // namespace qtmv::write

@@ -54,23 +54,40 @@ EdgeTerms edge_terms(const LonLat& from, const LonLat& to) {
   return t;
 }
 
+}  // namespace
+
 /// Every site's sums, shared by the threads.
-struct SiteSums {
-  explicit SiteSums(std::size_t sites) : area(sites), rough(sites), crossings(sites) {
+struct RegionAreaSums::Sums {
+  explicit Sums(std::size_t sites) : area(sites), rough(sites), crossings(sites) {
     for (std::size_t s = 0; s < sites; ++s) area[s] = rough[s] = crossings[s] = 0;
   }
   std::vector<std::atomic<std::uint64_t>> area, rough, crossings;
 };
 
+namespace {
+
+using SiteSums = RegionAreaSums::Sums;
+
 /// A thread's recent sites' sums, added to the shared ones when a slot is taken by another site
 /// and at the end: consecutive outline cells mostly border the same few sites, and a few hundred
 /// sites' sums in shared atomics would be fought over by every core.
-class SumCache {
+class SumCache : public RegionEdgeObserver::Local {
  public:
   explicit SumCache(SiteSums& shared) : shared_(shared) {}
-  ~SumCache() {
+  ~SumCache() override {
     for (Slot& s : slots_) flush(s);
   }
+  void edge(std::int32_t site, const LonLat& from, const LonLat& to, std::int32_t other) override {
+    if (other == kBorderEdge) {
+      add(site, edge_terms(from, to));
+    } else if (other > site) {  // an edge between two sites: solved by the lower site's cell, for both
+      const EdgeTerms t = edge_terms(from, to);
+      add(site, t);
+      add(other, t.reversed());
+    }
+  }
+
+ private:
   void add(std::int32_t site, const EdgeTerms& t) {
     Slot& s = slots_[static_cast<std::size_t>(site) % kSlots];
     if (s.site != site) {
@@ -81,8 +98,6 @@ class SumCache {
     s.sums.rough += t.rough;
     s.sums.crossings += t.crossings;
   }
-
- private:
   static constexpr std::size_t kSlots = 512;
   struct Slot {
     std::int32_t site = -1;
@@ -114,39 +129,42 @@ double settle(std::uint64_t area_sum, std::uint64_t rough_sum, std::uint64_t cro
 
 }  // namespace
 
+RegionAreaSums::RegionAreaSums(std::int32_t site_count) : sums_(std::make_unique<Sums>(static_cast<std::size_t>(site_count))) {}
+
+RegionAreaSums::~RegionAreaSums() = default;
+
+std::unique_ptr<RegionEdgeObserver::Local> RegionAreaSums::local() { return std::make_unique<SumCache>(*sums_); }
+
+std::vector<double> RegionAreaSums::areas(const std::vector<std::uint64_t>& cells_per_site) const {
+  const std::size_t sites = sums_->area.size();
+  std::vector<double> out(sites, 0.0);
+  for (std::size_t s = 0; s < sites && s < cells_per_site.size(); ++s) {
+    if (cells_per_site[s] == 0) continue;
+    out[s] = settle(sums_->area[s].load(), sums_->rough[s].load(), sums_->crossings[s].load());
+  }
+  return out;
+}
+
 std::vector<double> region_areas(const label::Outlines& outlines) {
   const label::OutlineCells& cells = outlines.cells;
   const auto n = static_cast<std::int64_t>(cells.size());
-  const auto sites = static_cast<std::size_t>(outlines.site_count);
-  SiteSums sums(sites);
+  RegionAreaSums sums(outlines.site_count);
   FirstException failure;
 #pragma omp parallel
   {
-    SumCache cache(sums);
+    std::unique_ptr<RegionEdgeObserver::Local> cache;
+    failure.run([&] { cache = sums.local(); });
 #pragma omp for schedule(dynamic, 4096)
     for (std::int64_t k = 0; k < n; ++k) {
       failure.run([&] {
         const std::int32_t site = cells[static_cast<std::size_t>(k)].site;
-        const auto add = [&](const LonLat& from, const LonLat& to, std::int32_t other) {
-          if (other == kBorderEdge) {
-            cache.add(site, edge_terms(from, to));
-          } else if (other > site) {  // an edge between two sites: solved by the lower site's cell, for both
-            const EdgeTerms t = edge_terms(from, to);
-            cache.add(site, t);
-            cache.add(other, t.reversed());
-          }
-        };
-        visit_region_edges(outlines, static_cast<std::size_t>(k), add);
+        visit_region_edges(outlines, static_cast<std::size_t>(k),
+                           [&](const LonLat& from, const LonLat& to, std::int32_t other) { cache->edge(site, from, to, other); });
       });
     }
   }
   failure.rethrow();
-  std::vector<double> areas(sites, 0.0);
-  for (std::size_t s = 0; s < sites; ++s) {
-    if (outlines.cells_per_site[s] == 0) continue;
-    areas[s] = settle(sums.area[s].load(), sums.rough[s].load(), sums.crossings[s].load());
-  }
-  return areas;
+  return sums.areas(outlines.cells_per_site);
 }
 
 double geodesic_length(const LonLat& a, const LonLat& b) {

@@ -12,12 +12,31 @@
 // outline cells, without the traced rings.
 #pragma once
 
+#include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "label/outline_cells.hpp"
 #include "write/region_tracer.hpp"
 
 namespace qtmv::write {
+
+/// The regions' areas summed as their edges are seen, by RegionTracer's gathering pass (or by
+/// region_areas): each edge between two sites solved once, from the lower site's side, for both.
+class RegionAreaSums : public RegionEdgeObserver {
+ public:
+  explicit RegionAreaSums(std::int32_t site_count);
+  ~RegionAreaSums() override;
+  std::unique_ptr<Local> local() override;
+  /// Areas (square metres) of the regions, from the edges seen; 0 for a site whose
+  /// `cells_per_site` is 0. Call once every Local view is gone.
+  std::vector<double> areas(const std::vector<std::uint64_t>& cells_per_site) const;
+
+  struct Sums;
+
+ private:
+  std::unique_ptr<Sums> sums_;
+};
 
 /// Areas (square metres) of the regions of all sites (outlines.site_count of them; 0 for a site
 /// without cells) on all cores, from the outline cells (whole level). Deterministic: the edges'

@@ -185,6 +185,12 @@ Region link_rings(const Edge* edges, std::size_t count, RingVertices parallels) 
     double best_angle = 1e300;
     // Reverse of the incoming edge; the region lies clockwise from it, so the outgoing edge of
     // the same wedge is the first one met turning clockwise.
+    std::size_t unused = 0;
+    for (std::size_t k = first; k < count && same_point(edges[k].from, at); ++k) {
+      if (used[k]) continue;
+      if (unused++ == 0) best = k;
+    }
+    if (unused < 2) return best;  // mostly: no choice to make
     const double dx = edges[e].from.lon - at.lon, dy = edges[e].from.lat - at.lat;
     for (std::size_t k = first; k < count && same_point(edges[k].from, at); ++k) {
       if (used[k]) continue;
@@ -281,7 +287,7 @@ double planar_ring_area(const std::vector<LonLat>& ring) {
 }
 
 RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertices,
-                           const std::function<void(double)>& step_done)
+                           const std::function<void(double)>& step_done, RegionEdgeObserver* observer)
     : vertices_(vertices) {
   const auto done = [&](double fraction) {
     if (step_done) step_done(fraction);
@@ -298,14 +304,22 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertice
 #pragma omp parallel num_threads(team)
   {
     std::vector<SiteEdge>& local = parts[static_cast<std::size_t>(thread_index())];
+    std::unique_ptr<RegionEdgeObserver::Local> seen;
+    failure.run([&] {
+      if (observer) seen = observer->local();
+    });
 #pragma omp for schedule(static)
     for (std::int64_t k = 0; k < n; ++k) {
       failure.run([&] {
         const std::int32_t site = cells[static_cast<std::size_t>(k)].site;
-        const auto add = [&](const LonLat& from, const LonLat& to, std::int32_t) { local.push_back({site, {from, to}}); };
+        const auto add = [&](const LonLat& from, const LonLat& to, std::int32_t other) {
+          local.push_back({site, {from, to}});
+          if (seen) seen->edge(site, from, to, other);
+        };
         visit_region_edges(outlines, static_cast<std::size_t>(k), add);
       });
     }
+    seen.reset();  // a view may hand its sums over on the way out
   }
   failure.rethrow();
   done(0.5);
@@ -330,7 +344,8 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertice
     }
   }
   start[sites] = at;
-  std::vector<Edge> edges(at);
+  // Not zeroed (gigabytes at the finer levels, on one core): every slot is written below, on all cores.
+  std::unique_ptr<Edge[]> edges(new Edge[at]);
 #pragma omp parallel for schedule(static, 1)
   for (std::int64_t t = 0; t < static_cast<std::int64_t>(threads); ++t) {
     std::vector<std::size_t>& next = place[static_cast<std::size_t>(t)];
@@ -341,12 +356,12 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertice
   // The largest sites' edges sorted on all cores, the others one site a thread.
   const std::size_t big = std::max<std::size_t>(std::size_t{1} << 16, at / 64);
   for (std::size_t s = 0; s < sites; ++s) {
-    if (start[s + 1] - start[s] >= big) parallel_sort(edges.begin() + start[s], edges.begin() + start[s + 1], edge_less);
+    if (start[s + 1] - start[s] >= big) parallel_sort(edges.get() + start[s], edges.get() + start[s + 1], edge_less);
   }
 #pragma omp parallel for schedule(dynamic, 1)
   for (std::int64_t s = 0; s < static_cast<std::int64_t>(sites); ++s) {
     const auto k = static_cast<std::size_t>(s);
-    if (start[k + 1] - start[k] < big) std::sort(edges.begin() + start[k], edges.begin() + start[k + 1], edge_less);
+    if (start[k + 1] - start[k] < big) std::sort(edges.get() + start[k], edges.get() + start[k + 1], edge_less);
   }
 
   edges_ = std::move(edges);
@@ -356,7 +371,7 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertice
 
 Region RegionTracer::trace(std::int32_t site) const {
   const auto k = static_cast<std::size_t>(site);
-  return link_rings(edges_.data() + start_[k], start_[k + 1] - start_[k], vertices_);
+  return link_rings(edges_.get() + start_[k], start_[k + 1] - start_[k], vertices_);
 }
 
 std::vector<Region> trace_regions(const label::Outlines& outlines, const std::function<void(double)>& step_done) {

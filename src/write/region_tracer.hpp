@@ -17,6 +17,7 @@
 #include <cmath>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <vector>
 
 #include "grid/qtm.hpp"
@@ -44,6 +45,23 @@ enum class RingVertices {
             ///< geodesics or great circles (PostGIS geography, BigQuery GEOGRAPHY, S2)
 };
 
+/// Sees every region edge as RegionTracer gathers it, for measures made in the same pass over the
+/// outline cells (the regions' areas: region_measures.hpp).
+class RegionEdgeObserver {
+ public:
+  virtual ~RegionEdgeObserver() = default;
+  /// One gathering thread's view, used by that thread only.
+  class Local {
+   public:
+    virtual ~Local() = default;
+    /// The edge from -> to (degrees) of the region of `site`, on its left; `other` is the site
+    /// across it, or kBorderEdge (visit_region_edges' arguments).
+    virtual void edge(std::int32_t site, const LonLat& from, const LonLat& to, std::int32_t other) = 0;
+  };
+  /// A view for one more thread (called on that thread; may be called concurrently).
+  virtual std::unique_ptr<Local> local() = 0;
+};
+
 /// The regions' boundary edges, gathered from the outline cells (label/outline_cells.hpp) and
 /// sorted per site, from which each region is traced on demand: the edges between sites are
 /// edges of boundary cells, the cuts at +-180 and along the poles' lines edges of row ends; a
@@ -55,8 +73,9 @@ class RegionTracer {
   /// after each step (gather, bucket, sort) with the fraction done; it may throw to stop.
   /// `vertices`: what the rings keep along parallels (runs along meridians, which are geodesics,
   /// keep their ends only).
+  /// `observer` (may be null) sees each edge as it is gathered.
   explicit RegionTracer(const label::Outlines& outlines, RingVertices vertices = RingVertices::corners,
-                        const std::function<void(double)>& step_done = {});
+                        const std::function<void(double)>& step_done = {}, RegionEdgeObserver* observer = nullptr);
 
   std::int32_t site_count() const { return static_cast<std::int32_t>(start_.size()) - 1; }
 
@@ -71,7 +90,7 @@ class RegionTracer {
 
  private:
   RingVertices vertices_;
-  std::vector<Edge> edges_;          // every site's edges, site after site
+  std::unique_ptr<Edge[]> edges_;    // every site's edges, site after site
   std::vector<std::size_t> start_;  // site s's edges: [start_[s], start_[s + 1])
 };
 

@@ -631,11 +631,11 @@ void write_regions(Writer& w, const Input& in, double work) {
 
   StepTrace trace;
   const RingVertices vertices = in.all_ring_vertices ? RingVertices::all : RingVertices::corners;
-  const RegionTracer tracer(in.outlines, vertices, [&](double f) { w.layer_progress(0.2 * f, 1.0); });
-  trace("regions' edges gathered");
-  const std::vector<double> areas = region_areas(in.outlines);
-  trace("regions measured");
-  w.layer_progress(0.4, 1.0);
+  // The areas are summed in the tracer's pass over the outline cells, edge by edge.
+  RegionAreaSums area_sums(in.site_count);
+  const RegionTracer tracer(in.outlines, vertices, [&](double f) { w.layer_progress(0.4 * f, 1.0); }, &area_sums);
+  const std::vector<double> areas = area_sums.areas(in.outlines.cells_per_site);
+  trace("regions' edges gathered, measured");
 
   w.begin_features();
   // Direct GeoPackage rows: the union's fields, then site_layer, site_fid, cells, area_m2.

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <memory>
 
 #include "write/sqlite_statement.hpp"
 
@@ -92,6 +93,46 @@ unsigned char* put_cell(unsigned char* out, std::int64_t id, const Box& box) {
   return out;
 }
 
+/// Rows of two integers into a table, kPairsPerStatement to an INSERT (one a row would take most
+/// of the load).
+class PairInserter {
+ public:
+  PairInserter(sqlite3* db, std::string table, std::string columns, std::string what)
+      : db_(db), head_("INSERT INTO " + std::move(table) + " (" + std::move(columns) + ") VALUES "), what_(std::move(what)) {
+    pending_.reserve(2 * kPairsPerStatement);
+  }
+  void add(std::int64_t a, std::int64_t b) {
+    pending_.push_back(a);
+    pending_.push_back(b);
+    if (pending_.size() == 2 * kPairsPerStatement) flush();
+  }
+  void flush() {
+    if (pending_.empty()) return;
+    const std::size_t pairs = pending_.size() / 2;
+    std::unique_ptr<Statement> partial;
+    if (pairs == kPairsPerStatement && !full_) full_ = std::make_unique<Statement>(db_, sql(pairs));
+    if (pairs < kPairsPerStatement) partial = std::make_unique<Statement>(db_, sql(pairs));
+    Statement& statement = partial ? *partial : *full_;
+    for (std::size_t k = 0; k < pending_.size(); ++k) {
+      sqlite3_bind_int64(statement.get(), static_cast<int>(k + 1), pending_[k]);
+    }
+    statement.run(what_);
+    pending_.clear();
+  }
+
+ private:
+  static constexpr std::size_t kPairsPerStatement = 256;  // 512 parameters: under any SQLite's limit
+  std::string sql(std::size_t pairs) const {
+    std::string out = head_;
+    for (std::size_t k = 0; k < pairs; ++k) out += k ? ",(?,?)" : "(?,?)";
+    return out;
+  }
+  sqlite3* db_;
+  std::string head_, what_;
+  std::unique_ptr<Statement> full_;
+  std::vector<std::int64_t> pending_;
+};
+
 }  // namespace
 
 RTreeEntry rtree_entry(std::int64_t id, double min_x, double max_x, double min_y, double max_y) {
@@ -152,10 +193,9 @@ void bulk_load_rtree(sqlite3* db, const std::string& name, std::vector<RTreeEntr
 
   Statement root(db, "UPDATE " + node_table + " SET data = ?1 WHERE nodeno = 1");
   Statement node(db, "INSERT INTO " + node_table + " (nodeno, data) VALUES (?1, ?2)");
-  Statement parent(db, "INSERT INTO " + parent_table + " (nodeno, parentnode) VALUES (?1, ?2)");
-  Statement rowid(db, "INSERT INTO " + rowid_table + " (rowid, nodeno) VALUES (?1, ?2)");
-  const std::string write_rowid = "write a row's leaf in " + where, write_parent = "write a node's parent in " + where,
-                    write_node = "write a node of " + where;
+  PairInserter parent(db, parent_table, "nodeno, parentnode", "write a node's parent in " + where);
+  PairInserter rowid(db, rowid_table, "rowid, nodeno", "write a row's leaf in " + where);
+  const std::string write_node = "write a node of " + where;
   std::vector<unsigned char> blob(node_size);
   for (std::size_t l = levels.size(); l-- > 0;) {
     for (std::size_t k = 0; k < levels[l].size(); ++k) {
@@ -167,15 +207,11 @@ void bulk_load_rtree(sqlite3* db, const std::string& name, std::vector<RTreeEntr
       for (std::size_t c = n.first; c < n.first + n.count; ++c) {
         if (l == 0) {
           out = put_cell(out, items[c].id, items[c]);
-          sqlite3_bind_int64(rowid.get(), 1, items[c].id);
-          sqlite3_bind_int64(rowid.get(), 2, nodeno);
-          rowid.run(write_rowid);
+          rowid.add(items[c].id, nodeno);
         } else {
           const std::int64_t child = number[l - 1][c];
           out = put_cell(out, child, levels[l - 1][c].box);
-          sqlite3_bind_int64(parent.get(), 1, child);
-          sqlite3_bind_int64(parent.get(), 2, nodeno);
-          parent.run(write_parent);
+          parent.add(child, nodeno);
         }
       }
       Statement& statement = nodeno == 1 ? root : node;
@@ -186,6 +222,8 @@ void bulk_load_rtree(sqlite3* db, const std::string& name, std::vector<RTreeEntr
       if (nodeno == 1 && sqlite3_changes(db) != 1) throw WriteError(where + ": no root node");
     }
   }
+  rowid.flush();
+  parent.flush();
 }
 
 }  // namespace qtmv::write

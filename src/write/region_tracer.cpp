@@ -308,7 +308,7 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertice
     failure.run([&] {
       if (observer) seen = observer->local();
     });
-#pragma omp for schedule(static)
+#pragma omp for schedule(dynamic, 4096)  // boundary cells, with their geodesics to solve, come in clusters
     for (std::int64_t k = 0; k < n; ++k) {
       failure.run([&] {
         const std::int32_t site = cells[static_cast<std::size_t>(k)].site;

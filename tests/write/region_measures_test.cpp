@@ -112,5 +112,40 @@ TEST(RegionMeasures, SameBitsWhateverTheThreads) {
 #endif
 }
 
+TEST(RegionMeasures, TracerPassGivesTheSameAreasWhateverTheThreads) {
+  // The writer's way: the sums taken in RegionTracer's gathering pass, on 1 and 4 threads, equal
+  // region_areas' own pass to the bit; and the regions traced are the same with and without it.
+  const int level = 7;
+  const std::vector<std::int32_t> labels = scene(level, 300, 13);
+  const label::Outlines outlines = label::outlines_of_dense(level, labels.data(), nullptr, 300);
+  const std::vector<double> expected = region_areas(outlines);
+  const RegionTracer plain(outlines);
+  for (int threads : {1, 4}) {
+#ifdef _OPENMP
+    const int before = omp_get_max_threads();
+    omp_set_num_threads(threads);
+#endif
+    RegionAreaSums sums(outlines.site_count);
+    const RegionTracer tracer(outlines, RingVertices::corners, {}, &sums);
+    const std::vector<double> got = sums.areas(outlines.cells_per_site);
+#ifdef _OPENMP
+    omp_set_num_threads(before);
+#endif
+    ASSERT_EQ(got.size(), expected.size());
+    for (std::size_t s = 0; s < got.size(); ++s) {
+      ASSERT_EQ(got[s], expected[s]) << threads << " threads, site " << s;
+      const Region a = tracer.trace(static_cast<std::int32_t>(s)), b = plain.trace(static_cast<std::int32_t>(s));
+      ASSERT_EQ(a.size(), b.size()) << "site " << s;
+      for (std::size_t p = 0; p < a.size(); ++p) {
+        ASSERT_EQ(a[p].shell.size(), b[p].shell.size());
+        for (std::size_t k = 0; k < a[p].shell.size(); ++k) {
+          ASSERT_TRUE(same_point(a[p].shell[k], b[p].shell[k])) << "site " << s;
+        }
+        ASSERT_EQ(a[p].holes.size(), b[p].holes.size());
+      }
+    }
+  }
+}
+
 }  // namespace
 }  // namespace qtmv::write

@@ -914,7 +914,9 @@ void write_vector(const std::string& path, const label::Outlines& outlines, cons
   const Code cells = grid::cell_count(outlines.level);
   const Input in{outlines, cell_tiles, table, site_count, options.all_ring_vertices};
   std::uint64_t boundary_count = 0;
-  for (const label::OutlineCell& c : outlines.cells) boundary_count += c.boundary;
+  const auto outline_cells = static_cast<std::int64_t>(outlines.cells.size());
+#pragma omp parallel for schedule(static) reduction(+ : boundary_count)
+  for (std::int64_t k = 0; k < outline_cells; ++k) boundary_count += outlines.cells[static_cast<std::size_t>(k)].boundary;
 
   GDALDriver* driver = GetGDALDriverManager()->GetDriverByName(options.driver.c_str());
   if (!driver) {

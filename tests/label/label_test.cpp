@@ -977,6 +977,22 @@ TEST(LabelOutlines, DenseOutlinesCountEveryCell) {
   Outlines broken = o;
   broken.cells.erase(broken.cells.begin());  // the first row end
   EXPECT_THROW(check_outlines(broken), std::logic_error);
+  // The first broken cell is named (the check runs on all cores).
+  const auto message = [](const Outlines& bad) {
+    try {
+      check_outlines(bad);
+    } catch (const std::logic_error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  Outlines bad_site = o, swapped = o;
+  bad_site.cells[o.cells.size() / 2].site = 1000;
+  bad_site.cells.back().site = -1;
+  EXPECT_NE(message(bad_site).find("site 1000 out of range"), std::string::npos) << message(bad_site);
+  std::swap(swapped.cells[7], swapped.cells[8]);
+  EXPECT_NE(message(swapped).find("not in increasing order at " + std::to_string(o.cells[7].code)), std::string::npos)
+      << message(swapped);
 }
 
 TEST_P(LabelDevice, WithoutDistanceOrBoundary) {

@@ -64,6 +64,8 @@ class StepTrace {
     std::fprintf(stderr, "trace: write %-28s %9.3f ms\n", step, std::chrono::duration<double, std::milli>(now - last_).count());
     last_ = now;
   }
+  /// Starts the next step's clock here (what ran since is not traced).
+  void restart() { last_ = std::chrono::steady_clock::now(); }
   /// A figure of the step just traced (seconds).
   void note(const char* what, double seconds) const {
     if (on_) std::fprintf(stderr, "trace: write   %-26s %9.3f ms\n", what, seconds * 1e3);
@@ -904,7 +906,9 @@ void write_vector(const std::string& path, const label::Outlines& outlines, cons
     throw std::invalid_argument("write_vector: the outlines have " + std::to_string(outlines.site_count) +
                                 " sites, the table " + std::to_string(site_count));
   }
+  StepTrace trace;
   label::check_outlines(outlines);
+  trace("outline cells checked");
   if (!(outlines.range == grid::whole_level(outlines.level))) {
     throw std::invalid_argument("write_vector: the outlines hold only codes " + std::to_string(outlines.range.first) +
                                 " to " + std::to_string(outlines.range.end) + " of the level");
@@ -953,6 +957,7 @@ void write_vector(const std::string& path, const label::Outlines& outlines, cons
   gdal::ErrorCapture trap(gdal::ErrorCapture::Warnings::pass_on);
   Writer writer(path, options, trap, total);
   writer.open(driver);
+  trace("dataset created");
   for (std::size_t k = 0; k < layers.size(); ++k) {
     const std::string& name = layers[k];
     if (name == "regions") write_regions(writer, in, work[k]);
@@ -960,7 +965,7 @@ void write_vector(const std::string& path, const label::Outlines& outlines, cons
     if (name == "voronoi_edges") write_voronoi_edges(writer, in, work[k]);
     if (name == "cells") write_cells(writer, in, work[k]);
   }
-  StepTrace trace;
+  trace.restart();
   writer.close();
   trace("dataset closed");
   writer.report_done();

@@ -100,8 +100,10 @@ void GpkgGeometry::end() {
 
 // --- GpkgRows ----------------------------------------------------------------------------------
 
+bool gpkg_direct_rows_enabled() { return CPLTestBool(CPLGetConfigOption("QTMV_GPKG_DIRECT_ROWS", "YES")); }
+
 std::unique_ptr<GpkgRows> GpkgRows::open(GDALDataset& dataset, OGRLayer& layer, const std::vector<int>& fields) {
-  if (!CPLTestBool(CPLGetConfigOption("QTMV_GPKG_DIRECT_ROWS", "YES"))) return nullptr;
+  if (!gpkg_direct_rows_enabled()) return nullptr;
   if (!dataset.GetDriver() || !EQUAL(dataset.GetDriver()->GetDescription(), "GPKG")) return nullptr;
   // GDAL makes the table (and its R-tree, when it has a spatial index) at the first feature or at a sync.
   if (layer.SyncToDisk() != OGRERR_NONE) return nullptr;
@@ -133,11 +135,12 @@ std::unique_ptr<GpkgRows> GpkgRows::open(GDALDataset& dataset, OGRLayer& layer, 
     }
     Statement rows(db, "SELECT 1 FROM " + quoted(table) + " LIMIT 1");
     if (sqlite3_step(rows.get()) != SQLITE_DONE) return nullptr;
-    if (indexed) {
-      Statement shadow(db, "SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name IN (?1, ?2, ?3)");
-      shadow.text(1, rtree + "_node").text(2, rtree + "_rowid").text(3, rtree + "_parent");
-      if (shadow.integer() != 3) return nullptr;
-    }
+    // An R-tree without its insert trigger (GDAL building it some other way) would miss our rows;
+    // one with it needs its three shadow tables to be loaded.
+    Statement tables(db, "SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name IN (?1, ?2, ?3, ?4)");
+    tables.text(1, rtree).text(2, rtree + "_node").text(3, rtree + "_rowid").text(4, rtree + "_parent");
+    const std::int64_t rtree_tables = tables.integer();
+    if (rtree_tables != (indexed ? 4 : 0)) return nullptr;
   }
 
   std::string head = "INSERT INTO " + quoted(table) + " (" + quoted(geometry);
@@ -155,12 +158,18 @@ GpkgRows::GpkgRows(sqlite3* db, std::string table, std::string insert_head, std:
       insert_head_(std::move(insert_head)),
       columns_(columns),
       rows_per_statement_(std::clamp<std::size_t>(
-          static_cast<std::size_t>(sqlite3_limit(db, SQLITE_LIMIT_VARIABLE_NUMBER, -1)) / columns, 1, kRowsPerStatement)) {
+          static_cast<std::size_t>(sqlite3_limit(db, SQLITE_LIMIT_VARIABLE_NUMBER, -1)) / columns, 1, kRowsPerStatement)),
+      insert_(db, insert_head_, columns, rows_per_statement_) {
   geometries_.reserve(rows_per_statement_);
   values_.reserve(rows_per_statement_ * (columns - 1));
 }
 
-GpkgRows::~GpkgRows() { sqlite3_finalize(full_); }
+GpkgRows::~GpkgRows() {
+  // Left unfinished (a failure): GDAL's triggers back, as far as they go (the file is to be
+  // removed, but a caller writing in place keeps no table that silently stops counting or indexing).
+  if (rows_ == 0 || finished_) return;
+  for (const auto& trigger : paused_triggers_) sqlite3_exec(db_, trigger.second.c_str(), nullptr, nullptr, nullptr);
+}
 
 void GpkgRows::fail(const std::string& what) const {
   throw WriteError("SQLite " + what + ": " + sqlite3_errmsg(db_));
@@ -202,19 +211,7 @@ void GpkgRows::flush() {
     // back after; the R-tree is filled at the end.
     for (const auto& trigger : paused_triggers_) exec("DROP TRIGGER " + quoted(trigger.first));
   }
-  const auto insert_sql = [&](std::size_t rows) {
-    std::string sql = insert_head_;
-    for (std::size_t r = 0; r < rows; ++r) {
-      sql += r ? ", (?" : "(?";
-      for (std::size_t c = 1; c < columns_; ++c) sql += ", ?";
-      sql += ")";
-    }
-    return sql;
-  };
-  std::unique_ptr<Statement> partial;  // the last rows of the table
-  if (pending == rows_per_statement_ && !full_) full_ = Statement(db_, insert_sql(rows_per_statement_)).release();
-  if (pending < rows_per_statement_) partial = std::make_unique<Statement>(db_, insert_sql(pending));
-  sqlite3_stmt* statement = partial ? partial->get() : full_;
+  sqlite3_stmt* statement = insert_.prepare(pending);
 
   int parameter = 1, rc = SQLITE_OK;
   std::size_t start = 0;
@@ -232,9 +229,7 @@ void GpkgRows::flush() {
     }
   }
   if (rc != SQLITE_OK) fail("cannot bind a row");
-  rc = sqlite3_step(statement);
-  sqlite3_reset(statement);
-  if (rc != SQLITE_DONE) fail("cannot insert rows into " + quoted(table_));
+  insert_.run("insert rows into " + quoted(table_));
   if (!rtree_.empty()) {
     // One INSERT of several rows into an AUTOINCREMENT table: consecutive FIDs ending at the last.
     const std::int64_t first = sqlite3_last_insert_rowid(db_) - static_cast<std::int64_t>(pending) + 1;
@@ -254,6 +249,7 @@ void GpkgRows::finish() {
   if (rows_ == 0) return;  // nothing changed: GDAL too leaves the table's entries as they are
   if (!rtree_.empty()) bulk_load_rtree(db_, rtree_, std::move(rtree_entries_));
   for (const auto& trigger : paused_triggers_) exec(trigger.second);
+  finished_ = true;
   if (std::any_of(paused_triggers_.begin(), paused_triggers_.end(),
                   [&](const auto& t) { return t.first == "trigger_insert_feature_count_" + table_; })) {
     Statement count(db_, "UPDATE gpkg_ogr_contents SET feature_count = ? WHERE lower(table_name) = lower(?)");

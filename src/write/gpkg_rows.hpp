@@ -4,7 +4,7 @@
 //
 // Why: GDAL 3.6's GeoPackage driver takes about 1.6 us per CreateFeature (one INSERT statement a
 // row, Integer64 fields bound as text and converted back by SQLite, per-feature checks) plus the
-// building of each OGRGeometry; INSERT statements of 64 rows each take about 0.25 us a row, so the
+// building of each OGRGeometry; INSERT statements of up to 64 rows take about 0.25 us a row, so the
 // 6 million boundary cells of level 11 take about 1.5 s instead of 10 s (bench/RESULTS.md,
 // "qtmvoronoi end to end"). A table with a spatial index gets its R-tree filled at once at the end
 // (gpkg_rtree.hpp) instead of one row at a time by GDAL's trigger.
@@ -29,6 +29,7 @@
 
 #include "grid/qtm.hpp"
 #include "write/gpkg_rtree.hpp"
+#include "write/sqlite_statement.hpp"
 
 class GDALDataset;
 class OGRLayer;
@@ -88,9 +89,12 @@ class GpkgGeometry {
   double min_x_ = 0, max_x_ = 0, min_y_ = 0, max_y_ = 0;
 };
 
+/// Whether the direct rows are on: the configuration option QTMV_GPKG_DIRECT_ROWS (default YES).
+bool gpkg_direct_rows_enabled();
+
 class GpkgRows {
  public:
-  /// Rows for `layer` of `dataset` (GeoPackage only), with its polygon geometry and the
+  /// Rows for `layer` of `dataset` (GeoPackage only), with its geometry and the
   /// attribute fields `fields` (indices in the layer definition, in the order add() gets their
   /// values). Null when the direct path does not apply (see above). Throws WriteError on an
   /// SQLite failure.
@@ -126,7 +130,8 @@ class GpkgRows {
   std::string table_, insert_head_;  // INSERT INTO "t" ("geom", "a", ...) VALUES
   std::size_t columns_;               // geometry and attributes
   std::size_t rows_per_statement_;    // up to 64, fewer for many columns (SQLite's parameter limit)
-  sqlite3_stmt* full_ = nullptr;      // the statement for rows_per_statement_ rows
+  MultiRowInsert insert_;
+  bool finished_ = false;
   std::vector<unsigned char> blobs_;  // the pending rows' geometry blobs, one after another
   std::vector<PendingGeometry> geometries_;
   std::vector<RowValue> values_;  // the pending rows' attributes

@@ -93,12 +93,11 @@ unsigned char* put_cell(unsigned char* out, std::int64_t id, const Box& box) {
   return out;
 }
 
-/// Rows of two integers into a table, kPairsPerStatement to an INSERT (one a row would take most
-/// of the load).
+/// Rows of two integers into a table, kPairsPerStatement to an INSERT.
 class PairInserter {
  public:
-  PairInserter(sqlite3* db, std::string table, std::string columns, std::string what)
-      : db_(db), head_("INSERT INTO " + std::move(table) + " (" + std::move(columns) + ") VALUES "), what_(std::move(what)) {
+  PairInserter(sqlite3* db, const std::string& table, const std::string& columns, std::string what)
+      : insert_(db, "INSERT INTO " + table + " (" + columns + ") VALUES ", 2, kPairsPerStatement), what_(std::move(what)) {
     pending_.reserve(2 * kPairsPerStatement);
   }
   void add(std::int64_t a, std::int64_t b) {
@@ -108,28 +107,16 @@ class PairInserter {
   }
   void flush() {
     if (pending_.empty()) return;
-    const std::size_t pairs = pending_.size() / 2;
-    std::unique_ptr<Statement> partial;
-    if (pairs == kPairsPerStatement && !full_) full_ = std::make_unique<Statement>(db_, sql(pairs));
-    if (pairs < kPairsPerStatement) partial = std::make_unique<Statement>(db_, sql(pairs));
-    Statement& statement = partial ? *partial : *full_;
-    for (std::size_t k = 0; k < pending_.size(); ++k) {
-      sqlite3_bind_int64(statement.get(), static_cast<int>(k + 1), pending_[k]);
-    }
-    statement.run(what_);
+    sqlite3_stmt* statement = insert_.prepare(pending_.size() / 2);
+    for (std::size_t k = 0; k < pending_.size(); ++k) sqlite3_bind_int64(statement, static_cast<int>(k + 1), pending_[k]);
+    insert_.run(what_);
     pending_.clear();
   }
 
  private:
   static constexpr std::size_t kPairsPerStatement = 256;  // 512 parameters: under any SQLite's limit
-  std::string sql(std::size_t pairs) const {
-    std::string out = head_;
-    for (std::size_t k = 0; k < pairs; ++k) out += k ? ",(?,?)" : "(?,?)";
-    return out;
-  }
-  sqlite3* db_;
-  std::string head_, what_;
-  std::unique_ptr<Statement> full_;
+  MultiRowInsert insert_;
+  std::string what_;
   std::vector<std::int64_t> pending_;
 };
 

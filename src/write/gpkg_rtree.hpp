@@ -1,10 +1,12 @@
 // A GeoPackage spatial index (SQLite's R-tree, the "gpkg_rtree_index" extension) filled at once
 // from every row's envelope, instead of one INSERT at a time through GDAL's trigger.
 //
-// Why: SQLite inserts into an R-tree one entry at a time (choosing a leaf, splitting, reinserting),
-// about 18 us a row on the GPU hosts: 1.8 s of closing the 135 233 regions of a level 15 run
-// (bench/RESULTS.md). Packing the sorted entries into full nodes (Sort-Tile-Recursive) and writing
-// the nodes takes about 1 us a row, and gives a tree as good for queries.
+// Why: SQLite's R-tree takes one entry at a time (choosing a leaf, splitting, reinserting), about
+// 18 us a row measured alone; GDAL 3.6 fills a new layer's R-tree that way (on a background
+// thread, copied in when the dataset closes), which was 1.8 s of closing the 135 233 regions of a
+// level 15 run (bench/RESULTS.md). Packing the sorted entries into full nodes (Sort-Tile-Recursive)
+// and writing the nodes takes 1 to 2.5 us a row (mostly the rowid table's rows), and gives a
+// tree as good for queries.
 //
 // Layout (SQLite's ext/rtree file format, the same in every SQLite 3): the virtual table `name`
 // keeps its nodes in `name_node(nodeno, data)`, node 1 being the root. A node's data is a blob of
@@ -31,7 +33,8 @@ struct RTreeEntry {
 };
 
 /// The entry SQLite's R-tree stores for row `id` whose envelope is [min_x, max_x] x [min_y,
-/// max_y] (degrees): each bound rounded to float32 away from the box's inside.
+/// max_y] (degrees): each bound rounded to float32 as SQLite rounds it (outwards, but for values
+/// near float32's smallest, where SQLite's scaling by one ulp falls short).
 RTreeEntry rtree_entry(std::int64_t id, double min_x, double max_x, double min_y, double max_y);
 
 /// Fills the R-tree virtual table `name` of `db`, which must be empty (as just created: a root

@@ -5,6 +5,7 @@
 #include <sqlite3.h>
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <utility>
 
@@ -54,6 +55,45 @@ class Statement {
  private:
   sqlite3* db_;
   sqlite3_stmt* statement_ = nullptr;
+};
+
+/// INSERTs of several rows at once (one a row costs more than the row): `head` is
+/// "INSERT INTO t (a, b) VALUES ", each row `columns` parameters. The statement for a full batch
+/// of `rows` rows is kept; a shorter last batch gets one of its own.
+class MultiRowInsert {
+ public:
+  MultiRowInsert(sqlite3* db, std::string head, std::size_t columns, std::size_t rows)
+      : db_(db), head_(std::move(head)), columns_(columns), rows_(rows) {}
+  std::size_t rows() const { return rows_; }
+  /// The statement for `n` rows (1 to rows()), its parameters to bind from 1.
+  sqlite3_stmt* prepare(std::size_t n) {
+    if (n == rows_) {
+      if (!full_) full_ = std::make_unique<Statement>(db_, sql(n));
+      current_ = full_.get();
+    } else {
+      partial_ = std::make_unique<Statement>(db_, sql(n));
+      current_ = partial_.get();
+    }
+    return current_->get();
+  }
+  /// Runs the statement prepare() gave; throws WriteError with `what` on failure.
+  void run(const std::string& what) { current_->run(what); }
+
+ private:
+  std::string sql(std::size_t n) const {
+    std::string out = head_;
+    for (std::size_t r = 0; r < n; ++r) {
+      out += r ? ", (?" : "(?";
+      for (std::size_t c = 1; c < columns_; ++c) out += ", ?";
+      out += ")";
+    }
+    return out;
+  }
+  sqlite3* db_;
+  std::string head_;
+  std::size_t columns_, rows_;
+  std::unique_ptr<Statement> full_, partial_;
+  Statement* current_ = nullptr;
 };
 
 }  // namespace qtmv::write

@@ -534,21 +534,24 @@ struct Input {
 };
 
 /// Whether the sources' values can go into direct GeoPackage rows exactly as OGR would write
-/// them: every field of `fields` (the union) Integer, Integer64, Real or String, without the
-/// Float32 subtype or a default value (which an unset field would take), of the same type in every
-/// layer that has it (`source_index[k][u]`: layer k's field for union field u, or -1), and every
-/// string valid UTF-8 within its field's width (GDAL warns and mends such values).
+/// them: every field of `fields` (the union) Integer, Integer64, Real or String without a subtype
+/// (OGR clamps Boolean and Int16 values, rounds Float32 ones) or a default value (which an unset
+/// field would take), of the same type in every layer that has it (`source_index[k][u]`: layer
+/// k's field for union field u, or -1), and every string valid UTF-8 within its field's width
+/// (GDAL warns and mends such values).
 bool plain_source_values(const Input& in, const OGRFeatureDefn& fields, const std::vector<std::vector<int>>& source_index) {
   for (int u = 0; u < fields.GetFieldCount(); ++u) {
     const OGRFieldDefn* f = fields.GetFieldDefn(u);
     const OGRFieldType type = f->GetType();
     if ((type != OFTInteger && type != OFTInteger64 && type != OFTReal && type != OFTString) ||
-        f->GetSubType() == OFSTFloat32 || f->GetDefault() != nullptr) {
+        f->GetSubType() != OFSTNone || f->GetDefault() != nullptr) {
       return false;
     }
     for (std::size_t k = 0; k < in.table.source_count(); ++k) {
       const int sf = source_index[k][static_cast<std::size_t>(u)];
-      if (sf >= 0 && in.table.definition(k)->GetFieldDefn(sf)->GetType() != type) return false;
+      if (sf < 0) continue;
+      const OGRFieldDefn* own = in.table.definition(k)->GetFieldDefn(sf);
+      if (own->GetType() != type || own->GetSubType() != OFSTNone) return false;
     }
   }
   for (const sites::SiteRecord& site : in.table.sites) {
@@ -939,7 +942,7 @@ void write_vector(const std::string& path, const label::Outlines& outlines, cons
   // the close builds the R-trees of regions and voronoi_edges, about 9 us per feature.
   const double cell_count = static_cast<double>(cells), sites = static_cast<double>(site_count);
   const double outline_count = static_cast<double>(outlines.cells.size());
-  const bool rtrees = EQUAL(options.driver.c_str(), "GPKG") && !CPLTestBool(CPLGetConfigOption("QTMV_GPKG_DIRECT_ROWS", "YES"));
+  const bool rtrees = EQUAL(options.driver.c_str(), "GPKG") && !gpkg_direct_rows_enabled();
   std::vector<double> work;
   double close_work = 1;
   for (const std::string& name : layers) {

@@ -31,14 +31,15 @@
 //
 // GeoPackage: boundary_cells and cells (millions of polygons at the finer levels) are created
 // without a spatial index (SPATIAL_INDEX=NO) unless options.layer_options names SPATIAL_INDEX:
-// even filled at once (gpkg_rtree.hpp), an R-tree costs about 2.5 us a row, more than the row.
+// even filled at once (gpkg_rtree.hpp), an R-tree costs 1 to 2.5 us a row, more than the row.
 // The index can be added later with `ogrinfo out.gpkg -sql "SELECT CreateSpatialIndex('boundary_cells','geom')"`.
 // regions and voronoi_edges keep GDAL's default (an R-tree). Every layer's rows go straight into
-// its GeoPackage table (gpkg_rows.hpp) and its R-tree is packed at the end: the same file as OGR
-// features would give, several times faster. The regions go through OGR features when a source
-// field is of another type than Integer, Integer64, Real or String or has a default value (the
-// direct rows would not write what OGR does); the configuration option QTMV_GPKG_DIRECT_ROWS=NO
-// sends every layer through OGR.
+// its GeoPackage table (gpkg_rows.hpp) and its R-tree is packed at the end: the same rows as OGR
+// features would give (and the same R-tree boxes), several times faster. The regions go through
+// OGR features where OGR would change or mend a source value (plain_source_values: a field of
+// another type than Integer, Integer64, Real or String, a subtype, a default value, text not in
+// UTF-8 or longer than its field's width); the configuration option QTMV_GPKG_DIRECT_ROWS=NO sends
+// every layer through OGR.
 //
 // Transactions of about 100 000 features where the driver has efficient ones (GeoPackage).
 // On failure the dataset is closed and left as it is: the caller removes it (the pipeline

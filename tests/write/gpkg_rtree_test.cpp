@@ -158,6 +158,24 @@ TEST_F(RTreeTest, LoadedTreeIsValidAndFindsWhatAScanFinds) {
   }
 }
 
+TEST_F(RTreeTest, DefensiveModeIsLeftAsItWas) {
+  // GDAL's connections run in SQLite's defensive mode, which refuses writes to shadow tables.
+  int defensive = -1;
+  ASSERT_EQ(sqlite3_db_config(db_, SQLITE_DBCONFIG_DEFENSIVE, 1, &defensive), SQLITE_OK);
+  ASSERT_EQ(defensive, 1);
+  const auto boxes = random_boxes(500, 3);
+  std::vector<RTreeEntry> entries;
+  for (std::size_t k = 0; k < boxes.size(); ++k) entries.push_back(rtree_entry(static_cast<std::int64_t>(k + 1), boxes[k][0], boxes[k][1], boxes[k][2], boxes[k][3]));
+  bulk_load_rtree(db_, kRTree, entries);
+  EXPECT_EQ(check(), "ok");
+  sqlite3_db_config(db_, SQLITE_DBCONFIG_DEFENSIVE, -1, &defensive);
+  EXPECT_EQ(defensive, 1);
+  // And after a refusal (the tree is no longer empty).
+  EXPECT_THROW(bulk_load_rtree(db_, kRTree, entries), WriteError);
+  sqlite3_db_config(db_, SQLITE_DBCONFIG_DEFENSIVE, -1, &defensive);
+  EXPECT_EQ(defensive, 1);
+}
+
 TEST_F(RTreeTest, OnlyAnEmptyTreeIsLoaded) {
   exec(std::string("INSERT INTO ") + kRTree + " VALUES (1, 0, 1, 0, 1)");
   try {

@@ -670,6 +670,16 @@ TEST_F(VectorTest, GeoPackageDirectRowsAreWhatOgrWrites) {
   // No boundary cell at all: the table stays as GDAL leaves an empty one.
   const OneSite one(3);
   expect_same_as_ogr(one.labels(), one.table, options);
+  {
+    // Every layer with a spatial index: the cells' R-tree (131 072 rows, over a commit) and R-trees
+    // of three levels for the regions and edges (more than 51 x 51 rows).
+    SCOPED_TRACE("every layer indexed");
+    Scene many = make_scene(7, 3000, 17);
+    many.table.sites[3].fid = OGRNullFID;
+    VectorOptions indexed = options;
+    indexed.layer_options = {"SPATIAL_INDEX=YES"};
+    expect_same_as_ogr(many.labels(), many.table, indexed);
+  }
 
   // Composite sites: a second source layer with a field of its own and one of the first's, null
   // and unset values, a site without attributes, text beyond ASCII; then values that OGR mends
@@ -744,6 +754,18 @@ TEST_F(VectorTest, GeoPackageDirectRowsOnlyWhereTheyApply) {
   ASSERT_EQ(watched->SyncToDisk(), OGRERR_NONE);
   ds->ExecuteSQL("CREATE TRIGGER audit AFTER INSERT ON watched BEGIN SELECT 1; END", nullptr, nullptr);
   EXPECT_EQ(GpkgRows::open(*ds, *watched, {}), nullptr);
+  // A table with GDAL's spatial index: direct rows, unless its R-tree lacks its insert trigger
+  // (then our rows would not be indexed) or the table has a trigger of someone else's.
+  OGRLayer* indexed = ds->CreateLayer("indexed", &srs, wkbPolygon, nullptr);
+  EXPECT_NE(GpkgRows::open(*ds, *indexed, {}), nullptr);
+  OGRLayer* unindexed = ds->CreateLayer("unindexed", &srs, wkbPolygon, nullptr);
+  ASSERT_EQ(unindexed->SyncToDisk(), OGRERR_NONE);
+  ds->ExecuteSQL("DROP TRIGGER rtree_unindexed_geom_insert", nullptr, nullptr);
+  EXPECT_EQ(GpkgRows::open(*ds, *unindexed, {}), nullptr);
+  OGRLayer* audited = ds->CreateLayer("audited", &srs, wkbPolygon, nullptr);
+  ASSERT_EQ(audited->SyncToDisk(), OGRERR_NONE);
+  ds->ExecuteSQL("CREATE TRIGGER audit2 AFTER INSERT ON audited BEGIN SELECT 1; END", nullptr, nullptr);
+  EXPECT_EQ(GpkgRows::open(*ds, *audited, {}), nullptr);
   // Not a GeoPackage.
   GDALDatasetUniquePtr memory(GetGDALDriverManager()->GetDriverByName("Memory")->Create("", 0, 0, 0, GDT_Unknown, nullptr));
   ASSERT_TRUE(memory);

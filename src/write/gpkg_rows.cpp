@@ -45,18 +45,12 @@ void GpkgGeometry::point(const grid::LonLat& p) {
   unsigned char b[16];
   put_f64(put_f64(b, p.lon), p.lat);
   bytes_.insert(bytes_.end(), b, b + 16);
-  if (!any_point_) {
-    min_x_ = max_x_ = p.lon, min_y_ = max_y_ = p.lat;
-    any_point_ = true;
-    return;
-  }
-  min_x_ = std::min(min_x_, p.lon), max_x_ = std::max(max_x_, p.lon);
-  min_y_ = std::min(min_y_, p.lat), max_y_ = std::max(max_y_, p.lat);
+  envelope_.add(p.lon, p.lat);
 }
 
 void GpkgGeometry::begin(std::uint32_t type, std::uint32_t parts) {
   bytes_.assign(kHeaderBytes + kEnvelopeBytes, 0);  // filled by end()
-  any_point_ = false;
+  envelope_ = {};
   bytes_.push_back(1);  // WKB little-endian
   u32(type);
   u32(parts);
@@ -86,7 +80,7 @@ void GpkgGeometry::end() {
   *out++ = 'G';
   *out++ = 'P';
   *out++ = 0;  // version
-  if (!any_point_) {
+  if (envelope_.empty) {
     // Empty: the empty bit, no envelope (GDAL writes none for an empty geometry).
     *out++ = 0x10 | 0x01;
     put_u32(out, kSrsId);
@@ -95,7 +89,7 @@ void GpkgGeometry::end() {
   }
   *out++ = 0x02 | 0x01;  // envelope [min x, max x, min y, max y], little-endian
   out = put_u32(out, kSrsId);
-  for (double v : {min_x_, max_x_, min_y_, max_y_}) out = put_f64(out, v);
+  for (double v : {envelope_.min_x, envelope_.max_x, envelope_.min_y, envelope_.max_y}) out = put_f64(out, v);
 }
 
 // --- GpkgRows ----------------------------------------------------------------------------------
@@ -155,13 +149,13 @@ std::unique_ptr<GpkgRows> GpkgRows::open(GDALDataset& dataset, OGRLayer& layer, 
 GpkgRows::GpkgRows(sqlite3* db, std::string table, std::string insert_head, std::size_t columns)
     : db_(db),
       table_(std::move(table)),
-      insert_head_(std::move(insert_head)),
       columns_(columns),
-      rows_per_statement_(std::clamp<std::size_t>(
-          static_cast<std::size_t>(sqlite3_limit(db, SQLITE_LIMIT_VARIABLE_NUMBER, -1)) / columns, 1, kRowsPerStatement)),
-      insert_(db, insert_head_, columns, rows_per_statement_) {
-  geometries_.reserve(rows_per_statement_);
-  values_.reserve(rows_per_statement_ * (columns - 1));
+      insert_(db, std::move(insert_head), columns,
+              std::clamp<std::size_t>(static_cast<std::size_t>(sqlite3_limit(db, SQLITE_LIMIT_VARIABLE_NUMBER, -1)) / columns,
+                                      1, kRowsPerStatement)),
+      insert_failed_("insert rows into " + quoted(table_)) {
+  geometries_.reserve(insert_.rows());
+  values_.reserve(insert_.rows() * (columns - 1));
 }
 
 GpkgRows::~GpkgRows() {
@@ -179,28 +173,12 @@ void GpkgRows::exec(const std::string& sql) {
   if (sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, nullptr) != SQLITE_OK) fail("cannot run '" + sql + "'");
 }
 
-void GpkgRows::add(const grid::LonLat* ring, int corners, const RowValue* values) {
-  cell_.begin(GpkgGeometry::kPolygon, 1);
-  cell_.ring(ring, static_cast<std::size_t>(corners));
-  cell_.end();
-  add(cell_, values);
-}
-
 void GpkgRows::add(const GpkgGeometry& geometry, const RowValue* values) {
   blobs_.insert(blobs_.end(), geometry.data(), geometry.data() + geometry.size());
-  geometries_.push_back({blobs_.size(), geometry.empty(), geometry.min_x(), geometry.max_x(), geometry.min_y(),
-                         geometry.max_y()});
+  geometries_.push_back({blobs_.size(), geometry.envelope()});
   values_.insert(values_.end(), values, values + (columns_ - 1));
-  if (!geometry.empty()) {
-    if (!any_extent_) {
-      min_x_ = geometry.min_x(), max_x_ = geometry.max_x(), min_y_ = geometry.min_y(), max_y_ = geometry.max_y();
-      any_extent_ = true;
-    } else {
-      min_x_ = std::min(min_x_, geometry.min_x()), max_x_ = std::max(max_x_, geometry.max_x());
-      min_y_ = std::min(min_y_, geometry.min_y()), max_y_ = std::max(max_y_, geometry.max_y());
-    }
-  }
-  if (geometries_.size() == rows_per_statement_) flush();
+  extent_.add(geometry.envelope());
+  if (geometries_.size() == insert_.rows()) flush();
 }
 
 void GpkgRows::flush() {
@@ -229,13 +207,13 @@ void GpkgRows::flush() {
     }
   }
   if (rc != SQLITE_OK) fail("cannot bind a row");
-  insert_.run("insert rows into " + quoted(table_));
+  insert_.run(insert_failed_);
   if (!rtree_.empty()) {
     // One INSERT of several rows into an AUTOINCREMENT table: consecutive FIDs ending at the last.
     const std::int64_t first = sqlite3_last_insert_rowid(db_) - static_cast<std::int64_t>(pending) + 1;
     for (std::size_t r = 0; r < pending; ++r) {
-      const PendingGeometry& g = geometries_[r];
-      if (!g.empty) rtree_entries_.push_back(rtree_entry(first + static_cast<std::int64_t>(r), g.min_x, g.max_x, g.min_y, g.max_y));
+      const GpkgEnvelope& e = geometries_[r].envelope;
+      if (!e.empty) rtree_entries_.push_back(rtree_entry(first + static_cast<std::int64_t>(r), e.min_x, e.max_x, e.min_y, e.max_y));
     }
   }
   rows_ += pending;
@@ -257,12 +235,12 @@ void GpkgRows::finish() {
     count.text(2, table_);
     count.run("set the feature count");
   }
-  if (any_extent_) {
+  if (!extent_.empty) {
     Statement extent(db_,
                      "UPDATE gpkg_contents SET min_x = ?, min_y = ?, max_x = ?, max_y = ? "
                      "WHERE lower(table_name) = lower(?) AND lower(data_type) = 'features'");
     int k = 1;
-    for (double v : {min_x_, min_y_, max_x_, max_y_}) sqlite3_bind_double(extent.get(), k++, v);
+    for (double v : {extent_.min_x, extent_.min_y, extent_.max_x, extent_.max_y}) sqlite3_bind_double(extent.get(), k++, v);
     extent.text(5, table_);
     extent.run("set the extent");
   }

@@ -21,6 +21,7 @@
 // configuration option QTMV_GPKG_DIRECT_ROWS is NO; the caller then writes OGR features.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -52,6 +53,23 @@ struct RowValue {
   static RowValue of(const std::string& v) { return {Kind::text, 0, 0, v.c_str()}; }
 };
 
+/// An xy envelope (degrees), empty until a point is added.
+struct GpkgEnvelope {
+  bool empty = true;
+  double min_x = 0, max_x = 0, min_y = 0, max_y = 0;
+
+  void add(double x, double y) { add(GpkgEnvelope{false, x, x, y, y}); }
+  void add(const GpkgEnvelope& o) {
+    if (o.empty) return;
+    if (empty) {
+      *this = o;
+      return;
+    }
+    min_x = std::min(min_x, o.min_x), max_x = std::max(max_x, o.max_x);
+    min_y = std::min(min_y, o.min_y), max_y = std::max(max_y, o.max_y);
+  }
+};
+
 /// A geometry as the GeoPackage blob GDAL's GPkgGeometryFromOGR makes for a 2D geometry in
 /// EPSG:4326: "GP", version 0, flags (little-endian, and an xy envelope or, for an empty geometry,
 /// the empty bit and no envelope), srs_id 4326, the envelope (min x, max x, min y, max y), then
@@ -73,20 +91,15 @@ class GpkgGeometry {
 
   const unsigned char* data() const { return bytes_.data(); }
   std::size_t size() const { return bytes_.size(); }
-  bool empty() const { return !any_point_; }
-  /// The envelope (degrees); meaningful when not empty().
-  double min_x() const { return min_x_; }
-  double max_x() const { return max_x_; }
-  double min_y() const { return min_y_; }
-  double max_y() const { return max_y_; }
+  /// Its points' envelope (empty for an empty geometry).
+  const GpkgEnvelope& envelope() const { return envelope_; }
 
  private:
   void u32(std::uint32_t v);
   void point(const grid::LonLat& p);
 
   std::vector<unsigned char> bytes_;
-  bool any_point_ = false;
-  double min_x_ = 0, max_x_ = 0, min_y_ = 0, max_y_ = 0;
+  GpkgEnvelope envelope_;
 };
 
 /// Whether the direct rows are on: the configuration option QTMV_GPKG_DIRECT_ROWS (default YES).
@@ -106,8 +119,6 @@ class GpkgRows {
 
   /// Adds a row: its geometry (ended) and one value per field.
   void add(const GpkgGeometry& geometry, const RowValue* values);
-  /// Adds a row whose geometry is the polygon of `corners` points (a ring not closed).
-  void add(const grid::LonLat* ring, int corners, const RowValue* values);
 
   /// Writes the rows still held, fills the R-tree, puts GDAL's triggers back, sets the feature
   /// count, the extent and the time of the last change. Throws WriteError on an SQLite failure.
@@ -122,23 +133,20 @@ class GpkgRows {
   /// A pending row's geometry: where its blob ends in blobs_, and its envelope.
   struct PendingGeometry {
     std::size_t end;
-    bool empty;
-    double min_x, max_x, min_y, max_y;
+    GpkgEnvelope envelope;
   };
 
   sqlite3* db_;
-  std::string table_, insert_head_;  // INSERT INTO "t" ("geom", "a", ...) VALUES
-  std::size_t columns_;               // geometry and attributes
-  std::size_t rows_per_statement_;    // up to 64, fewer for many columns (SQLite's parameter limit)
-  MultiRowInsert insert_;
+  std::string table_;
+  std::size_t columns_;  // geometry and attributes
+  MultiRowInsert insert_;  // up to 64 rows an INSERT, fewer for many columns (SQLite's parameter limit)
+  std::string insert_failed_;  // what a failed INSERT says
   bool finished_ = false;
   std::vector<unsigned char> blobs_;  // the pending rows' geometry blobs, one after another
   std::vector<PendingGeometry> geometries_;
   std::vector<RowValue> values_;  // the pending rows' attributes
   std::uint64_t rows_ = 0;
-  bool any_extent_ = false;
-  double min_x_ = 0, min_y_ = 0, max_x_ = 0, max_y_ = 0;
-  GpkgGeometry cell_;  // add()'s polygon of a ring
+  GpkgEnvelope extent_;  // of every row written
   /// GDAL's triggers that fire on INSERT (name, SQL): dropped while the rows go in.
   std::vector<std::pair<std::string, std::string>> paused_triggers_;
   std::string rtree_;                  // the table's R-tree ("rtree_<table>_<geometry>"), or empty

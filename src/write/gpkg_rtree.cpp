@@ -29,13 +29,12 @@ float rounded_up(double d) {
   return f;
 }
 
-/// A box in the tree being packed: a row's entry in a leaf, or a node one level up.
-struct Box {
-  std::int64_t id;  ///< the row's id, or the node's index in its level
-  float min_x, max_x, min_y, max_y;
-  double centre_x() const { return (static_cast<double>(min_x) + max_x) / 2; }
-  double centre_y() const { return (static_cast<double>(min_y) + max_y) / 2; }
-};
+/// A box in the tree being packed: a row's entry in a leaf, or a node one level up (its id then
+/// the node's index in its level).
+using Box = RTreeEntry;
+
+double centre_x(const Box& b) { return (static_cast<double>(b.min_x) + b.max_x) / 2; }
+double centre_y(const Box& b) { return (static_cast<double>(b.min_y) + b.max_y) / 2; }
 
 /// A node: its box and its children, a run of the level below.
 struct Node {
@@ -56,12 +55,12 @@ std::vector<Node> pack(std::vector<Box>& items, std::size_t capacity) {
       return ca < cb || (ca == cb && a.id < b.id);
     };
   };
-  std::sort(items.begin(), items.end(), by([](const Box& b) { return b.centre_x(); }));
+  std::sort(items.begin(), items.end(), by(centre_x));
   std::vector<Node> out;
   out.reserve(nodes);
   for (std::size_t slice = 0; slice < items.size(); slice += per_slice) {
     const auto end = items.begin() + static_cast<std::ptrdiff_t>(std::min(items.size(), slice + per_slice));
-    std::sort(items.begin() + static_cast<std::ptrdiff_t>(slice), end, by([](const Box& b) { return b.centre_y(); }));
+    std::sort(items.begin() + static_cast<std::ptrdiff_t>(slice), end, by(centre_y));
     for (std::size_t first = slice; first < static_cast<std::size_t>(end - items.begin()); first += capacity) {
       const std::size_t count = std::min(capacity, static_cast<std::size_t>(end - items.begin()) - first);
       Box box = items[first];
@@ -140,10 +139,7 @@ void bulk_load_rtree(sqlite3* db, const std::string& name, std::vector<RTreeEntr
   if (entries.empty()) return;
 
   // Levels from the leaves up: levels[0] are the leaves, whose children are the entries.
-  std::vector<Box> items;
-  items.reserve(entries.size());
-  for (const RTreeEntry& e : entries) items.push_back({e.id, e.min_x, e.max_x, e.min_y, e.max_y});
-  entries = {};
+  std::vector<Box>& items = entries;
   std::vector<std::vector<Node>> levels;
   std::vector<Box> boxes;  // the current level's nodes as items of the level above
   levels.push_back(pack(items, capacity));
@@ -159,11 +155,12 @@ void bulk_load_rtree(sqlite3* db, const std::string& name, std::vector<RTreeEntr
     levels.push_back(std::move(above));
   }
 
-  // Node numbers: the root 1, then level by level downwards.
-  std::vector<std::vector<std::int64_t>> number(levels.size());
+  // Node numbers: the root 1, then level by level downwards; node k of level l is first[l] + k.
+  std::vector<std::int64_t> first(levels.size());
   std::int64_t next = 1;
   for (std::size_t l = levels.size(); l-- > 0;) {
-    for (std::size_t k = 0; k < levels[l].size(); ++k) number[l].push_back(next++);
+    first[l] = next;
+    next += static_cast<std::int64_t>(levels[l].size());
   }
 
   // Writing into the shadow tables is refused in SQLite's defensive mode: off while loading.
@@ -187,7 +184,7 @@ void bulk_load_rtree(sqlite3* db, const std::string& name, std::vector<RTreeEntr
   for (std::size_t l = levels.size(); l-- > 0;) {
     for (std::size_t k = 0; k < levels[l].size(); ++k) {
       const Node& n = levels[l][k];
-      const std::int64_t nodeno = number[l][k];
+      const std::int64_t nodeno = first[l] + static_cast<std::int64_t>(k);
       std::fill(blob.begin(), blob.end(), 0);
       unsigned char* out = put_be(blob.data(), nodeno == 1 ? levels.size() - 1 : 0, 2);
       out = put_be(out, n.count, 2);
@@ -196,7 +193,7 @@ void bulk_load_rtree(sqlite3* db, const std::string& name, std::vector<RTreeEntr
           out = put_cell(out, items[c].id, items[c]);
           rowid.add(items[c].id, nodeno);
         } else {
-          const std::int64_t child = number[l - 1][c];
+          const std::int64_t child = first[l - 1] + static_cast<std::int64_t>(c);
           out = put_cell(out, child, levels[l - 1][c].box);
           parent.add(child, nodeno);
         }

@@ -33,7 +33,6 @@ class Statement {
   Statement(const Statement&) = delete;
   Statement& operator=(const Statement&) = delete;
   sqlite3_stmt* get() const { return statement_; }
-  sqlite3_stmt* release() { return std::exchange(statement_, nullptr); }
   /// Binds a text parameter (1-based) and returns this.
   Statement& text(int index, const std::string& value) {
     sqlite3_bind_text(statement_, index, value.c_str(), static_cast<int>(value.size()), SQLITE_TRANSIENT);

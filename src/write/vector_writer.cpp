@@ -392,6 +392,12 @@ class Writer {
     return rows;
   }
 
+  /// Adds a row to `rows` (direct rows of the current layer) and books it.
+  void write(GpkgRows& rows, const GpkgGeometry& geometry, const RowValue* values) {
+    guard([&] { rows.add(geometry, values); });
+    count_row();
+  }
+
   /// Runs `work` (direct rows), its WriteError named as our own failures are.
   template <class Work>
   auto guard(Work&& work) -> decltype(work()) {
@@ -497,8 +503,10 @@ class CellRows {
     LonLat ring[grid::kMaxPolygonCorners];
     const int n = grid::cell_polygon(grid::cell_of(code, level), level, ring);
     if (direct_) {
-      w_.guard([&] { direct_->add(ring, n, values); });
-      w_.count_row();
+      direct_polygon_.begin(GpkgGeometry::kPolygon, 1);
+      direct_polygon_.ring(ring, static_cast<std::size_t>(n));
+      direct_polygon_.end();
+      w_.write(*direct_, direct_polygon_, values);
       return;
     }
     set_ring(*feature_, ring, n);
@@ -515,6 +523,7 @@ class CellRows {
   Writer& w_;
   std::vector<int> fields_;
   std::unique_ptr<GpkgRows> direct_;
+  GpkgGeometry direct_polygon_;  // the cell's blob, for direct rows
   FeaturePtr feature_;
 };
 
@@ -674,20 +683,21 @@ void write_regions(Writer& w, const Input& in, double work) {
     link_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return block;
   };
+  // A row's values in the order of row_fields: the source's (direct rows only; OGR copies them
+  // itself), then ours.
   std::vector<RowValue> values(row_fields.size());
   const auto write = [&](std::size_t first, std::size_t last, const TracedRegions& block) {
     for (std::size_t s = first; s < last; ++s) {
       const sites::SiteRecord& site = in.table.sites[s];
+      std::size_t v = written.size();
+      if (layer_index >= 0) values[v++] = in.layer_of(s);
+      values[v++] = fid_value(site.fid);
+      values[v++] = RowValue::of(static_cast<std::int64_t>(in.outlines.cells_per_site[s]));
+      values[v++] = RowValue::of(areas[s]);
       if (direct) {
         const std::vector<int>& index = source_index[site.layer];
         for (std::size_t u = 0; u < written.size(); ++u) values[u] = source_value(site.attributes.get(), index[u]);
-        std::size_t v = written.size();
-        if (layer_index >= 0) values[v++] = in.layer_of(s);
-        values[v++] = fid_value(site.fid);
-        values[v++] = RowValue::of(static_cast<std::int64_t>(in.outlines.cells_per_site[s]));
-        values[v++] = RowValue::of(areas[s]);
-        w.guard([&] { direct->add(block.geometries[s - first], values.data()); });
-        w.count_row();
+        w.write(*direct, block.geometries[s - first], values.data());
         continue;
       }
       FeaturePtr feature(OGRFeature::CreateFeature(layer->GetLayerDefn()));
@@ -697,10 +707,7 @@ void write_regions(Writer& w, const Input& in, double work) {
           w.fail("cannot copy the attributes of site " + std::to_string(s));
         }
       }
-      if (layer_index >= 0) set_value(*feature, layer_index, in.layer_of(s));
-      set_value(*feature, fid_index, fid_value(site.fid));
-      feature->SetField(cells_index, static_cast<GIntBig>(in.outlines.cells_per_site[s]));
-      feature->SetField(area_index, areas[s]);
+      for (std::size_t k = written.size(); k < row_fields.size(); ++k) set_value(*feature, row_fields[k], values[k]);
       feature->SetGeometryDirectly(make_multipolygon(block.regions[s - first]));  // empty for a site without cells
       w.write(*feature);
     }
@@ -798,12 +805,12 @@ void write_voronoi_edges(Writer& w, const Input& in, double work) {
       const PairLines& lines = block[p - first].lines;
       const std::uint64_t key = edges[pair_start[p]].key;
       const auto a = static_cast<std::size_t>(key >> 32), b = static_cast<std::size_t>(key & 0xffffffffu);
+      // In the order of row_fields (layer_a, layer_b only for composite sites).
+      const RowValue values[] = {fid_value(in.table.sites[a].fid), fid_value(in.table.sites[b].fid),
+                                 RowValue::of(lines.length_m), in.composite() ? in.layer_of(a) : RowValue{},
+                                 in.composite() ? in.layer_of(b) : RowValue{}};
       if (direct) {
-        const RowValue values[] = {fid_value(in.table.sites[a].fid), fid_value(in.table.sites[b].fid),
-                                   RowValue::of(lines.length_m), in.composite() ? in.layer_of(a) : RowValue{},
-                                   in.composite() ? in.layer_of(b) : RowValue{}};
-        w.guard([&] { direct->add(block[p - first].geometry, values); });
-        w.count_row();
+        w.write(*direct, block[p - first].geometry, values);
         continue;
       }
       auto* multi = new OGRMultiLineString;
@@ -814,13 +821,7 @@ void write_voronoi_edges(Writer& w, const Input& in, double work) {
         multi->addGeometryDirectly(ls);
       }
       feature->SetGeometryDirectly(multi);
-      set_value(*feature, a_index, fid_value(in.table.sites[a].fid));
-      set_value(*feature, b_index, fid_value(in.table.sites[b].fid));
-      feature->SetField(length_index, lines.length_m);
-      if (in.composite()) {
-        set_value(*feature, layer_a_index, in.layer_of(a));
-        set_value(*feature, layer_b_index, in.layer_of(b));
-      }
+      for (std::size_t k = 0; k < row_fields.size(); ++k) set_value(*feature, row_fields[k], values[k]);
       w.write(*feature);
     }
     w.layer_progress(0.2 + 0.8 * static_cast<double>(last) / static_cast<double>(pairs), 1.0);

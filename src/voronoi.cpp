@@ -6,6 +6,7 @@
 #include <string>
 
 #include "common/host_info.hpp"
+#include "label/device_startup.hpp"
 #include "pipeline/run_plan.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/stages.hpp"
@@ -40,8 +41,11 @@ std::string VoronoiSummary::line() const {
 VoronoiSummary run_voronoi(const std::string& source, const std::string& destination, const VoronoiOptions& options) {
   const double t_start = now_seconds();
   const bool tile_job = options.tile_count > 0;
-  // Every check before any work.
-  const pipeline::RunPlan plan = tile_job ? pipeline::plan_tile_job(destination, options) : pipeline::plan_run(destination, options);
+  // The GPUs are counted and their contexts made (tenths of a second a process: much of a small
+  // run, and of every tile job) while the run is planned and its sites read; a merge makes none.
+  label::DeviceStartup devices(options.device, /*contexts=*/options.merge.empty());
+  // Every check before any work; the devices' as soon as they are counted.
+  pipeline::RunPlan plan = tile_job ? pipeline::plan_tile_job(destination, options) : pipeline::plan_run(destination, options);
   pipeline::StagedOutput output(destination, options.overwrite);
   pipeline::RunProgress progress(options.progress);
   VoronoiSummary summary;
@@ -53,14 +57,28 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   summary.tile_count = options.tile_count;
 
   double t0 = now_seconds();
-  // The GPUs' contexts are made while the sites are read, not after (tenths of a second a
-  // process: much of a small run, and of every tile job).
-  std::future<void> devices_ready;
-  if (plan.merge_files.empty()) {
-    devices_ready = std::async(std::launch::async, [device = plan.label.device] { label::warm_up_devices(device); });
+  // A -device naming a GPU this host lacks stops the read at its first report after the count,
+  // and its error comes before any of the read's.
+  bool devices_checked = false;
+  const auto devices_fit = [&] {
+    if (devices_checked || !devices.counted()) return true;
+    devices_checked = true;
+    try {
+      pipeline::check_devices(plan, devices.device_count());
+    } catch (const VoronoiError&) {
+      return false;
+    }
+    return true;
+  };
+  sites::SiteSet sites;
+  try {
+    sites = pipeline::read_stage(source, options, plan, progress, devices_fit);
+  } catch (...) {
+    pipeline::check_devices(plan, devices.device_count());
+    throw;
   }
-  sites::SiteSet sites = pipeline::read_stage(source, options, plan, progress);
-  if (devices_ready.valid()) devices_ready.get();
+  pipeline::settle_devices(plan, options, devices.device_count());
+  devices.wait();
   summary.features = sites.summary.features;
   summary.sites = sites.summary.sites;
   summary.skipped = sites.summary.skipped;

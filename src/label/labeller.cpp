@@ -256,7 +256,7 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
   auto progress = [&](double fraction, const char* stage) { report_progress(options.progress, fraction, stage); };
   if (device.cuda) {
     const cuda::DeviceInfo info = cuda::device_info(device.index);
-    stats.device = "cuda:" + std::to_string(device.index) + " (" + info.name + ")";
+      stats.device = "cuda:" + std::to_string(device.index) + " (" + info.name + ")";
   } else {
     stats.device = "cpu (" + std::to_string(threads) + " threads)";
   }
@@ -576,19 +576,5 @@ LabelResult label_dense(const LabelInput& input, const LabelOptions& options) {
 }
 
 int cuda_device_count() { return cuda::device_count(); }
-
-void warm_up_devices(const std::string& device) {
-  std::vector<DeviceChoice> devices;
-  try {
-    devices = choose_devices(device);
-  } catch (const std::exception&) {
-    return;
-  }
-  std::vector<std::thread> threads;
-  for (const DeviceChoice& d : devices) {
-    if (d.cuda) threads.emplace_back([index = d.index] { cuda::warm_up(index); });
-  }
-  for (std::thread& t : threads) t.join();
-}
 
 }  // namespace qtmv::label

@@ -118,10 +118,4 @@ LabelResult label_dense(const LabelInput& input, const LabelOptions& options);
 /// Number of usable CUDA devices (0 when built without CUDA or none is present).
 int cuda_device_count();
 
-/// Gets the CUDA devices that `device` (LabelOptions::device) names ready for labelling (their
-/// contexts, all at once), so that a caller can overlap that with other work on another thread:
-/// run_voronoi does while it reads the sites. Nothing for the CPU; never throws (a bad name or a
-/// failing device is reported when the labelling uses it).
-void warm_up_devices(const std::string& device);
-
 }  // namespace qtmv::label

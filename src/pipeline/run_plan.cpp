@@ -31,16 +31,19 @@ constexpr std::uint64_t kCpuTileBytes = std::uint64_t{64} << 20;
 // region and edge tracing's edges, rings and sort (measured: about 90 at level 12).
 constexpr std::uint64_t kBytesPerOutlineCell = 112;
 
-bool labels_on_cpu(const label::LabelOptions& options) {
-  const DeviceSpec device = parse_device_spec(options.device);
-  return device.kind == DeviceSpec::Kind::cpu ||
-         (device.kind == DeviceSpec::Kind::automatic && label::cuda_device_count() == 0);
+// Whether `device` (a -device value) labels on the CPU, with `cuda_devices` found on this host;
+// -1: not counted yet, when "auto" is taken as the CPU (its smaller tiles: the check before the
+// read is then the lenient one, and the one after it, with the devices counted, exact).
+bool labels_on_cpu(const std::string& device, int cuda_devices) {
+  const DeviceSpec spec = parse_device_spec(device);
+  return spec.kind == DeviceSpec::Kind::cpu || (spec.kind == DeviceSpec::Kind::automatic && cuda_devices <= 0);
 }
 
-// The tile limit the pipeline passes to the labeller (0: the labeller's own, a quarter of RAM).
-std::uint64_t tile_limit(const label::LabelOptions& options) {
-  if (options.memory_limit_bytes != 0) return options.memory_limit_bytes;
-  return labels_on_cpu(options) ? kCpuTileBytes : 0;
+// The tile limit (bytes) the pipeline passes to the labeller: `asked` (-memory), else the CPU's
+// tiles, else 0 (the labeller's own, a quarter of RAM).
+std::uint64_t tile_limit(std::uint64_t asked, const std::string& device, int cuda_devices) {
+  if (asked != 0) return asked;
+  return labels_on_cpu(device, cuda_devices) ? kCpuTileBytes : 0;
 }
 
 // Where the read and label stages' slices of the run end (fractions), in proportion to their
@@ -48,7 +51,7 @@ std::uint64_t tile_limit(const label::LabelOptions& options) {
 // "qtmvoronoi end to end"): labelling on the CPU ~50 ns (a GPU far less), a raster ~100 ns,
 // the cells layer ~300 ns; the outline products cost little per cell. Reading gets a fixed 5%.
 void set_stage_ends(RunPlan& plan) {
-  const bool cpu = labels_on_cpu(plan.label);
+  const bool cpu = labels_on_cpu(plan.label.device, plan.cuda_devices);
   // A raster's labels are made on the CPU strip by strip while it is written (~50 ns a cell);
   // the label stage finds its outlines (which sites got a cell) and builds the session's tree.
   const double label = plan.format.raster ? (cpu ? 12 : 3) : (cpu ? 10 : 2) + (plan.cells_layer ? (cpu ? 50 : 5) : 0);
@@ -92,11 +95,10 @@ RunPlan plan_level(const VoronoiOptions& options) {
   return plan;
 }
 
-// The labeller's options, and a GPU asked for and missing (fails now, not after the read).
+// The labeller's options; the devices are settled once counted (settle_devices).
 void plan_labeller(RunPlan& plan, const VoronoiOptions& options, bool want_distance) {
-  DeviceSpec device;
   try {
-    device = parse_device_spec(options.device);
+    parse_device_spec(options.device);
   } catch (const std::invalid_argument& e) {
     throw VoronoiError(std::string("-device: ") + e.what());
   }
@@ -107,17 +109,7 @@ void plan_labeller(RunPlan& plan, const VoronoiOptions& options, bool want_dista
   label_options.threads = options.threads;
   label_options.want_distance = want_distance;
   label_options.want_boundary = true;
-  label_options.memory_limit_bytes = tile_limit(label_options);
-  if (device.kind == DeviceSpec::Kind::cuda) {
-    const int gpus = label::cuda_device_count();
-    const int highest = device.all ? 0 : *std::max_element(device.indices.begin(), device.indices.end());
-    if (gpus == 0 || highest >= gpus) {
-      throw VoronoiError("-device " + label_options.device + ": " +
-                         (gpus == 0 ? std::string("no usable CUDA GPU found")
-                                    : "this host has " + std::to_string(gpus) + " CUDA device(s)") +
-                         "; use -device cpu or auto");
-    }
-  }
+  label_options.memory_limit_bytes = tile_limit(options.memory_limit_bytes, options.device, plan.cuda_devices);
 }
 
 }  // namespace
@@ -126,7 +118,7 @@ std::uint64_t estimate_run_memory(const RunPlan& plan, std::uint64_t sites) {
   const int level = plan.level;
   const label::MemoryEstimate dense = label::estimate_output_memory(level, plan.label);
   // The labeller's tile buffer: its limit, a quarter of RAM by default, at most 2^28 cells.
-  std::uint64_t limit = tile_limit(plan.label);
+  std::uint64_t limit = plan.label.memory_limit_bytes;
   if (limit == 0) limit = host_ram_bytes() / 4;
   const std::uint64_t tile_cells =
       std::min({dense.cells, std::max<std::uint64_t>(1, limit / dense.bytes_per_cell), std::uint64_t{1} << 28});
@@ -228,7 +220,7 @@ RunPlan plan_run(const std::string& destination, const VoronoiOptions& options) 
       throw VoronoiError(e.what());
     }
   }
-  set_stage_ends(plan);
+  plan.read_end = 0.05;  // the label stage's end is set with the devices (settle_devices)
   return plan;
 }
 
@@ -249,6 +241,25 @@ RunPlan plan_tile_job(const std::string& destination, const VoronoiOptions& opti
   plan.read_end = 0.05;
   plan.label_end = 0.98;
   return plan;
+}
+
+void check_devices(const RunPlan& plan, int cuda_devices) {
+  const DeviceSpec device = parse_device_spec(plan.label.device);
+  if (device.kind != DeviceSpec::Kind::cuda) return;
+  const int highest = device.all ? 0 : *std::max_element(device.indices.begin(), device.indices.end());
+  if (cuda_devices <= 0 || highest >= cuda_devices) {
+    throw VoronoiError("-device " + plan.label.device + ": " +
+                       (cuda_devices <= 0 ? std::string("no usable CUDA GPU found")
+                                          : "this host has " + std::to_string(cuda_devices) + " CUDA device(s)") +
+                       "; use -device cpu or auto");
+  }
+}
+
+void settle_devices(RunPlan& plan, const VoronoiOptions& options, int cuda_devices) {
+  check_devices(plan, cuda_devices);
+  plan.cuda_devices = cuda_devices;
+  plan.label.memory_limit_bytes = tile_limit(options.memory_limit_bytes, plan.label.device, cuda_devices);
+  if (plan.tile_count == 0) set_stage_ends(plan);
 }
 
 }  // namespace qtmv::pipeline

@@ -1,5 +1,6 @@
 // The first stage of a run: every check that can fail before any work (options, output format,
-// destination, device, memory, disk space), and what they decide for the stages after it.
+// destination, memory, disk space), and what they decide for the stages after it. The CUDA
+// devices are counted while the sites are read, and checked and settled then (settle_devices).
 #pragma once
 
 #include <cstdint>
@@ -26,8 +27,12 @@ struct RunPlan {
   int tile_index = 0, tile_count = 0;
   /// A merge's tile product files (tile_product_files of -merge); empty: the run labels.
   std::vector<std::string> merge_files;
-  /// Ends of the read and label stages' slices of the run's progress (fractions 0..1).
+  /// Ends of the read and label stages' slices of the run's progress (fractions 0..1); the label
+  /// stage's is set by settle_devices.
   double read_end = 0, label_end = 0;
+  /// Usable CUDA devices on this host: -1 until settle_devices (they are counted while the
+  /// sites are read: label::DeviceStartup).
+  int cuda_devices = -1;
 };
 
 /// Checks the options against the destination and this host, and plans the run; throws
@@ -37,6 +42,14 @@ RunPlan plan_run(const std::string& destination, const VoronoiOptions& options);
 /// The plan of a tile job (options.tile_count > 0): the labeller's options for its tile's codes;
 /// the destination is a tile product, not a dataset. Throws VoronoiError naming the option.
 RunPlan plan_tile_job(const std::string& destination, const VoronoiOptions& options);
+
+/// Throws VoronoiError naming -device when it names CUDA devices that the host's `cuda_devices`
+/// do not include.
+void check_devices(const RunPlan& plan, int cuda_devices);
+
+/// check_devices, then what the devices decide: the labeller's tiles (the CPU's are smaller, so
+/// that an interrupt is seen within a second) and the label stage's slice of the progress.
+void settle_devices(RunPlan& plan, const VoronoiOptions& options, int cuda_devices);
 
 /// Throws VoronoiError, with the estimate, when estimate_run_memory(plan, sites) is more than the
 /// run may use: memory_limit_bytes (VoronoiOptions), or 80% of RAM when 0. `sites`: 0 before the

@@ -63,13 +63,15 @@ std::uint64_t mark_sites_without_cell(const std::vector<std::uint64_t>& count, c
 }  // namespace
 
 sites::SiteSet read_stage(const std::string& source, const VoronoiOptions& options, const RunPlan& plan,
-                          RunProgress& progress) {
+                          RunProgress& progress, const std::function<bool()>& between) {
   sites::ReadOptions read_options;
   static_cast<sites::SourceOptions&>(read_options) = options.read;
   read_options.level = plan.level;
   read_options.distance = options.rule;
   read_options.threads = options.threads;
-  read_options.progress = [&](double f, const char* stage) { return progress.report(0.0, plan.read_end, f, stage); };
+  read_options.progress = [&](double f, const char* stage) {
+    return (!between || between()) && progress.report(0.0, plan.read_end, f, stage);
+  };
   // The reader's count of sites without a cell comes before labelling; the label stage reports
   // the final one instead.
   read_options.warn_sites_without_cell = false;

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -42,8 +43,10 @@ struct LabelledLevel {
 
 /// Reads and rasterises the sites (progress in [0, plan.read_end]). Throws VoronoiError naming
 /// the source, or Interrupted.
+/// `between`, if set, is asked at each of the reader's progress reports whether to go on (false
+/// stops the read with Interrupted): run_voronoi checks the devices there once they are counted.
 sites::SiteSet read_stage(const std::string& source, const VoronoiOptions& options, const RunPlan& plan,
-                          RunProgress& progress);
+                          RunProgress& progress, const std::function<bool()>& between = {});
 
 /// Labels the level (progress in [plan.read_end, plan.label_end]) and marks the sites that got
 /// no cell (SiteRecord::has_own_cell), with one warning naming them; their count goes to

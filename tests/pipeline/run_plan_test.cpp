@@ -1,0 +1,108 @@
+// The run's plan: the CUDA devices are counted while the sites are read (label::DeviceStartup),
+// so the plan leaves what they decide to settle_devices: the check of -device against the count,
+// the labeller's tiles, the label stage's slice of the progress.
+#include <gtest/gtest.h>
+
+#include <gdal_priv.h>
+
+#include <string>
+
+#include "../test_temp_dir.hpp"
+#include "label/device_startup.hpp"
+#include "label/labeller.hpp"
+#include "pipeline/run_plan.hpp"
+#include "pipeline/voronoi_error.hpp"
+
+namespace qtmv::pipeline {
+namespace {
+
+constexpr std::uint64_t kCpuTileBytes = std::uint64_t{64} << 20;  // run_plan.cpp's
+
+VoronoiOptions options_for(const std::string& device) {
+  VoronoiOptions o;
+  o.level = 8;
+  o.device = device;
+  o.check_disk_space = false;
+  return o;
+}
+
+RunPlan planned(const VoronoiOptions& o) {
+  if (GDALGetDriverCount() == 0) GDALAllRegister();
+  return plan_run(test::process_temp_dir() + "/plan.gpkg", o);
+}
+
+std::string device_error(const RunPlan& plan, int cuda_devices) {
+  try {
+    check_devices(plan, cuda_devices);
+  } catch (const VoronoiError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(RunPlan, DevicesAreCheckedAgainstTheCount) {
+  // Planning counts nothing: a GPU asked for is checked once the count is in.
+  const RunPlan one = planned(options_for("cuda:1"));
+  EXPECT_EQ(one.cuda_devices, -1);
+  EXPECT_EQ(device_error(one, 0), "-device cuda:1: no usable CUDA GPU found; use -device cpu or auto");
+  EXPECT_EQ(device_error(one, 1), "-device cuda:1: this host has 1 CUDA device(s); use -device cpu or auto");
+  EXPECT_EQ(device_error(one, 2), "");
+  const RunPlan all = planned(options_for("cuda:all"));
+  EXPECT_EQ(device_error(all, 0), "-device cuda:all: no usable CUDA GPU found; use -device cpu or auto");
+  EXPECT_EQ(device_error(all, 1), "");
+  for (const char* device : {"cpu", "auto"}) EXPECT_EQ(device_error(planned(options_for(device)), 0), "") << device;
+
+  RunPlan settled = one;
+  EXPECT_THROW(settle_devices(settled, options_for("cuda:1"), 1), VoronoiError);
+  settle_devices(settled, options_for("cuda:1"), 2);
+  EXPECT_EQ(settled.cuda_devices, 2);
+}
+
+TEST(RunPlan, TilesAndProgressFollowTheSettledDevice) {
+  const VoronoiOptions o = options_for("auto");
+  const RunPlan before = planned(o);
+  // Before the count "auto" plans the CPU's tiles (the lenient memory check).
+  EXPECT_EQ(before.label.memory_limit_bytes, kCpuTileBytes);
+  EXPECT_DOUBLE_EQ(before.read_end, 0.05);
+
+  RunPlan cpu = before, gpu = before;
+  settle_devices(cpu, o, 0);
+  settle_devices(gpu, o, 1);
+  EXPECT_EQ(cpu.label.memory_limit_bytes, kCpuTileBytes);
+  EXPECT_EQ(gpu.label.memory_limit_bytes, 0u);  // the labeller's own: a quarter of RAM
+  // Labelling is a larger share of a CPU run than of a GPU run.
+  EXPECT_GT(cpu.label_end, gpu.label_end);
+  EXPECT_GT(gpu.label_end, gpu.read_end);
+  EXPECT_LT(cpu.label_end, 1.0);
+
+  // -memory is kept whatever the device.
+  VoronoiOptions limited = o;
+  limited.memory_limit_bytes = std::uint64_t{3} << 30;
+  RunPlan asked = planned(limited);
+  EXPECT_EQ(asked.label.memory_limit_bytes, limited.memory_limit_bytes);
+  settle_devices(asked, limited, 1);
+  EXPECT_EQ(asked.label.memory_limit_bytes, limited.memory_limit_bytes);
+}
+
+TEST(DeviceStartup, CountsWhatTheLabellerCounts) {
+  const int gpus = label::cuda_device_count();
+  {
+    label::DeviceStartup cpu("cpu", true);
+    EXPECT_TRUE(cpu.counted());  // nothing to count
+    EXPECT_EQ(cpu.device_count(), 0);
+  }
+  for (const bool contexts : {false, true}) {
+    label::DeviceStartup devices("auto", contexts);
+    EXPECT_EQ(devices.device_count(), gpus);
+    EXPECT_TRUE(devices.counted());
+    devices.wait();
+  }
+  // A name the plan refuses starts nothing and throws nothing.
+  label::DeviceStartup bad("gpu", true);
+  EXPECT_EQ(bad.device_count(), gpus);
+  label::DeviceStartup missing("cuda:" + std::to_string(gpus), true);
+  EXPECT_EQ(missing.device_count(), gpus);
+}
+
+}  // namespace
+}  // namespace qtmv::pipeline

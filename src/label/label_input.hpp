@@ -116,11 +116,18 @@ inline std::vector<grid::KeyRange> held_claims(const LabelInput& input) {
   const auto cells = static_cast<std::int64_t>(input.fixed_cell_count);
   const auto nodes = static_cast<std::int64_t>(input.fixed_node_count);
   std::vector<grid::KeyRange> ranges(static_cast<std::size_t>(cells + nodes));
+  // On all cores where the includer is built with OpenMP (the readers and the labeller are).
+#ifdef _OPENMP
+#pragma omp parallel for schedule(static)
+#endif
   for (std::int64_t k = 0; k < cells; ++k) {
     const FixedCell& f = input.fixed_cells[k];
     const std::uint64_t key = grid::quadtree_key(grid::cell_of(f.code, input.level), input.level);
     ranges[k] = {key, key, f.site};
   }
+#ifdef _OPENMP
+#pragma omp parallel for schedule(static)
+#endif
   for (std::int64_t k = 0; k < nodes; ++k) {
     const FixedNode& n = input.fixed_nodes[k];
     ranges[cells + k] = grid::node_key_range(grid::cell_of(n.code, n.level), n.level, input.level, n.site);

@@ -202,22 +202,78 @@ void build_site(SiteBuilder& builder, const SiteJob& job) {
   builder.end_site();
 }
 
-/// Appends one site's geometry (site id 0 in `site`) to `out` as site `id`.
-void append_site(SiteGeometry& out, const SiteGeometry& site, std::int32_t id) {
-  const auto piece_offset = static_cast<std::uint32_t>(out.pieces.size());
-  for (SitePiece p : site.pieces) {
-    p.site = id;
-    out.pieces.push_back(p);
+/// Calls copy(k, first, last) for the positions [first, last) of part k of an array whose parts
+/// start at `starts` (ascending; starts[n] its end), on all threads in slices of equal size: one
+/// large part (a continent's coasts) keeps every thread busy, not one.
+template <class Copy>
+void copy_parts_in_slices(const std::vector<std::size_t>& starts, int threads, const Copy& copy) {
+  constexpr std::size_t kSlice = std::size_t{1} << 16;
+  const std::size_t begin = starts.front(), end = starts.back();
+  const auto slices = static_cast<std::int64_t>((end - begin + kSlice - 1) / kSlice);
+#pragma omp parallel for schedule(static) num_threads(threads)
+  for (std::int64_t slice = 0; slice < slices; ++slice) {
+    const std::size_t first = begin + static_cast<std::size_t>(slice) * kSlice;
+    const std::size_t last = std::min(end, first + kSlice);
+    auto k = static_cast<std::size_t>(std::upper_bound(starts.begin(), starts.end(), first) - starts.begin()) - 1;
+    for (; k + 1 < starts.size() && starts[k] < last; ++k) {
+      const std::size_t from = std::max(first, starts[k]), to = std::min(last, starts[k + 1]);
+      if (from < to) copy(k, from, to);
+    }
   }
-  for (SiteCell c : site.site_cells) {
-    c.site = id;
-    c.piece_begin += piece_offset;
-    c.piece_end += piece_offset;
-    out.site_cells.push_back(c);
+}
+
+/// Appends the built sites to `out`, `built[k]` (its site id 0) as site `ids[k]` (ascending), its
+/// piece indices moved past the pieces before it: the arrays of appending them one by one, each
+/// allocated once and copied on all threads.
+void append_sites(SiteGeometry& out, const std::vector<SiteGeometry>& built, const std::vector<std::int32_t>& ids,
+                  int threads) {
+  const std::size_t n = built.size();
+  if (n == 0) return;
+  std::vector<std::size_t> pieces(n + 1), cells(n + 1), fixed(n + 1), nodes(n + 1);
+  pieces[0] = out.pieces.size();
+  cells[0] = out.site_cells.size();
+  fixed[0] = out.fixed_cells.size();
+  nodes[0] = out.fixed_nodes.size();
+  for (std::size_t k = 0; k < n; ++k) {
+    pieces[k + 1] = pieces[k] + built[k].pieces.size();
+    cells[k + 1] = cells[k] + built[k].site_cells.size();
+    fixed[k + 1] = fixed[k] + built[k].fixed_cells.size();
+    nodes[k + 1] = nodes[k] + built[k].fixed_nodes.size();
   }
-  for (FixedCell f : site.fixed_cells) out.fixed_cells.push_back({f.code, id});
-  for (FixedNode n : site.fixed_nodes) out.fixed_nodes.push_back({n.code, n.level, id});
-  out.site_count = id + 1;
+  out.pieces.resize(pieces[n]);
+  out.site_cells.resize(cells[n]);
+  out.fixed_cells.resize(fixed[n]);
+  out.fixed_nodes.resize(nodes[n]);
+  copy_parts_in_slices(pieces, threads, [&](std::size_t k, std::size_t from, std::size_t to) {
+    const SitePiece* in = built[k].pieces.data();
+    for (std::size_t i = from; i < to; ++i) {
+      out.pieces[i] = in[i - pieces[k]];
+      out.pieces[i].site = ids[k];
+    }
+  });
+  copy_parts_in_slices(cells, threads, [&](std::size_t k, std::size_t from, std::size_t to) {
+    const SiteCell* in = built[k].site_cells.data();
+    const auto piece_offset = static_cast<std::uint32_t>(pieces[k]);
+    for (std::size_t i = from; i < to; ++i) {
+      SiteCell c = in[i - cells[k]];
+      c.site = ids[k];
+      c.piece_begin += piece_offset;
+      c.piece_end += piece_offset;
+      out.site_cells[i] = c;
+    }
+  });
+  copy_parts_in_slices(fixed, threads, [&](std::size_t k, std::size_t from, std::size_t to) {
+    const FixedCell* in = built[k].fixed_cells.data();
+    for (std::size_t i = from; i < to; ++i) out.fixed_cells[i] = {in[i - fixed[k]].code, ids[k]};
+  });
+  copy_parts_in_slices(nodes, threads, [&](std::size_t k, std::size_t from, std::size_t to) {
+    const FixedNode* in = built[k].fixed_nodes.data();
+    for (std::size_t i = from; i < to; ++i) {
+      const FixedNode& node = in[i - nodes[k]];
+      out.fixed_nodes[i] = {node.code, node.level, ids[k]};
+    }
+  });
+  out.site_count = ids[n - 1] + 1;
 }
 
 std::string format_coordinate(double x, double y) {
@@ -306,6 +362,11 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   const int threads = thread_count(options.threads);
   std::vector<std::unique_ptr<SiteBuilder>> builders(static_cast<std::size_t>(threads));
   std::string validity_text;  // the layers' invalid polygons, for the summary line
+  // The sites as built, each to be appended as site built_ids[k]: all at once after the read, so
+  // that the arrays are allocated once instead of growing (and copied) batch by batch.
+  std::vector<SiteGeometry> built_sites;
+  std::vector<std::int32_t> built_ids;
+  std::int32_t site_count = 0;
   // Each layer's sites follow the layer before's (composite sites), each with its own CRS,
   // checks and messages.
   OGRSpatialReference wgs84;
@@ -402,9 +463,12 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
         });
       }
       failure.rethrow();
+      // A feature's shares come one after another: its first starts the site, the others add to it.
       for (std::size_t k = 0; k < batch.size(); ++k) {
-        // A feature's shares come one after another: its first starts the site, the others add to it.
-        append_site(geometry, built[k], batch[k].starts_site ? geometry.site_count : geometry.site_count - 1);
+        built_ids.push_back(batch[k].starts_site ? site_count++ : site_count - 1);
+        built_sites.push_back(std::move(built[k]));
+      }
+      for (std::size_t k = 0; k < batch.size(); ++k) {
         const bool named = !batch[k].starts_site && wrapped_fid == batch[k].fid;
         if (short_way[k] > 0 && !named) {
           wrapped.add(batch[k].fid);
@@ -557,6 +621,11 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
     }
   }
 
+  const auto append_start = std::chrono::steady_clock::now();
+  append_sites(geometry, built_sites, built_ids, threads);
+  built_sites = {};
+  built_ids = {};
+  rasterise += std::chrono::steady_clock::now() - append_start;
   report_progress(options.progress, 1.0, "reading sites");
 
   // --- claims, counts, summary --------------------------------------------------------------------

@@ -6,8 +6,10 @@
 #include <atomic>
 #include <cmath>
 #include <cstdint>
+#include <mutex>
 
 #include "common/first_exception.hpp"
+#include "common/parallel_sort.hpp"
 #include "grid/qtm.hpp"
 
 namespace qtmv::write {
@@ -39,12 +41,16 @@ struct EdgeTerms {
   EdgeTerms reversed() const { return {0 - area, 0 - rough, 0 - crossings}; }
 };
 
-EdgeTerms edge_terms(const LonLat& from, const LonLat& to) {
+/// With `length`, the edge's geodesic length too (metres; the same bits as geodesic_length's: the
+/// distance is solved alike whatever else is asked, and the area alike with or without it).
+EdgeTerms edge_terms(const LonLat& from, const LonLat& to, double* length = nullptr) {
   static const GeographicLib::Geodesic& earth = GeographicLib::Geodesic::WGS84();
   static const double m2_per_steradian = earth.EllipsoidArea() / (4 * grid::kPi);
   double s12 = 0, azi1 = 0, azi2 = 0, m12 = 0, M12 = 0, M21 = 0, S12 = 0;
-  earth.GenInverse(from.lat, from.lon, to.lat, to.lon, GeographicLib::Geodesic::AREA, s12, azi1, azi2, m12, M12, M21,
-                   S12);
+  const unsigned distance = GeographicLib::Geodesic::DISTANCE;
+  const unsigned mask = GeographicLib::Geodesic::AREA | (length ? distance : 0u);
+  earth.GenInverse(from.lat, from.lon, to.lat, to.lon, mask, s12, azi1, azi2, m12, M12, M21, S12);
+  if (length) *length = s12;
   const double rough = (to.lon - from.lon) * grid::kDegree * 0.5 *
                        (std::sin(from.lat * grid::kDegree) + std::sin(to.lat * grid::kDegree)) * m2_per_steradian;
   EdgeTerms t;
@@ -58,10 +64,13 @@ EdgeTerms edge_terms(const LonLat& from, const LonLat& to) {
 
 /// Every site's sums, shared by the threads.
 struct RegionAreaSums::Sums {
-  explicit Sums(std::size_t sites) : area(sites), rough(sites), crossings(sites) {
+  Sums(std::size_t sites, bool lengths) : area(sites), rough(sites), crossings(sites), lengths(lengths) {
     for (std::size_t s = 0; s < sites; ++s) area[s] = rough[s] = crossings[s] = 0;
   }
   std::vector<std::atomic<std::uint64_t>> area, rough, crossings;
+  const bool lengths;
+  std::mutex pair_lock;
+  std::vector<PairLength> pairs;  // the threads' partial sums, any order
 };
 
 namespace {
@@ -76,14 +85,24 @@ class SumCache : public RegionEdgeObserver::Local {
   explicit SumCache(SiteSums& shared) : shared_(shared) {}
   ~SumCache() override {
     for (Slot& s : slots_) flush(s);
+    if (!shared_.lengths) return;
+    for (const PairLength& p : pair_slots_) {
+      if (p.units != 0) partial_pairs_.push_back(p);
+    }
+    const std::lock_guard<std::mutex> hold(shared_.pair_lock);
+    shared_.pairs.insert(shared_.pairs.end(), partial_pairs_.begin(), partial_pairs_.end());
   }
   void edge(std::int32_t site, const LonLat& from, const LonLat& to, std::int32_t other) override {
     if (other == kBorderEdge) {
       add(site, edge_terms(from, to));
     } else if (other > site) {  // an edge between two sites: solved by the lower site's cell, for both
-      const EdgeTerms t = edge_terms(from, to);
+      double length = 0;
+      const EdgeTerms t = edge_terms(from, to, shared_.lengths ? &length : nullptr);
       add(site, t);
       add(other, t.reversed());
+      if (shared_.lengths) {
+        add_length(static_cast<std::uint64_t>(site) << 32 | static_cast<std::uint32_t>(other), length_units(length));
+      }
     }
   }
 
@@ -98,11 +117,23 @@ class SumCache : public RegionEdgeObserver::Local {
     s.sums.rough += t.rough;
     s.sums.crossings += t.crossings;
   }
+  // A pair's sum stays in its slot while the pair's edges come one after another (they mostly
+  // do), and goes to the thread's partial sums when another pair takes the slot.
+  void add_length(std::uint64_t key, std::uint64_t units) {
+    PairLength& slot = pair_slots_[(key ^ (key >> 29)) % kSlots];
+    if (slot.key != key) {
+      if (slot.units != 0) partial_pairs_.push_back(slot);
+      slot = PairLength{key, 0};
+    }
+    slot.units += units;
+  }
   static constexpr std::size_t kSlots = 512;
   struct Slot {
     std::int32_t site = -1;
     EdgeTerms sums;
   };
+  PairLength pair_slots_[kSlots];
+  std::vector<PairLength> partial_pairs_;
   void flush(const Slot& s) {
     if (s.site < 0) return;
     const auto k = static_cast<std::size_t>(s.site);
@@ -129,7 +160,8 @@ double settle(std::uint64_t area_sum, std::uint64_t rough_sum, std::uint64_t cro
 
 }  // namespace
 
-RegionAreaSums::RegionAreaSums(std::int32_t site_count) : sums_(std::make_unique<Sums>(static_cast<std::size_t>(site_count))) {}
+RegionAreaSums::RegionAreaSums(std::int32_t site_count, bool pair_lengths)
+    : sums_(std::make_unique<Sums>(static_cast<std::size_t>(site_count), pair_lengths)) {}
 
 RegionAreaSums::~RegionAreaSums() = default;
 
@@ -141,6 +173,20 @@ std::vector<double> RegionAreaSums::areas(const std::vector<std::uint64_t>& cell
   for (std::size_t s = 0; s < sites && s < cells_per_site.size(); ++s) {
     if (cells_per_site[s] == 0) continue;
     out[s] = settle(sums_->area[s].load(), sums_->rough[s].load(), sums_->crossings[s].load());
+  }
+  return out;
+}
+
+std::vector<PairLength> RegionAreaSums::pair_lengths() const {
+  std::vector<PairLength> all = sums_->pairs;
+  parallel_sort(all.begin(), all.end(), [](const PairLength& a, const PairLength& b) { return a.key < b.key; });
+  std::vector<PairLength> out;
+  for (const PairLength& p : all) {
+    if (!out.empty() && out.back().key == p.key) {
+      out.back().units += p.units;
+    } else {
+      out.push_back(p);
+    }
   }
   return out;
 }

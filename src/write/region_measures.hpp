@@ -12,6 +12,7 @@
 // outline cells, without the traced rings.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -21,16 +22,38 @@
 
 namespace qtmv::write {
 
+/// The resolution (metres) of the sums of edge lengths per pair of sites (PairLength).
+constexpr double kLengthUnit = 1.0 / (1 << 30);
+
+/// `metres` in kLengthUnit, rounded.
+inline std::uint64_t length_units(double metres) {
+  return static_cast<std::uint64_t>(std::llround(metres / kLengthUnit));
+}
+
+/// The cell edges between sites a < b (site ids; key = a << 32 | b, as the voronoi_edges layer
+/// keys its pairs): their geodesic lengths summed in fixed point (kLengthUnit), so that the sum
+/// does not depend on the order of adding.
+struct PairLength {
+  std::uint64_t key = 0;
+  std::uint64_t units = 0;
+};
+
 /// The regions' areas summed as their edges are seen, by RegionTracer's gathering pass (or by
 /// region_areas): each edge between two sites solved once, from the lower site's side, for both.
 class RegionAreaSums : public RegionEdgeObserver {
  public:
-  explicit RegionAreaSums(std::int32_t site_count);
+  /// With `pair_lengths`, each edge between two sites also gives its geodesic length (the same
+  /// solution as its area), summed per pair; not the edges on the cut at +-180, which the pass
+  /// sees as borders.
+  explicit RegionAreaSums(std::int32_t site_count, bool pair_lengths = false);
   ~RegionAreaSums() override;
   std::unique_ptr<Local> local() override;
   /// Areas (square metres) of the regions, from the edges seen; 0 for a site whose
   /// `cells_per_site` is 0. Call once every Local view is gone.
   std::vector<double> areas(const std::vector<std::uint64_t>& cells_per_site) const;
+  /// The pairs' length sums, sorted by key (empty without `pair_lengths`). Call once every
+  /// Local view is gone.
+  std::vector<PairLength> pair_lengths() const;
 
   struct Sums;
 

@@ -122,6 +122,12 @@ int drawn_edges(const grid::Cell& c, int across[grid::kMaxPolygonCorners]);
 /// +-180): none; the edge bounds its own region only.
 constexpr std::int32_t kBorderEdge = -1;
 
+/// Whether the edge from -> to runs along the cut at +-180 (both ends there): a border of the
+/// regions' lon/lat rectangle, drawn by the cells on each side at their own side's longitude.
+inline bool on_cut(const LonLat& from, const LonLat& to) {
+  return std::fabs(from.lon) == 180.0 && std::fabs(to.lon) == 180.0;
+}
+
 /// Visits the edges of the k-th outline cell, as drawn, that bound its site's region (the region
 /// on their left): visit(from, to, other), `other` the site across the edge or kBorderEdge. Only
 /// a boundary cell has a neighbour of another site; any cell may have border edges. The regions'
@@ -137,7 +143,7 @@ void visit_region_edges(const label::Outlines& outlines, std::size_t k, const Vi
   for (int e = 0; e < corners; ++e) {
     const LonLat& from = ring[e];
     const LonLat& to = ring[(e + 1) % corners];
-    if (across[e] == kAcrossPoleLine || (std::fabs(from.lon) == 180.0 && std::fabs(to.lon) == 180.0)) {
+    if (across[e] == kAcrossPoleLine || on_cut(from, to)) {
       visit(from, to, kBorderEdge);
     } else if (outline.boundary) {
       const std::int32_t other = label::site_of_near(outlines.cells, k, nb[across[e]]);

@@ -163,18 +163,22 @@ struct PairLines {
 
 /// Links a pair's cell edges (all with site a on their left) into lines: an edge continues the
 /// one that ends where it starts. Edges that do not meet (across +-180, across a pole) start
-/// new lines.
-PairLines link_pair(const EdgeRef* begin, const EdgeRef* end, int level) {
+/// new lines. The length is the sum of the edges' geodesic lengths in kLengthUnit; `measured`
+/// (may be null) is that sum over the edges off the cut at +-180, from the regions' pass
+/// (RegionAreaSums), and only the others are solved here: the same sum either way.
+PairLines link_pair(const EdgeRef* begin, const EdgeRef* end, int level, const std::uint64_t* measured) {
   std::vector<Segment> segments;
   segments.reserve(static_cast<std::size_t>(end - begin));
   PairLines out;
+  std::uint64_t units = measured ? *measured : 0;
   for (const EdgeRef* e = begin; e != end; ++e) {
     LonLat ring[grid::kMaxPolygonCorners];
     const int corners = grid::cell_polygon(grid::cell_of(e->edge >> 2, level), level, ring);
     const int k = static_cast<int>(e->edge & 3u);
-    segments.push_back({ring[k], ring[(k + 1) % corners]});
-    out.length_m += geodesic_length(segments.back().from, segments.back().to);
+    const Segment& s = segments.emplace_back(Segment{ring[k], ring[(k + 1) % corners]});
+    if (!measured || on_cut(s.from, s.to)) units += length_units(geodesic_length(s.from, s.to));
   }
+  out.length_m = static_cast<double>(units) * kLengthUnit;
   std::sort(segments.begin(), segments.end(), [](const Segment& a, const Segment& b) {
     return point_less(a.from, b.from) || (same_point(a.from, b.from) && point_less(a.to, b.to));
   });
@@ -594,7 +598,8 @@ struct TracedRegions {
   std::vector<GpkgGeometry> geometries;
 };
 
-void write_regions(Writer& w, const Input& in, double work) {
+/// `pair_lengths` (may be null): also the voronoi_edges layer's lengths, from the same pass.
+void write_regions(Writer& w, const Input& in, double work, std::vector<PairLength>* pair_lengths) {
   OGRLayer* layer = w.begin_layer("regions", wkbMultiPolygon, work);
 
   // The source's fields first, as ogr2ogr would copy them; of several source layers (composite
@@ -646,9 +651,10 @@ void write_regions(Writer& w, const Input& in, double work) {
   StepTrace trace;
   const RingVertices vertices = in.all_ring_vertices ? RingVertices::all : RingVertices::corners;
   // The areas are summed in the tracer's pass over the outline cells, edge by edge.
-  RegionAreaSums area_sums(in.site_count);
+  RegionAreaSums area_sums(in.site_count, pair_lengths != nullptr);
   const RegionTracer tracer(in.outlines, vertices, [&](double f) { w.layer_progress(0.4 * f, 1.0); }, &area_sums);
   const std::vector<double> areas = area_sums.areas(in.outlines.cells_per_site);
+  if (pair_lengths) *pair_lengths = area_sums.pair_lengths();
   trace("regions' edges gathered, measured");
 
   w.begin_features();
@@ -749,7 +755,8 @@ void write_boundary_cells(Writer& w, const Input& in, double work, std::uint64_t
   w.end_layer();
 }
 
-void write_voronoi_edges(Writer& w, const Input& in, double work) {
+/// `measured` (may be null): the pairs' lengths from the regions' pass (write_regions).
+void write_voronoi_edges(Writer& w, const Input& in, double work, const std::vector<PairLength>* measured) {
   const int level = in.outlines.level;
   OGRLayer* layer = w.begin_layer("voronoi_edges", wkbMultiLineString, work);
   OGRFieldDefn a_field("site_a", OFTInteger64);
@@ -788,7 +795,15 @@ void write_voronoi_edges(Writer& w, const Input& in, double work) {
     for (std::int64_t p = static_cast<std::int64_t>(first); p < static_cast<std::int64_t>(last); ++p) {
       failure.run([&] {
         MeasuredPair& out = block[static_cast<std::size_t>(p) - first];
-        out.lines = link_pair(edges.data() + pair_start[p], edges.data() + pair_start[p + 1], level);
+        const std::uint64_t key = edges[pair_start[p]].key;
+        std::uint64_t units = 0;  // a pair whose edges are all on the cut is not in `measured`
+        if (measured) {
+          const auto it = std::lower_bound(measured->begin(), measured->end(), key,
+                                           [](const PairLength& m, std::uint64_t k) { return m.key < k; });
+          if (it != measured->end() && it->key == key) units = it->units;
+        }
+        out.lines = link_pair(edges.data() + pair_start[p], edges.data() + pair_start[p + 1], level,
+                              measured ? &units : nullptr);
         if (direct) {
           out.geometry.begin(GpkgGeometry::kMultiLineString, static_cast<std::uint32_t>(out.lines.lines.size()));
           for (const auto& line : out.lines.lines) out.geometry.line(line.data(), line.size());
@@ -962,11 +977,16 @@ void write_vector(const std::string& path, const label::Outlines& outlines, cons
   Writer writer(path, options, trap, total);
   writer.open(driver);
   trace("dataset created");
+  // Regions written before voronoi_edges hand on the edges' lengths from their own pass.
+  const auto position = [&](const char* name) { return std::find(layers.begin(), layers.end(), name) - layers.begin(); };
+  const bool lengths_from_regions = position("regions") < position("voronoi_edges") &&
+                                    position("voronoi_edges") < static_cast<std::ptrdiff_t>(layers.size());
+  std::vector<PairLength> pair_lengths;
   for (std::size_t k = 0; k < layers.size(); ++k) {
     const std::string& name = layers[k];
-    if (name == "regions") write_regions(writer, in, work[k]);
+    if (name == "regions") write_regions(writer, in, work[k], lengths_from_regions ? &pair_lengths : nullptr);
     if (name == "boundary_cells") write_boundary_cells(writer, in, work[k], boundary_count);
-    if (name == "voronoi_edges") write_voronoi_edges(writer, in, work[k]);
+    if (name == "voronoi_edges") write_voronoi_edges(writer, in, work[k], lengths_from_regions ? &pair_lengths : nullptr);
     if (name == "cells") write_cells(writer, in, work[k]);
   }
   trace.restart();

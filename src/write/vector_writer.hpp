@@ -11,7 +11,9 @@
 //   boundary_cells  one Polygon per boundary cell: code (Integer64), site_fid (Integer64).
 //   voronoi_edges   one MultiLineString per pair of neighbouring sites a < b (site ids): the cell
 //                   edges between their cells, linked into lines. Fields site_a, site_b (the
-//                   sites' FIDs, Integer64), length_m (Real: metres, geodesic on WGS84).
+//                   sites' FIDs, Integer64), length_m (Real: metres, geodesic on WGS84; the
+//                   edges' lengths summed in fixed point, 2^-30 m, so in any order to the same
+//                   bits; after regions, from the regions' own pass over the edges).
 //   cells           every cell as a Polygon: code, site_fid, distance_m (Real, metres; null when
 //                   not computed), boundary (Integer, boolean subtype).
 //

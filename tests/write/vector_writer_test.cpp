@@ -494,6 +494,48 @@ TEST_F(VectorTest, VoronoiEdgesArePairsOfNeighbours) {
   }
 }
 
+TEST_F(VectorTest, VoronoiEdgeLengthsFromTheRegionsPassAreTheSame) {
+  // Written after regions, voronoi_edges takes its lengths from the regions' pass over the
+  // outline cells and solves only the edges on the cut at +-180 itself; alone or before
+  // regions, it solves every edge. The lengths must be the same to the bit, and the scene has
+  // pairs with edges on the cut (sites beside +-180) and at the poles.
+  for (int level : {3, 7}) {
+    SCOPED_TRACE("level " + std::to_string(level));
+    const Scene scene = make_scene(level, 40, 5);
+    std::vector<std::map<std::pair<std::int64_t, std::int64_t>, double>> lengths;
+    std::size_t pairs_on_the_cut = 0;
+    for (const std::vector<std::string>& layers : std::vector<std::vector<std::string>>{
+             {"regions", "voronoi_edges"}, {"voronoi_edges"}, {"voronoi_edges", "regions"}}) {
+      const TempPath out("edge_lengths_" + std::to_string(level) + "_" + std::to_string(lengths.size()) + ".gpkg");
+      VectorOptions options;
+      options.layers = layers;
+      write_vector(out.path, scene.labels(), scene.table, options);
+      auto ds = open_vector(out.path);
+      ASSERT_TRUE(ds);
+      OGRLayer* layer = ds->GetLayerByName("voronoi_edges");
+      ASSERT_NE(layer, nullptr);
+      auto& got = lengths.emplace_back();
+      for (auto& feature : *layer) {
+        got[{feature->GetFieldAsInteger64("site_a"), feature->GetFieldAsInteger64("site_b")}] =
+            feature->GetFieldAsDouble("length_m");
+        if (lengths.size() > 1) continue;
+        const auto* lines = feature->GetGeometryRef()->toMultiLineString();
+        bool on_cut = false;
+        for (const OGRLineString* line : *lines) {
+          for (int k = 1; k < line->getNumPoints(); ++k) {
+            on_cut = on_cut || (std::fabs(line->getX(k - 1)) == 180.0 && std::fabs(line->getX(k)) == 180.0);
+          }
+        }
+        pairs_on_the_cut += on_cut;
+      }
+    }
+    EXPECT_GT(pairs_on_the_cut, 0u);
+    ASSERT_FALSE(lengths[0].empty());
+    EXPECT_EQ(lengths[0], lengths[1]);
+    EXPECT_EQ(lengths[0], lengths[2]);
+  }
+}
+
 TEST_F(VectorTest, CellsLayerOnlyWhenAsked) {
   // Level 7 has 131 072 cells: more than one transaction.
   const Scene scene = make_scene(7, 10, 5);

@@ -25,7 +25,7 @@ Vec3 vector_at(const grid::LonLat& p) {
 bool same(const Vec3& a, const Vec3& b) { return a.x == b.x && a.y == b.y && a.z == b.z; }
 
 /// Index the next piece will get: site cells hold 32-bit piece indices.
-std::uint32_t next_piece_index(const std::vector<SitePiece>& pieces) {
+std::uint32_t next_piece_index(const label::SiteArray<SitePiece>& pieces) {
   if (pieces.size() >= UINT32_MAX) {
     throw ReadError("more than " + std::to_string(UINT32_MAX) + " pieces of lines and rings: use a lower level");
   }
@@ -110,7 +110,7 @@ void PathTracer::refine(const Edge& edge, double t0, grid::Code c0, double t1, g
 }
 
 void PathTracer::trace(const grid::LonLat* vertices, std::size_t count, std::int32_t site,
-                       std::vector<SitePiece>& pieces, std::vector<CellHit>& hits,
+                       label::SiteArray<SitePiece>& pieces, std::vector<CellHit>& hits,
                        std::vector<grid::LonLat>* samples, const std::uint8_t* straight) {
   if (count == 0) return;
   const std::size_t first_piece = pieces.size();

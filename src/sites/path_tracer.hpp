@@ -39,7 +39,7 @@ class PathTracer {
   /// points along the path (degrees, unwrapped, ends included) are appended to it: the densified
   /// path that polygon fill uses for geodesic edges. `straight` (may be null): one flag per edge
   /// (UnwrappedPath::straight); a flagged edge is straight in lon/lat whatever the shape.
-  void trace(const grid::LonLat* vertices, std::size_t count, std::int32_t site, std::vector<SitePiece>& pieces,
+  void trace(const grid::LonLat* vertices, std::size_t count, std::int32_t site, label::SiteArray<SitePiece>& pieces,
              std::vector<CellHit>& hits, std::vector<grid::LonLat>* samples = nullptr,
              const std::uint8_t* straight = nullptr);
 

@@ -8,7 +8,7 @@
 
 namespace qtmv::sites {
 
-void append_site_cells(std::vector<CellHit>& hits, std::int32_t site, std::vector<SiteCell>& out) {
+void append_site_cells(std::vector<CellHit>& hits, std::int32_t site, label::SiteArray<SiteCell>& out) {
   std::sort(hits.begin(), hits.end(), [](const CellHit& a, const CellHit& b) {
     return a.code != b.code ? a.code < b.code : a.piece < b.piece;
   });

@@ -14,7 +14,7 @@ namespace qtmv::sites {
 /// Appends one site's site cells made from its hits (pieces in the order they were added):
 /// sorted by code, one entry per run of consecutive pieces in a cell, so a cell the site passes
 /// through twice has two entries with disjoint piece ranges. Reorders `hits`.
-void append_site_cells(std::vector<CellHit>& hits, std::int32_t site, std::vector<SiteCell>& out);
+void append_site_cells(std::vector<CellHit>& hits, std::int32_t site, label::SiteArray<SiteCell>& out);
 
 /// Per site, what it got after resolve_claims.
 struct SiteCellCounts {

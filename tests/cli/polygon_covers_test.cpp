@@ -33,7 +33,8 @@ void expect_cover_labels_as_cells(const std::string& source, const std::string& 
   const label::LabelInput with_nodes = set.geometry.input();
   ASSERT_GT(with_nodes.fixed_node_count, 0u) << source;
   label::SiteGeometry cells = set.geometry;
-  cells.fixed_cells = label::fixed_cells_with_nodes(with_nodes);
+  const std::vector<label::FixedCell> all = label::fixed_cells_with_nodes(with_nodes);
+  cells.fixed_cells.assign(all.begin(), all.end());
   cells.fixed_nodes.clear();
   std::vector<std::string> devices{"cpu"};
   if (label::cuda_device_count() > 0) devices.push_back("cuda");

@@ -440,7 +440,7 @@ TEST(LabelTree, FixedNodesLabelAsTheirCells) {
     nodes.fixed_cells.push_back({grid::code_of(deep, level), 3});
     SiteGeometry cells = nodes;
     const std::vector<FixedCell> all = fixed_cells_with_nodes(nodes.input());
-    cells.fixed_cells = all;
+    cells.fixed_cells.assign(all.begin(), all.end());
     cells.fixed_nodes.clear();
     for (const char* device : {"cpu", "cuda"}) {
       if (std::string(device) == "cuda" && cuda_device_count() == 0) continue;
@@ -702,7 +702,7 @@ TEST_P(LabelDevice, FixedCellOrderDoesNotShow) {
   SiteGeometry g = solid_polygon(7);
   // A second area (site 3) and some cells that both areas claim.
   const Cell other = grid::cell_of(40, 2);
-  const std::vector<FixedCell> first_area = g.fixed_cells;
+  const std::vector<FixedCell> first_area(g.fixed_cells.begin(), g.fixed_cells.end());
   for (Code code = 0; code < grid::cell_count(7); ++code) {
     const Cell a = grid::ancestor(grid::cell_of(code, 7), 7, 2);
     if (a.octant == other.octant && a.row == other.row && a.col == other.col) add_fixed_cell(g, code, 3);
@@ -712,7 +712,7 @@ TEST_P(LabelDevice, FixedCellOrderDoesNotShow) {
   LabelOptions options;
   options.device = GetParam();
   const LabelResult want = label_all(g.input(), options);
-  std::vector<FixedCell> fixed = g.fixed_cells;
+  std::vector<FixedCell> fixed(g.fixed_cells.begin(), g.fixed_cells.end());
   std::mt19937_64 rng(77);
   for (int order = 0; order < 3; ++order) {
     if (order == 0) std::reverse(fixed.begin(), fixed.end());

@@ -20,7 +20,7 @@ namespace {
 using grid::LonLat;
 
 struct TracedLine {
-  std::vector<SitePiece> pieces;
+  label::SiteArray<SitePiece> pieces;
   std::vector<CellHit> hits;
 };
 
@@ -136,7 +136,7 @@ TEST(PathTracer, GeodesicsCrossingTheAntimeridianAndPassingAPole) {
 
 TEST(PathTracer, PointsAndDegenerateLines) {
   PathTracer tracer(10, EdgeShape::lonlat);
-  std::vector<SitePiece> pieces;
+  label::SiteArray<SitePiece> pieces;
   std::vector<CellHit> hits;
   const LonLat p{12.5, -33.25};
   tracer.trace(&p, 1, 3, pieces, hits);

@@ -4,12 +4,9 @@
 
 #include <cstddef>
 #include <cstdint>
-#include <memory>
-#include <new>
-#include <type_traits>
-#include <utility>
 #include <vector>
 
+#include "common/default_init_allocator.hpp"
 #include "common/parallel_sort.hpp"
 #include "grid/qtm.hpp"
 #include "grid/qtm_key_ranges.hpp"
@@ -89,34 +86,10 @@ struct LabelInput {
   std::size_t fixed_node_count = 0;
 };
 
-/// The allocator of SiteGeometry's arrays: resize(n) leaves their new elements (plain data)
-/// uninitialised, so that the threads that then fill a large array are the first to touch its
-/// pages, instead of one thread zeroing it first (most of the time the readers took to append a
-/// batch of sites: hundreds of megabytes at level 14).
+/// An array of SiteGeometry: resize() leaves new elements uninitialised (DefaultInitAllocator), so
+/// that the readers' threads that fill a batch of sites touch its pages first.
 template <class T>
-struct UninitialisedAllocator : std::allocator<T> {
-  static_assert(std::is_trivially_copyable_v<T> && std::is_trivially_default_constructible_v<T>);
-  using value_type = T;
-  template <class U>
-  struct rebind {
-    using other = UninitialisedAllocator<U>;
-  };
-  UninitialisedAllocator() = default;
-  template <class U>
-  UninitialisedAllocator(const UninitialisedAllocator<U>&) noexcept {}
-  template <class U>
-  void construct(U* p) noexcept {
-    ::new (static_cast<void*>(p)) U;
-  }
-  template <class U, class... Args>
-  void construct(U* p, Args&&... args) {
-    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
-  }
-};
-
-/// An array of SiteGeometry (std::vector whose resize leaves new elements uninitialised).
-template <class T>
-using SiteArray = std::vector<T, UninitialisedAllocator<T>>;
+using SiteArray = std::vector<T, DefaultInitAllocator<T>>;
 
 /// Pieces, site cells, fixed cells and fixed nodes gathered for one level (what the readers produce).
 struct SiteGeometry {

@@ -25,6 +25,7 @@
 #include <utility>
 #include <vector>
 
+#include "common/default_init_allocator.hpp"
 #include "grid/qtm.hpp"
 #include "grid/qtm_code_ranges.hpp"
 
@@ -38,33 +39,11 @@ struct OutlineCell {
   std::uint32_t boundary;  ///< 1: boundary cell; 0: a row end only
 };
 
-/// std::allocator, but resize() leaves new elements of a trivial type uninitialised: the outline
-/// cells are copied into them at once (from a GPU, from the parts of a run), and zeroing gigabytes
-/// first, on one thread, took longer than the copies.
-template <class T>
-struct DefaultInitAllocator : std::allocator<T> {
-  template <class U>
-  struct rebind {
-    using other = DefaultInitAllocator<U>;
-  };
-  DefaultInitAllocator() noexcept = default;
-  template <class U>
-  DefaultInitAllocator(const DefaultInitAllocator<U>&) noexcept {}
-  template <class U>
-  void construct(U* p) noexcept(std::is_nothrow_default_constructible<U>::value) {
-    ::new (static_cast<void*>(p)) U;
-  }
-  template <class U, class... Args>
-  void construct(U* p, Args&&... args) {
-    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
-  }
-};
-
 /// True for the first and last cell of an octant row (column 0 or 2 row).
 QTMV_HD inline bool is_row_end(const grid::Cell& c) { return c.col == 0 || c.col == 2 * c.row; }
 
 /// A list of outline cells (in code order where it is a product).
-using OutlineCells = std::vector<OutlineCell, DefaultInitAllocator<OutlineCell>>;
+using OutlineCells = std::vector<OutlineCell, qtmv::DefaultInitAllocator<OutlineCell>>;
 
 /// Outline cells listed per octant row: 2 per row but the pole row's one, 8 octants.
 inline std::uint64_t row_end_count(int level) { return 8 * (2 * grid::rows_per_octant(level) - 1); }

@@ -1,6 +1,7 @@
 #include "label/device_startup.hpp"
 
 #include <chrono>
+#include <system_error>
 #include <vector>
 
 #include "common/device_spec.hpp"
@@ -31,11 +32,15 @@ DeviceStartup::DeviceStartup(const std::string& device, bool contexts) : count_(
     } catch (const std::exception&) {
       return;
     }
-    std::vector<std::thread> contexts;
-    for (const DeviceChoice& d : devices) {
-      if (d.cuda) contexts.emplace_back([index = d.index] { cuda::warm_up(index); });
+    // One thread a device; a thread the system cannot start leaves its context to the labelling.
+    std::vector<std::thread> starts;
+    try {
+      for (const DeviceChoice& d : devices) {
+        if (d.cuda) starts.emplace_back([index = d.index] { cuda::warm_up(index); });
+      }
+    } catch (const std::system_error&) {
     }
-    for (std::thread& t : contexts) t.join();
+    for (std::thread& t : starts) t.join();
   });
 }
 

@@ -15,7 +15,6 @@
 #include <mutex>
 #include <stdexcept>
 #include <string>
-#include <thread>
 
 #include "common/device_spec.hpp"
 #include "common/host_info.hpp"
@@ -256,7 +255,7 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
   auto progress = [&](double fraction, const char* stage) { report_progress(options.progress, fraction, stage); };
   if (device.cuda) {
     const cuda::DeviceInfo info = cuda::device_info(device.index);
-      stats.device = "cuda:" + std::to_string(device.index) + " (" + info.name + ")";
+    stats.device = "cuda:" + std::to_string(device.index) + " (" + info.name + ")";
   } else {
     stats.device = "cpu (" + std::to_string(threads) + " threads)";
   }

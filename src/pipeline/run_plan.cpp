@@ -46,6 +46,9 @@ std::uint64_t tile_limit(std::uint64_t asked, const std::string& device, int cud
   return labels_on_cpu(device, cuda_devices) ? kCpuTileBytes : 0;
 }
 
+// The read stage's slice of a run's progress (fraction): a fixed 5%.
+constexpr double kReadEnd = 0.05;
+
 // Where the read and label stages' slices of the run end (fractions), in proportion to their
 // expected time per cell at level 11 on the 2-core development machine (bench/RESULTS.md,
 // "qtmvoronoi end to end"): labelling on the CPU ~50 ns (a GPU far less), a raster ~100 ns,
@@ -56,7 +59,7 @@ void set_stage_ends(RunPlan& plan) {
   // the label stage finds its outlines (which sites got a cell) and builds the session's tree.
   const double label = plan.format.raster ? (cpu ? 12 : 3) : (cpu ? 10 : 2) + (plan.cells_layer ? (cpu ? 50 : 5) : 0);
   const double write = plan.format.raster ? 150 : 20 + (plan.cells_layer ? 300 : 0);
-  plan.read_end = 0.05;
+  plan.read_end = kReadEnd;
   plan.label_end = plan.read_end + (1 - plan.read_end) * label / (label + write);
 }
 
@@ -220,7 +223,7 @@ RunPlan plan_run(const std::string& destination, const VoronoiOptions& options) 
       throw VoronoiError(e.what());
     }
   }
-  plan.read_end = 0.05;  // the label stage's end is set with the devices (settle_devices)
+  plan.read_end = kReadEnd;  // the label stage's end is set with the devices (settle_devices)
   return plan;
 }
 
@@ -238,7 +241,7 @@ RunPlan plan_tile_job(const std::string& destination, const VoronoiOptions& opti
   }
   check_run_memory(plan, options.memory_limit_bytes, 0);
   // Labelling is nearly all of a tile job.
-  plan.read_end = 0.05;
+  plan.read_end = kReadEnd;
   plan.label_end = 0.98;
   return plan;
 }

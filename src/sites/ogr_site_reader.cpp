@@ -459,8 +459,8 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
       }
       failure.rethrow();
       // A feature's shares come one after another: its first starts the site, the others add to it.
-      // Appended batch by batch: a batch's built sites (each with its builder's spare capacity,
-      // kilobytes) held until the end would add half a gigabyte for 135 000 points.
+      // Appended batch by batch: holding every batch's built sites until the end of the read made
+      // the runs of 135 000 points peak 500 MB higher (measured at level 13), for no gain in time.
       std::vector<std::int32_t> ids(batch.size());
       std::int32_t next_id = geometry.site_count;
       for (std::size_t k = 0; k < batch.size(); ++k) ids[k] = batch[k].starts_site ? next_id++ : next_id - 1;

@@ -262,6 +262,9 @@ void settle_devices(RunPlan& plan, const VoronoiOptions& options, int cuda_devic
   check_devices(plan, cuda_devices);
   plan.cuda_devices = cuda_devices;
   plan.label.memory_limit_bytes = tile_limit(options.memory_limit_bytes, plan.label.device, cuda_devices);
+  // The writer's geodesics go where the labels are made: the first GPU of the list.
+  const DeviceSpec device = parse_device_spec(plan.label.device);
+  plan.vector.geodesic_device = labels_on_cpu(plan.label.device, cuda_devices) ? -1 : device.all ? 0 : device.index;
   if (plan.tile_count == 0) set_stage_ends(plan);
 }
 

@@ -115,6 +115,9 @@ struct VectorLayers {
 struct VectorOptions : VectorLayers {
   std::string driver = "GPKG";  ///< OGR driver short name
   ProgressFunc progress;        ///< may be empty
+  /// The CUDA device that solves the regions' geodesics (their areas, the Voronoi edges'
+  /// lengths); -1: the CPU. The same values either way.
+  int geodesic_device = -1;
 };
 
 /// What a raster output holds: the options a caller of the pipeline gives.

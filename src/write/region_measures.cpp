@@ -11,6 +11,7 @@
 #include "common/first_exception.hpp"
 #include "common/parallel_sort.hpp"
 #include "grid/qtm.hpp"
+#include "measure/edge_solver.hpp"
 
 namespace qtmv::write {
 
@@ -41,20 +42,14 @@ struct EdgeTerms {
   EdgeTerms reversed() const { return {0 - area, 0 - rough, 0 - crossings}; }
 };
 
-/// With `length`, the edge's geodesic length too (metres; the same bits as geodesic_length's: the
-/// distance is solved alike whatever else is asked, and the area alike with or without it).
-EdgeTerms edge_terms(const LonLat& from, const LonLat& to, double* length = nullptr) {
-  static const GeographicLib::Geodesic& earth = GeographicLib::Geodesic::WGS84();
-  static const double m2_per_steradian = earth.EllipsoidArea() / (4 * grid::kPi);
-  double s12 = 0, azi1 = 0, azi2 = 0, m12 = 0, M12 = 0, M21 = 0, S12 = 0;
-  const unsigned distance = GeographicLib::Geodesic::DISTANCE;
-  const unsigned mask = GeographicLib::Geodesic::AREA | (length ? distance : 0u);
-  earth.GenInverse(from.lat, from.lon, to.lat, to.lon, mask, s12, azi1, azi2, m12, M12, M21, S12);
-  if (length) *length = s12;
+/// The terms of the edge from -> to, whose S12 the solver gave (`units`).
+EdgeTerms edge_terms(const LonLat& from, const LonLat& to, const measure::EdgeUnits& units) {
+  static const double m2_per_steradian =
+      GeographicLib::Geodesic::WGS84().EllipsoidArea() / (4 * grid::kPi);
   const double rough = (to.lon - from.lon) * grid::kDegree * 0.5 *
                        (std::sin(from.lat * grid::kDegree) + std::sin(to.lat * grid::kDegree)) * m2_per_steradian;
   EdgeTerms t;
-  t.area = static_cast<std::uint64_t>(std::llround(S12 / kAreaUnit));
+  t.area = static_cast<std::uint64_t>(units.area);
   t.rough = static_cast<std::uint64_t>(std::llround(rough));
   t.crossings = static_cast<std::uint64_t>(static_cast<std::int64_t>(transit(from.lon, to.lon)));
   return t;
@@ -64,11 +59,13 @@ EdgeTerms edge_terms(const LonLat& from, const LonLat& to, double* length = null
 
 /// Every site's sums, shared by the threads.
 struct RegionAreaSums::Sums {
-  Sums(std::size_t sites, bool lengths) : area(sites), rough(sites), crossings(sites), lengths(lengths) {
+  Sums(std::size_t sites, bool lengths, int cuda_device)
+      : area(sites), rough(sites), crossings(sites), lengths(lengths), solver(cuda_device) {
     for (std::size_t s = 0; s < sites; ++s) area[s] = rough[s] = crossings[s] = 0;
   }
   std::vector<std::atomic<std::uint64_t>> area, rough, crossings;
   const bool lengths;
+  const measure::EdgeSolver solver;
   std::mutex pair_lock;
   std::vector<PairLength> pairs;  // the threads' partial sums, any order
 };
@@ -77,13 +74,26 @@ namespace {
 
 using SiteSums = RegionAreaSums::Sums;
 
-/// A thread's recent sites' sums, added to the shared ones when a slot is taken by another site
-/// and at the end: consecutive outline cells mostly border the same few sites, and a few hundred
-/// sites' sums in shared atomics would be fought over by every core.
+/// A thread's edges, solved in batches (EdgeSolver), and its recent sites' sums, added to the
+/// shared ones when a slot is taken by another site and at the end: consecutive outline cells
+/// mostly border the same few sites, and a few hundred sites' sums in shared atomics would be
+/// fought over by every core.
 class SumCache : public RegionEdgeObserver::Local {
  public:
-  explicit SumCache(SiteSums& shared) : shared_(shared) {}
-  ~SumCache() override {
+  explicit SumCache(SiteSums& shared) : shared_(shared) {
+    pending_.reserve(measure::EdgeSolver::kBatchEdges);
+    ends_.reserve(measure::EdgeSolver::kBatchEdges);
+  }
+  void edge(std::int32_t site, const LonLat& from, const LonLat& to, std::int32_t other) override {
+    // A border edge counts for its site; an edge between two sites is solved by the lower
+    // site's cell, for both.
+    if (other != kBorderEdge && other < site) return;
+    pending_.push_back({site, other});
+    ends_.push_back({from, to});
+    if (pending_.size() == measure::EdgeSolver::kBatchEdges) solve_pending();
+  }
+  void finish() override {
+    solve_pending();
     for (Slot& s : slots_) flush(s);
     if (!shared_.lengths) return;
     for (const PairLength& p : pair_slots_) {
@@ -91,19 +101,6 @@ class SumCache : public RegionEdgeObserver::Local {
     }
     const std::lock_guard<std::mutex> hold(shared_.pair_lock);
     shared_.pairs.insert(shared_.pairs.end(), partial_pairs_.begin(), partial_pairs_.end());
-  }
-  void edge(std::int32_t site, const LonLat& from, const LonLat& to, std::int32_t other) override {
-    if (other == kBorderEdge) {
-      add(site, edge_terms(from, to));
-    } else if (other > site) {  // an edge between two sites: solved by the lower site's cell, for both
-      double length = 0;
-      const EdgeTerms t = edge_terms(from, to, shared_.lengths ? &length : nullptr);
-      add(site, t);
-      add(other, t.reversed());
-      if (shared_.lengths) {
-        add_length(static_cast<std::uint64_t>(site) << 32 | static_cast<std::uint32_t>(other), length_units(length));
-      }
-    }
   }
 
  private:
@@ -127,6 +124,23 @@ class SumCache : public RegionEdgeObserver::Local {
     }
     slot.units += units;
   }
+  void solve_pending() {
+    units_.resize(ends_.size());
+    shared_.solver.solve(ends_.data(), ends_.size(), units_.data());
+    for (std::size_t k = 0; k < pending_.size(); ++k) {
+      const auto [site, other] = pending_[k];
+      const EdgeTerms t = edge_terms(ends_[k].from, ends_[k].to, units_[k]);
+      add(site, t);
+      if (other == kBorderEdge) continue;
+      add(other, t.reversed());
+      if (shared_.lengths) {
+        add_length(static_cast<std::uint64_t>(site) << 32 | static_cast<std::uint32_t>(other),
+                   static_cast<std::uint64_t>(units_[k].length));
+      }
+    }
+    pending_.clear();
+    ends_.clear();
+  }
   static constexpr std::size_t kSlots = 512;
   struct Slot {
     std::int32_t site = -1;
@@ -143,6 +157,12 @@ class SumCache : public RegionEdgeObserver::Local {
   }
   SiteSums& shared_;
   Slot slots_[kSlots];
+  struct Sides {
+    std::int32_t site, other;
+  };
+  std::vector<Sides> pending_;  // the edges not solved yet: their sites, and their ends
+  std::vector<measure::EdgeEnds> ends_;
+  std::vector<measure::EdgeUnits> units_;
 };
 
 /// A region's area from its sums: PolygonArea's reduction of the S12 sum (modulo the ellipsoid's
@@ -160,8 +180,8 @@ double settle(std::uint64_t area_sum, std::uint64_t rough_sum, std::uint64_t cro
 
 }  // namespace
 
-RegionAreaSums::RegionAreaSums(std::int32_t site_count, bool pair_lengths)
-    : sums_(std::make_unique<Sums>(static_cast<std::size_t>(site_count), pair_lengths)) {}
+RegionAreaSums::RegionAreaSums(std::int32_t site_count, bool pair_lengths, int cuda_device)
+    : sums_(std::make_unique<Sums>(static_cast<std::size_t>(site_count), pair_lengths, cuda_device)) {}
 
 RegionAreaSums::~RegionAreaSums() = default;
 
@@ -191,10 +211,10 @@ std::vector<PairLength> RegionAreaSums::pair_lengths() const {
   return out;
 }
 
-std::vector<double> region_areas(const label::Outlines& outlines) {
+std::vector<double> region_areas(const label::Outlines& outlines, int cuda_device) {
   const label::OutlineCells& cells = outlines.cells;
   const auto n = static_cast<std::int64_t>(cells.size());
-  RegionAreaSums sums(outlines.site_count);
+  RegionAreaSums sums(outlines.site_count, false, cuda_device);
   FirstException failure;
 #pragma omp parallel
   {
@@ -208,15 +228,15 @@ std::vector<double> region_areas(const label::Outlines& outlines) {
                            [&](const LonLat& from, const LonLat& to, std::int32_t other) { cache->edge(site, from, to, other); });
       });
     }
+    failure.run([&] { cache->finish(); });
   }
   failure.rethrow();
   return sums.areas(outlines.cells_per_site);
 }
 
 double geodesic_length(const LonLat& a, const LonLat& b) {
-  double s12 = 0;
-  GeographicLib::Geodesic::WGS84().Inverse(a.lat, a.lon, b.lat, b.lon, s12);
-  return s12;
+  static const measure::Ellipsoid wgs84 = measure::wgs84_ellipsoid();
+  return measure::geodesic_inverse(wgs84, a.lat, a.lon, b.lat, b.lon).s12;
 }
 
 }  // namespace qtmv::write

@@ -1,5 +1,5 @@
-// Geodesic measures of the vector outputs on the WGS84 ellipsoid (GeographicLib): the regions'
-// areas (area_m2) and the Voronoi edges' lengths (length_m).
+// Geodesic measures of the vector outputs on the WGS84 ellipsoid: the regions' areas (area_m2)
+// and the Voronoi edges' lengths (length_m).
 //
 // A region's area is that of the region whose cell vertices are joined by geodesics: the cells
 // then tile the ellipsoid exactly, so the areas add up to its area. It is the area GeographicLib's
@@ -9,7 +9,8 @@
 // equator (S12), reduced modulo the ellipsoid's area with the ring's crossings of the prime
 // meridian. Those sums add over all rings of a region, and an edge between two regions counts for
 // both with opposite signs, so every cell edge between sites is solved once, straight from the
-// outline cells, without the traced rings.
+// outline cells, without the traced rings. The geodesics are solved in batches by
+// measure::EdgeSolver, on the CPU or on a GPU with the same bits (measure/geodesic_math.hpp).
 #pragma once
 
 #include <cmath>
@@ -18,17 +19,16 @@
 #include <vector>
 
 #include "label/outline_cells.hpp"
+#include "measure/edge_units.hpp"
 #include "write/region_tracer.hpp"
 
 namespace qtmv::write {
 
 /// The resolution (metres) of the sums of edge lengths per pair of sites (PairLength).
-constexpr double kLengthUnit = 1.0 / (1 << 30);
+using measure::kLengthUnit;
 
-/// `metres` in kLengthUnit, rounded.
-inline std::uint64_t length_units(double metres) {
-  return static_cast<std::uint64_t>(std::llround(metres / kLengthUnit));
-}
+/// `metres` in kLengthUnit, rounded as the edges' lengths are (measure::length_units).
+inline std::uint64_t length_units(double metres) { return static_cast<std::uint64_t>(measure::length_units(metres)); }
 
 /// The cell edges between sites a < b (site ids; key = a << 32 | b, as the voronoi_edges layer
 /// keys its pairs): their geodesic lengths summed in fixed point (kLengthUnit), so that the sum
@@ -44,8 +44,9 @@ class RegionAreaSums : public RegionEdgeObserver {
  public:
   /// With `pair_lengths`, each edge between two sites also gives its geodesic length (the same
   /// solution as its area), summed per pair; not the edges on the cut at +-180, which the pass
-  /// sees as borders.
-  explicit RegionAreaSums(std::int32_t site_count, bool pair_lengths = false);
+  /// sees as borders. `cuda_device`: the CUDA device that solves the geodesics, -1 for the CPU
+  /// (the same sums either way); throws std::runtime_error when it cannot be used.
+  explicit RegionAreaSums(std::int32_t site_count, bool pair_lengths = false, int cuda_device = -1);
   ~RegionAreaSums() override;
   std::unique_ptr<Local> local() override;
   /// Areas (square metres) of the regions, from the edges seen; 0 for a site whose
@@ -64,12 +65,14 @@ class RegionAreaSums : public RegionEdgeObserver {
 /// Areas (square metres) of the regions of all sites (outlines.site_count of them; 0 for a site
 /// without cells) on all cores, from the outline cells (whole level). Deterministic: the edges'
 /// areas are added in fixed point (kAreaUnit), so the result does not depend on the threads.
-std::vector<double> region_areas(const label::Outlines& outlines);
+/// `cuda_device` as RegionAreaSums'.
+std::vector<double> region_areas(const label::Outlines& outlines, int cuda_device = -1);
 
 /// The resolution (square metres) of the sums behind region_areas.
-constexpr double kAreaUnit = 1.0 / 1024;
+using measure::kAreaUnit;
 
-/// Geodesic length (metres) of the segment between two points (degrees).
+/// Geodesic length (metres) of the segment between two points (degrees): the solution of the
+/// regions' pass (measure::geodesic_inverse).
 double geodesic_length(const LonLat& a, const LonLat& b);
 
 }  // namespace qtmv::write

@@ -319,7 +319,9 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertice
         visit_region_edges(outlines, static_cast<std::size_t>(k), add);
       });
     }
-    seen.reset();  // a view may hand its sums over on the way out
+    failure.run([&] {
+      if (seen) seen->finish();
+    });
   }
   failure.rethrow();
   done(0.5);

@@ -57,6 +57,8 @@ class RegionEdgeObserver {
     /// The edge from -> to (degrees) of the region of `site`, on its left; `other` is the site
     /// across it, or kBorderEdge (visit_region_edges' arguments).
     virtual void edge(std::int32_t site, const LonLat& from, const LonLat& to, std::int32_t other) = 0;
+    /// After the thread's last edge: what the view still holds is handed over (may throw).
+    virtual void finish() {}
   };
   /// A view for one more thread (called on that thread; may be called concurrently).
   virtual std::unique_ptr<Local> local() = 0;

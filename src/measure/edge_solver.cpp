@@ -1,0 +1,21 @@
+#include "measure/edge_solver.hpp"
+
+#include "measure/edge_solver_cuda.hpp"
+
+namespace qtmv::measure {
+
+EdgeSolver::EdgeSolver(int cuda_device) : ellipsoid_(wgs84_ellipsoid()) {
+  if (cuda_device >= 0) lanes_ = std::make_unique<cuda::EdgeLanes>(cuda_device, ellipsoid_, kBatchEdges);
+}
+
+EdgeSolver::~EdgeSolver() = default;
+
+void EdgeSolver::solve(const EdgeEnds* edges, std::size_t count, EdgeUnits* out) const {
+  if (lanes_) {
+    lanes_->solve(edges, count, out);
+    return;
+  }
+  for (std::size_t k = 0; k < count; ++k) out[k] = edge_units(ellipsoid_, edges[k]);
+}
+
+}  // namespace qtmv::measure

@@ -1,0 +1,42 @@
+// Batches of cell edges' geodesics (edge_units.hpp) solved on the CPU or on one CUDA device, with
+// the same bits either way: the writer's regions' areas and Voronoi edges' lengths.
+#pragma once
+
+#include <cstddef>
+#include <memory>
+
+#include "measure/edge_units.hpp"
+
+namespace qtmv::measure {
+
+namespace cuda {
+class EdgeLanes;
+}
+
+class EdgeSolver {
+ public:
+  /// Edges a caller should gather per solve() call: enough to keep a GPU's launch and copies
+  /// (tens of microseconds) small beside the work.
+  static constexpr std::size_t kBatchEdges = std::size_t{1} << 16;
+
+  /// `cuda_device`: the ordinal of the CUDA device that solves the batches; -1: the CPU, each
+  /// batch on the thread that passes it. Throws std::runtime_error when the device cannot be
+  /// used (or the build has no CUDA).
+  explicit EdgeSolver(int cuda_device = -1);
+  ~EdgeSolver();
+  EdgeSolver(const EdgeSolver&) = delete;
+  EdgeSolver& operator=(const EdgeSolver&) = delete;
+
+  /// The measures of edges[0, count) into out[0, count). Safe to call from several threads at
+  /// once. Throws std::runtime_error on a CUDA error.
+  void solve(const EdgeEnds* edges, std::size_t count, EdgeUnits* out) const;
+
+  bool on_device() const { return lanes_ != nullptr; }
+  const Ellipsoid& ellipsoid() const { return ellipsoid_; }
+
+ private:
+  Ellipsoid ellipsoid_;
+  std::unique_ptr<cuda::EdgeLanes> lanes_;
+};
+
+}  // namespace qtmv::measure

@@ -1,11 +1,18 @@
 #include "measure/edge_solver.hpp"
 
+#include <stdexcept>
+
 #include "measure/edge_solver_cuda.hpp"
 
 namespace qtmv::measure {
 
-EdgeSolver::EdgeSolver(int cuda_device) : ellipsoid_(wgs84_ellipsoid()) {
-  if (cuda_device >= 0) lanes_ = std::make_unique<cuda::EdgeLanes>(cuda_device, ellipsoid_, kBatchEdges);
+EdgeSolver::EdgeSolver(int cuda_device, std::string* problem) : ellipsoid_(wgs84_ellipsoid()) {
+  if (cuda_device < 0) return;
+  try {
+    lanes_ = std::make_unique<cuda::EdgeLanes>(cuda_device, ellipsoid_, kBatchEdges);
+  } catch (const std::runtime_error& e) {
+    if (problem) *problem = e.what();
+  }
 }
 
 EdgeSolver::~EdgeSolver() = default;

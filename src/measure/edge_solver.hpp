@@ -4,6 +4,7 @@
 
 #include <cstddef>
 #include <memory>
+#include <string>
 
 #include "measure/edge_units.hpp"
 
@@ -20,9 +21,10 @@ class EdgeSolver {
   static constexpr std::size_t kBatchEdges = std::size_t{1} << 16;
 
   /// `cuda_device`: the ordinal of the CUDA device that solves the batches; -1: the CPU, each
-  /// batch on the thread that passes it. Throws std::runtime_error when the device cannot be
-  /// used (or the build has no CUDA).
-  explicit EdgeSolver(int cuda_device = -1);
+  /// batch on the thread that passes it. A device that cannot be used (none, no memory left, a
+  /// build without CUDA) leaves the batches to the CPU, with the same results: `problem` (may
+  /// be null) then gets the reason.
+  explicit EdgeSolver(int cuda_device = -1, std::string* problem = nullptr);
   ~EdgeSolver();
   EdgeSolver(const EdgeSolver&) = delete;
   EdgeSolver& operator=(const EdgeSolver&) = delete;

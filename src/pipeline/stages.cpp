@@ -220,6 +220,7 @@ double write_stage(const std::string& path, const std::string& destination, cons
     } else {
       write::VectorOptions vector_options = plan.vector;
       vector_options.progress = write_progress;
+      vector_options.messages = messages;
       // The cells layer: every cell's labels again, tile by tile, as the layer writes them.
       const write::CellTileSource cell_tiles = [&](const std::function<void(const write::CellTile&)>& sink) {
         label::LabelOptions label_options = plan.label;

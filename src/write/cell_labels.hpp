@@ -92,6 +92,7 @@ class DenseLabelSource : public CellLabelSource {
 // The run's plumbing (common/run_context.hpp): a progress callback returning false stops the
 // writing with Interrupted, and what was written is removed.
 using qtmv::Interrupted;
+using qtmv::MessageSink;
 using qtmv::ProgressFunc;
 
 /// A writing error: the message names the destination, the layer or band, and GDAL's reason.
@@ -116,8 +117,10 @@ struct VectorOptions : VectorLayers {
   std::string driver = "GPKG";  ///< OGR driver short name
   ProgressFunc progress;        ///< may be empty
   /// The CUDA device that solves the regions' geodesics (their areas, the Voronoi edges'
-  /// lengths); -1: the CPU. The same values either way.
+  /// lengths); -1: the CPU. The same values either way: a device that cannot be used leaves
+  /// them to the CPU, with a warning to `messages`.
   int geodesic_device = -1;
+  MessageSink messages;  ///< may be empty
 };
 
 /// What a raster output holds: the options a caller of the pipeline gives.

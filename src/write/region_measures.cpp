@@ -23,6 +23,13 @@ using GeographicLib::Math;
 /// westwards, else 0: PolygonArea's rule (its private `transit`), so that the crossings, and
 /// hence the areas of rings around a pole, come out as PolygonArea counts them.
 int transit(double lon1, double lon2) {
+  // Cell vertices lie in [-180, 180]. Off the cut at +-180, an edge shorter than 179 degrees of
+  // longitude (every one but a few at level 0) has AngDiff's sign in the plain difference, and
+  // AngNormalize leaves its ends as they are: the rule without its three remainders.
+  const double d = lon2 - lon1;
+  if (std::fabs(lon1) < 180 && std::fabs(lon2) < 180 && std::fabs(d) < 179) {
+    return d > 0 && ((lon1 < 0 && lon2 >= 0) || (lon1 > 0 && lon2 == 0)) ? 1 : (d < 0 && lon1 >= 0 && lon2 < 0) ? -1 : 0;
+  }
   const double lon12 = Math::AngDiff(lon1, lon2);
   lon1 = Math::AngNormalize(lon1);
   lon2 = Math::AngNormalize(lon2);
@@ -59,8 +66,8 @@ EdgeTerms edge_terms(const LonLat& from, const LonLat& to, const measure::EdgeUn
 
 /// Every site's sums, shared by the threads.
 struct RegionAreaSums::Sums {
-  Sums(std::size_t sites, bool lengths, int cuda_device)
-      : area(sites), rough(sites), crossings(sites), lengths(lengths), solver(cuda_device) {
+  Sums(std::size_t sites, bool lengths, int cuda_device, std::string* device_problem)
+      : area(sites), rough(sites), crossings(sites), lengths(lengths), solver(cuda_device, device_problem) {
     for (std::size_t s = 0; s < sites; ++s) area[s] = rough[s] = crossings[s] = 0;
   }
   std::vector<std::atomic<std::uint64_t>> area, rough, crossings;
@@ -180,8 +187,8 @@ double settle(std::uint64_t area_sum, std::uint64_t rough_sum, std::uint64_t cro
 
 }  // namespace
 
-RegionAreaSums::RegionAreaSums(std::int32_t site_count, bool pair_lengths, int cuda_device)
-    : sums_(std::make_unique<Sums>(static_cast<std::size_t>(site_count), pair_lengths, cuda_device)) {}
+RegionAreaSums::RegionAreaSums(std::int32_t site_count, bool pair_lengths, int cuda_device, std::string* device_problem)
+    : sums_(std::make_unique<Sums>(static_cast<std::size_t>(site_count), pair_lengths, cuda_device, device_problem)) {}
 
 RegionAreaSums::~RegionAreaSums() = default;
 

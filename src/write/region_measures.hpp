@@ -16,6 +16,7 @@
 #include <cmath>
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "label/outline_cells.hpp"
@@ -45,8 +46,10 @@ class RegionAreaSums : public RegionEdgeObserver {
   /// With `pair_lengths`, each edge between two sites also gives its geodesic length (the same
   /// solution as its area), summed per pair; not the edges on the cut at +-180, which the pass
   /// sees as borders. `cuda_device`: the CUDA device that solves the geodesics, -1 for the CPU
-  /// (the same sums either way); throws std::runtime_error when it cannot be used.
-  explicit RegionAreaSums(std::int32_t site_count, bool pair_lengths = false, int cuda_device = -1);
+  /// (the same sums either way; a device that cannot be used leaves them to the CPU, and
+  /// `device_problem`, which may be null, gets the reason).
+  explicit RegionAreaSums(std::int32_t site_count, bool pair_lengths = false, int cuda_device = -1,
+                          std::string* device_problem = nullptr);
   ~RegionAreaSums() override;
   std::unique_ptr<Local> local() override;
   /// Areas (square metres) of the regions, from the edges seen; 0 for a site whose

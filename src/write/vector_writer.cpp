@@ -540,6 +540,7 @@ struct Input {
   std::int32_t site_count;
   bool all_ring_vertices;  ///< VectorOptions::all_ring_vertices
   int geodesic_device;     ///< VectorOptions::geodesic_device
+  const MessageSink& messages;
 
   /// Composite sites (several source layers): every layer says which layer its sites came from.
   bool composite() const { return table.source_count() > 1; }
@@ -652,7 +653,13 @@ void write_regions(Writer& w, const Input& in, double work, std::vector<PairLeng
   StepTrace trace;
   const RingVertices vertices = in.all_ring_vertices ? RingVertices::all : RingVertices::corners;
   // The areas are summed in the tracer's pass over the outline cells, edge by edge.
-  RegionAreaSums area_sums(in.site_count, pair_lengths != nullptr, in.geodesic_device);
+  std::string device_problem;
+  RegionAreaSums area_sums(in.site_count, pair_lengths != nullptr, in.geodesic_device, &device_problem);
+  if (!device_problem.empty()) {
+    qtmv::tell(in.messages, qtmv::Severity::warning,
+         "the regions' geodesics are solved on the CPU instead of cuda:" + std::to_string(in.geodesic_device) + " (" +
+             device_problem + ")");
+  }
   const RegionTracer tracer(in.outlines, vertices, [&](double f) { w.layer_progress(0.4 * f, 1.0); }, &area_sums);
   const std::vector<double> areas = area_sums.areas(in.outlines.cells_per_site);
   if (pair_lengths) *pair_lengths = area_sums.pair_lengths();
@@ -936,7 +943,8 @@ void write_vector(const std::string& path, const label::Outlines& outlines, cons
   const bool want_cells = std::find(layers.begin(), layers.end(), "cells") != layers.end();
   if (want_cells && !cell_tiles) throw std::invalid_argument("write_vector: the cells layer needs the cells' labels");
   const Code cells = grid::cell_count(outlines.level);
-  const Input in{outlines, cell_tiles, table, site_count, options.all_ring_vertices, options.geodesic_device};
+  const Input in{outlines, cell_tiles, table, site_count, options.all_ring_vertices, options.geodesic_device,
+                 options.messages};
   std::uint64_t boundary_count = 0;
   const auto outline_cells = static_cast<std::int64_t>(outlines.cells.size());
 #pragma omp parallel for schedule(static) reduction(+ : boundary_count)

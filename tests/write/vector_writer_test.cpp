@@ -21,6 +21,7 @@
 #include "geodesic_reference.hpp"
 #include "grid/qtm.hpp"
 #include "label/synthetic_sites.hpp"
+#include "label/label_cuda.hpp"
 #include "label/labeller.hpp"
 #include "write/gpkg_rows.hpp"
 #include "write/vector_writer.hpp"
@@ -769,6 +770,36 @@ TEST_F(VectorTest, GeoPackageDirectRowsAreWhatOgrWrites) {
     dated.table.set_source(with_day, "memory", "dated");
     expect_same_as_ogr(dated.labels(), dated.table, options);
   }
+}
+
+TEST_F(VectorTest, GeodesicsOnAGpuOrNotGiveTheCpusFile) {
+  // The regions' areas and the Voronoi edges' lengths solved on the first GPU (on the GPU
+  // machine) are the CPU's to the bit: the same rows. A device that cannot be used (here an
+  // ordinal past the host's) leaves them to the CPU, with a warning naming it.
+  const Scene scene = make_scene(6, 60, 9);
+  CPLConfigOptionSetter fixed_date("OGR_CURRENT_DATE", "2026-11-22T00:00:00.000Z", false);
+  const auto dump_with = [&](int device, std::vector<std::string>* warnings) {
+    const TempPath out("geodesic_device_" + std::to_string(device) + ".gpkg");
+    VectorOptions options;
+    options.layers = {"regions", "voronoi_edges"};
+    options.geodesic_device = device;
+    options.messages = [&](qtmv::Severity severity, const std::string& message) {
+      if (severity == qtmv::Severity::warning) warnings->push_back(message);
+    };
+    write_vector(out.path, scene.labels(), scene.table, options);
+    return gpkg_dump(out.path);
+  };
+  std::vector<std::string> warnings;
+  const std::vector<std::string> cpu = dump_with(-1, &warnings);
+  EXPECT_TRUE(warnings.empty());
+  const int devices = label::cuda::device_count();
+  if (devices > 0) {
+    EXPECT_EQ(dump_with(0, &warnings), cpu);
+    EXPECT_TRUE(warnings.empty());
+  }
+  EXPECT_EQ(dump_with(devices, &warnings), cpu);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("on the CPU instead of cuda:" + std::to_string(devices)), std::string::npos) << warnings[0];
 }
 
 TEST_F(VectorTest, GeoPackageDirectRowsOnlyWhereTheyApply) {

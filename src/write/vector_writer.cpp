@@ -660,10 +660,16 @@ void write_regions(Writer& w, const Input& in, double work, std::vector<PairLeng
          "the regions' geodesics are solved on the CPU instead of cuda:" + std::to_string(in.geodesic_device) + " (" +
              device_problem + ")");
   }
-  const RegionTracer tracer(in.outlines, vertices, [&](double f) { w.layer_progress(0.4 * f, 1.0); }, &area_sums);
+  const auto tracer_step = [&](double f) {
+    // RegionTracer's steps end at 0.5 (gathered, measured), 0.6 (bucketed by site), 1 (sorted).
+    if (f == 0.5) trace("regions' edges gathered, measured");
+    if (f == 0.6) trace("regions' edges bucketed");
+    w.layer_progress(0.4 * f, 1.0);
+  };
+  const RegionTracer tracer(in.outlines, vertices, tracer_step, &area_sums);
   const std::vector<double> areas = area_sums.areas(in.outlines.cells_per_site);
   if (pair_lengths) *pair_lengths = area_sums.pair_lengths();
-  trace("regions' edges gathered, measured");
+  trace("regions' edges sorted, areas");
 
   w.begin_features();
   // Direct GeoPackage rows: the union's fields, then site_layer, site_fid, cells, area_m2.

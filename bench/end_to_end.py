@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """The end-to-end benchmark: qtmvoronoi as a user runs it, process start to exit.
 
-Each case runs the tool `--repeat` times; the table gives the median wall time, the peak host
+Each case runs the tool `--repeat` times, each run with its destination removed and the page
+cache's writes flushed before it (outside the timing: see settle); the table gives the median wall time, the peak host
 memory (the child's maximum resident set, from wait4) and the stage times of the tool's summary
 line (read / label / write). Ratios are taken within one run of this script, on one machine.
 
@@ -25,6 +26,7 @@ import math
 import os
 import random
 import re
+import shutil
 import statistics
 import sqlite3
 import hashlib
@@ -76,6 +78,17 @@ def even_points(path, n=135233, seed=135233):
             z = rng.uniform(-1.0, 1.0)
             lon = rng.uniform(-180.0, 180.0)
             f.write("%d,%.7f,%.7f\n" % (k, lon, math.degrees(math.asin(z))))
+
+
+def settle(path):
+    """Before a timed run, outside its time: the previous run's output removed and the page cache's
+    writes flushed, so that a run pays neither for deleting the file it replaces nor for writing
+    back the one before (seconds at the finer levels: bench/RESULTS.md, session 12)."""
+    if os.path.isdir(path):
+        shutil.rmtree(path)
+    elif os.path.exists(path):
+        os.remove(path)
+    os.sync()
 
 
 def run_once(command):
@@ -175,7 +188,10 @@ def main():
                 command += ["-l", layer, os.path.join(args.data, file), out]
             else:
                 command += CSV_OPTIONS + [inputs[source], out]
-            runs = [run_once(command) for _ in range(args.repeat)]
+            runs = []
+            for _ in range(args.repeat):
+                settle(command[-1])
+                runs.append(run_once(command))
             failed = [r for r in runs if r[2] != 0]
             if failed:
                 print("| %s | %s | failed (exit %d): %s |" % (name, device, failed[0][2], failed[0][3].strip().splitlines()[-1]))

@@ -24,6 +24,7 @@ struct SiteEdge {
   std::int32_t site;
   Edge edge;
 };
+using SiteEdgeList = std::vector<SiteEdge, HugePageAllocator<SiteEdge>>;
 
 
 /// Angle (radians, in (0, 2 pi]) turned clockwise from direction d to direction t.
@@ -299,11 +300,11 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertice
 
   // Boundary edges of every region with their site, each thread's in a list of its own.
   const int team = thread_count(0);
-  std::vector<std::vector<SiteEdge>> parts(static_cast<std::size_t>(team));
+  std::vector<SiteEdgeList> parts(static_cast<std::size_t>(team));
   FirstException failure;
 #pragma omp parallel num_threads(team)
   {
-    std::vector<SiteEdge>& local = parts[static_cast<std::size_t>(thread_index())];
+    SiteEdgeList& local = parts[static_cast<std::size_t>(thread_index())];
     std::unique_ptr<RegionEdgeObserver::Local> seen;
     failure.run([&] {
       if (observer) seen = observer->local();
@@ -347,23 +348,24 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertice
   }
   start[sites] = at;
   // Not zeroed (gigabytes at the finer levels, on one core): every slot is written below, on all cores.
-  std::unique_ptr<Edge[]> edges(new Edge[at]);
+  EdgeList edges;
+  edges.resize(at);
 #pragma omp parallel for schedule(static, 1)
   for (std::int64_t t = 0; t < static_cast<std::int64_t>(threads); ++t) {
     std::vector<std::size_t>& next = place[static_cast<std::size_t>(t)];
     for (const SiteEdge& e : parts[static_cast<std::size_t>(t)]) edges[next[static_cast<std::size_t>(e.site)]++] = e.edge;
-    std::vector<SiteEdge>().swap(parts[static_cast<std::size_t>(t)]);
+    SiteEdgeList().swap(parts[static_cast<std::size_t>(t)]);
   }
   done(0.6);
   // The largest sites' edges sorted on all cores, the others one site a thread.
   const std::size_t big = std::max<std::size_t>(std::size_t{1} << 16, at / 64);
   for (std::size_t s = 0; s < sites; ++s) {
-    if (start[s + 1] - start[s] >= big) parallel_sort(edges.get() + start[s], edges.get() + start[s + 1], edge_less);
+    if (start[s + 1] - start[s] >= big) parallel_sort(edges.data() + start[s], edges.data() + start[s + 1], edge_less);
   }
 #pragma omp parallel for schedule(dynamic, 1)
   for (std::int64_t s = 0; s < static_cast<std::int64_t>(sites); ++s) {
     const auto k = static_cast<std::size_t>(s);
-    if (start[k + 1] - start[k] < big) std::sort(edges.get() + start[k], edges.get() + start[k + 1], edge_less);
+    if (start[k + 1] - start[k] < big) std::sort(edges.data() + start[k], edges.data() + start[k + 1], edge_less);
   }
 
   edges_ = std::move(edges);
@@ -373,7 +375,7 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertice
 
 Region RegionTracer::trace(std::int32_t site) const {
   const auto k = static_cast<std::size_t>(site);
-  return link_rings(edges_.get() + start_[k], start_[k + 1] - start_[k], vertices_);
+  return link_rings(edges_.data() + start_[k], start_[k + 1] - start_[k], vertices_);
 }
 
 std::vector<Region> trace_regions(const label::Outlines& outlines, const std::function<void(double)>& step_done) {

@@ -20,6 +20,7 @@
 #include <memory>
 #include <vector>
 
+#include "common/huge_page_allocator.hpp"
 #include "grid/qtm.hpp"
 #include "label/outline_cells.hpp"
 
@@ -92,7 +93,8 @@ class RegionTracer {
 
  private:
   RingVertices vertices_;
-  std::unique_ptr<Edge[]> edges_;    // every site's edges, site after site
+  using EdgeList = std::vector<Edge, HugePageAllocator<Edge>>;
+  EdgeList edges_;                   // every site's edges, site after site
   std::vector<std::size_t> start_;  // site s's edges: [start_[s], start_[s + 1])
 };
 

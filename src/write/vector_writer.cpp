@@ -999,10 +999,12 @@ void write_vector(const std::string& path, const label::Outlines& outlines, cons
   std::vector<PairLength> pair_lengths;
   for (std::size_t k = 0; k < layers.size(); ++k) {
     const std::string& name = layers[k];
+    trace.restart();
     if (name == "regions") write_regions(writer, in, work[k], lengths_from_regions ? &pair_lengths : nullptr);
     if (name == "boundary_cells") write_boundary_cells(writer, in, work[k], boundary_count);
     if (name == "voronoi_edges") write_voronoi_edges(writer, in, work[k], lengths_from_regions ? &pair_lengths : nullptr);
     if (name == "cells") write_cells(writer, in, work[k]);
+    trace(("layer " + name + ", all told").c_str());
   }
   trace.restart();
   writer.close();

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "cuda_error.hpp"
 #include "measure/edge_solver_cuda.hpp"
 
 namespace qtmv::measure::cuda {
@@ -19,8 +20,7 @@ namespace {
 /// Throws std::runtime_error naming the failed call and its place in the source.
 void check(cudaError_t status, const char* call, const char* file, int line) {
   if (status == cudaSuccess) return;
-  throw std::runtime_error(std::string("CUDA error ") + cudaGetErrorName(status) + " (" + cudaGetErrorString(status) +
-                           ") in " + call + " at " + file + ":" + std::to_string(line));
+  throw std::runtime_error(cuda_error::describe(status, call, file, line));
 }
 #define QTMV_CUDA_CHECK(call) check((call), #call, __FILE__, __LINE__)
 

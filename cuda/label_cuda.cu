@@ -21,6 +21,7 @@
 #include <thread>
 #include <vector>
 
+#include "cuda_error.hpp"
 #include "label/label_engine.hpp"
 #include "label/label_cuda.hpp"
 #include "label/label_tree.hpp"
@@ -35,8 +36,7 @@ namespace {
 /// for a failed allocation (not sticky: the context stays usable).
 void check(cudaError_t status, const char* call, const char* file, int line) {
   if (status == cudaSuccess) return;
-  const std::string what = std::string("CUDA error ") + cudaGetErrorName(status) + " (" +
-                           cudaGetErrorString(status) + ") in " + call + " at " + file + ":" + std::to_string(line);
+  const std::string what = cuda_error::describe(status, call, file, line);
   if (status == cudaErrorMemoryAllocation) {
     (void)cudaGetLastError();  // or the next launch check would report it again
     throw OutOfMemory(what);

@@ -34,7 +34,6 @@ class EdgeSolver {
   void solve(const EdgeEnds* edges, std::size_t count, EdgeUnits* out) const;
 
   bool on_device() const { return lanes_ != nullptr; }
-  const Ellipsoid& ellipsoid() const { return ellipsoid_; }
 
  private:
   Ellipsoid ellipsoid_;

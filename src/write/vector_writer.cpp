@@ -660,10 +660,11 @@ void write_regions(Writer& w, const Input& in, double work, std::vector<PairLeng
          "the regions' geodesics are solved on the CPU instead of cuda:" + std::to_string(in.geodesic_device) + " (" +
              device_problem + ")");
   }
+  int steps_done = 0;  // RegionTracer's steps, in order: gather (and measure), bucket, sort
   const auto tracer_step = [&](double f) {
-    // RegionTracer's steps end at 0.5 (gathered, measured), 0.6 (bucketed by site), 1 (sorted).
-    if (f == 0.5) trace("regions' edges gathered, measured");
-    if (f == 0.6) trace("regions' edges bucketed");
+    ++steps_done;
+    if (steps_done == 1) trace("regions' edges gathered, measured");
+    if (steps_done == 2) trace("regions' edges bucketed");
     w.layer_progress(0.4 * f, 1.0);
   };
   const RegionTracer tracer(in.outlines, vertices, tracer_step, &area_sums);

@@ -232,7 +232,7 @@ std::vector<double> region_areas(const label::Outlines& outlines, int cuda_devic
       failure.run([&] {
         const std::int32_t site = cells[static_cast<std::size_t>(k)].site;
         visit_region_edges(outlines, static_cast<std::size_t>(k),
-                           [&](const LonLat& from, const LonLat& to, std::int32_t other) { cache->edge(site, from, to, other); });
+                           [&](int, const LonLat& from, const LonLat& to, std::int32_t other) { cache->edge(site, from, to, other); });
       });
     }
     failure.run([&] { cache->finish(); });

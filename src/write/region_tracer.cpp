@@ -7,7 +7,6 @@
 #include <string>
 
 #include "common/openmp_threads.hpp"
-#include "common/parallel_sort.hpp"
 #include "grid/qtm_checks.hpp"
 #include "common/first_exception.hpp"
 
@@ -18,13 +17,6 @@ using grid::Cell;
 using grid::Code;
 
 using Edge = RegionTracer::Edge;
-
-/// An edge of the region of `site`.
-struct SiteEdge {
-  std::int32_t site;
-  Edge edge;
-};
-using SiteEdgeList = std::vector<SiteEdge, HugePageAllocator<SiteEdge>>;
 
 
 /// Angle (radians, in (0, 2 pi]) turned clockwise from direction d to direction t.
@@ -289,7 +281,7 @@ double planar_ring_area(const std::vector<LonLat>& ring) {
 
 RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertices,
                            const std::function<void(double)>& step_done, RegionEdgeObserver* observer)
-    : vertices_(vertices) {
+    : level_(outlines.level), vertices_(vertices) {
   const auto done = [&](double fraction) {
     if (step_done) step_done(fraction);
   };
@@ -298,13 +290,14 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertice
   const label::OutlineCells& cells = outlines.cells;
   const auto n = static_cast<std::int64_t>(cells.size());
 
-  // Boundary edges of every region with their site, each thread's in a list of its own.
+  // The outline cells with region edges, each thread's in a list of its own: the cells' indices
+  // in the outlines here (so that bucketing reads each cell's site and code in order).
   const int team = thread_count(0);
-  std::vector<SiteEdgeList> parts(static_cast<std::size_t>(team));
+  std::vector<CellEdgesList> parts(static_cast<std::size_t>(team));
   FirstException failure;
 #pragma omp parallel num_threads(team)
   {
-    SiteEdgeList& local = parts[static_cast<std::size_t>(thread_index())];
+    CellEdgesList& local = parts[static_cast<std::size_t>(thread_index())];
     std::unique_ptr<RegionEdgeObserver::Local> seen;
     failure.run([&] {
       if (observer) seen = observer->local();
@@ -313,11 +306,13 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertice
     for (std::int64_t k = 0; k < n; ++k) {
       failure.run([&] {
         const std::int32_t site = cells[static_cast<std::size_t>(k)].site;
-        const auto add = [&](const LonLat& from, const LonLat& to, std::int32_t other) {
-          local.push_back({site, {from, to}});
+        CellEdges mask = 0;
+        const auto add = [&](int e, const LonLat& from, const LonLat& to, std::int32_t other) {
+          mask |= CellEdges{1} << e;
           if (seen) seen->edge(site, from, to, other);
         };
         visit_region_edges(outlines, static_cast<std::size_t>(k), add);
+        if (mask != 0) local.push_back(static_cast<CellEdges>(k) << kEdgeMaskBits | mask);
       });
     }
     failure.run([&] {
@@ -327,55 +322,59 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertice
   failure.rethrow();
   done(0.5);
 
-  // Bucketed by site (each thread's counts, then their places), and each site's edges sorted
-  // as link_rings needs them: no two edges of a site are equal (a cell edge is drawn once).
+  // Bucketed by site, indices made codes: each thread's counts, then their places.
   const auto sites = static_cast<std::size_t>(outlines.site_count);
   const std::size_t threads = parts.size();
+  constexpr CellEdges kMask = (CellEdges{1} << kEdgeMaskBits) - 1;
+  const auto site_of_entry = [&](CellEdges entry) { return static_cast<std::size_t>(cells[entry >> kEdgeMaskBits].site); };
   std::vector<std::vector<std::size_t>> place(threads, std::vector<std::size_t>(sites + 1, 0));
 #pragma omp parallel for schedule(static, 1)
   for (std::int64_t t = 0; t < static_cast<std::int64_t>(threads); ++t) {
-    for (const SiteEdge& e : parts[static_cast<std::size_t>(t)]) ++place[static_cast<std::size_t>(t)][static_cast<std::size_t>(e.site)];
+    for (const CellEdges e : parts[static_cast<std::size_t>(t)]) ++place[static_cast<std::size_t>(t)][site_of_entry(e)];
   }
   std::vector<std::size_t> start(sites + 1, 0);
   std::size_t at = 0;
   for (std::size_t s = 0; s < sites; ++s) {
     start[s] = at;
     for (std::size_t t = 0; t < threads; ++t) {
-      const std::size_t n = place[t][s];
+      const std::size_t count = place[t][s];
       place[t][s] = at;
-      at += n;
+      at += count;
     }
   }
   start[sites] = at;
   // Not zeroed (gigabytes at the finer levels, on one core): every slot is written below, on all cores.
-  EdgeList edges;
-  edges.resize(at);
+  cells_.resize(at);
 #pragma omp parallel for schedule(static, 1)
   for (std::int64_t t = 0; t < static_cast<std::int64_t>(threads); ++t) {
     std::vector<std::size_t>& next = place[static_cast<std::size_t>(t)];
-    for (const SiteEdge& e : parts[static_cast<std::size_t>(t)]) edges[next[static_cast<std::size_t>(e.site)]++] = e.edge;
-    SiteEdgeList().swap(parts[static_cast<std::size_t>(t)]);
+    for (const CellEdges e : parts[static_cast<std::size_t>(t)]) {
+      const label::OutlineCell& cell = cells[e >> kEdgeMaskBits];
+      cells_[next[static_cast<std::size_t>(cell.site)]++] = cell.code << kEdgeMaskBits | (e & kMask);
+    }
+    CellEdgesList().swap(parts[static_cast<std::size_t>(t)]);
   }
-  done(0.6);
-  // The largest sites' edges sorted on all cores, the others one site a thread.
-  const std::size_t big = std::max<std::size_t>(std::size_t{1} << 16, at / 64);
-  for (std::size_t s = 0; s < sites; ++s) {
-    if (start[s + 1] - start[s] >= big) parallel_sort(edges.data() + start[s], edges.data() + start[s + 1], edge_less);
-  }
-#pragma omp parallel for schedule(dynamic, 1)
-  for (std::int64_t s = 0; s < static_cast<std::int64_t>(sites); ++s) {
-    const auto k = static_cast<std::size_t>(s);
-    if (start[k + 1] - start[k] < big) std::sort(edges.data() + start[k], edges.data() + start[k + 1], edge_less);
-  }
-
-  edges_ = std::move(edges);
   start_ = std::move(start);
   done(1.0);
 }
 
 Region RegionTracer::trace(std::int32_t site) const {
-  const auto k = static_cast<std::size_t>(site);
-  return link_rings(edges_.data() + start_[k], start_[k + 1] - start_[k], vertices_);
+  const auto s = static_cast<std::size_t>(site);
+  // The site's edges drawn again from its cells, and sorted as link_rings needs them (so the rings
+  // do not depend on the order the threads listed the cells in): no two edges of a site are
+  // equal, a cell edge being drawn once.
+  std::vector<Edge> edges;
+  edges.reserve(2 * (start_[s + 1] - start_[s]));
+  for (std::size_t k = start_[s]; k < start_[s + 1]; ++k) {
+    const CellEdges entry = cells_[k];
+    LonLat ring[grid::kMaxPolygonCorners];
+    const int corners = grid::cell_polygon(grid::cell_of(entry >> kEdgeMaskBits, level_), level_, ring);
+    for (int e = 0; e < corners; ++e) {
+      if (entry >> e & 1) edges.push_back({ring[e], ring[(e + 1) % corners]});
+    }
+  }
+  std::sort(edges.begin(), edges.end(), edge_less);
+  return link_rings(edges.data(), edges.size(), vertices_);
 }
 
 std::vector<Region> trace_regions(const label::Outlines& outlines, const std::function<void(double)>& step_done) {

@@ -66,14 +66,17 @@ class RegionEdgeObserver {
 };
 
 /// The regions' boundary edges, gathered from the outline cells (label/outline_cells.hpp) and
-/// sorted per site, from which each region is traced on demand: the edges between sites are
+/// listed per site, from which each region is traced on demand: the edges between sites are
 /// edges of boundary cells, the cuts at +-180 and along the poles' lines edges of row ends; a
 /// neighbour's site comes from label::site_of_near. Work and memory follow the outline cells,
 /// and a writer holds only the regions it is writing.
+///
+/// The lists hold 8 bytes per outline cell with region edges (its code and which of its drawn
+/// edges bound the region); a site's edges are drawn again, sorted and linked when it is traced.
 class RegionTracer {
  public:
   /// Gathers the edges on all cores. `step_done` (may be empty) is called on the calling thread
-  /// after each step (gather, bucket, sort) with the fraction done; it may throw to stop.
+  /// after each step (gather, bucket) with the fraction done; it may throw to stop.
   /// `vertices`: what the rings keep along parallels (runs along meridians, which are geodesics,
   /// keep their ends only).
   /// `observer` (may be null) sees each edge as it is gathered.
@@ -91,11 +94,18 @@ class RegionTracer {
     LonLat from, to;
   };
 
+  /// An outline cell with edges of its site's region: code << kEdgeMaskBits | mask, bit e of the
+  /// mask set when the cell's drawn edge e (drawn_ring) bounds the region.
+  using CellEdges = std::uint64_t;
+  static constexpr int kEdgeMaskBits = grid::kMaxPolygonCorners;
+  static_assert(2 * grid::kMaxLevel + 3 + kEdgeMaskBits <= 64, "a code and its edge mask fit 64 bits");
+
  private:
+  int level_;
   RingVertices vertices_;
-  using EdgeList = std::vector<Edge, HugePageAllocator<Edge>>;
-  EdgeList edges_;                   // every site's edges, site after site
-  std::vector<std::size_t> start_;  // site s's edges: [start_[s], start_[s + 1])
+  using CellEdgesList = std::vector<CellEdges, HugePageAllocator<CellEdges>>;
+  CellEdgesList cells_;              // every site's outline cells with region edges, site after site
+  std::vector<std::size_t> start_;  // site s's: [start_[s], start_[s + 1])
 };
 
 /// All regions at once (RegionTracer with the rings' corners only, then every site on all
@@ -133,7 +143,8 @@ inline bool on_cut(const LonLat& from, const LonLat& to) {
 }
 
 /// Visits the edges of the k-th outline cell, as drawn, that bound its site's region (the region
-/// on their left): visit(from, to, other), `other` the site across the edge or kBorderEdge. Only
+/// on their left): visit(edge, from, to, other), `edge` the edge's index in drawn_ring's ring,
+/// `other` the site across the edge or kBorderEdge. Only
 /// a boundary cell has a neighbour of another site; any cell may have border edges. The regions'
 /// tracing and their areas both walk the outlines by this one rule.
 template <class Visit>
@@ -148,10 +159,10 @@ void visit_region_edges(const label::Outlines& outlines, std::size_t k, const Vi
     const LonLat& from = ring[e];
     const LonLat& to = ring[(e + 1) % corners];
     if (across[e] == kAcrossPoleLine || on_cut(from, to)) {
-      visit(from, to, kBorderEdge);
+      visit(e, from, to, kBorderEdge);
     } else if (outline.boundary) {
       const std::int32_t other = label::site_of_near(outlines.cells, k, nb[across[e]]);
-      if (other != outline.site) visit(from, to, other);
+      if (other != outline.site) visit(e, from, to, other);
     }
   }
 }

@@ -660,17 +660,16 @@ void write_regions(Writer& w, const Input& in, double work, std::vector<PairLeng
          "the regions' geodesics are solved on the CPU instead of cuda:" + std::to_string(in.geodesic_device) + " (" +
              device_problem + ")");
   }
-  int steps_done = 0;  // RegionTracer's steps, in order: gather (and measure), bucket, sort
+  bool gathered = false;  // RegionTracer's steps, in order: gather (and measure), bucket
   const auto tracer_step = [&](double f) {
-    ++steps_done;
-    if (steps_done == 1) trace("regions' edges gathered, measured");
-    if (steps_done == 2) trace("regions' edges bucketed");
+    trace(gathered ? "regions' edges bucketed" : "regions' edges gathered, measured");
+    gathered = true;
     w.layer_progress(0.4 * f, 1.0);
   };
   const RegionTracer tracer(in.outlines, vertices, tracer_step, &area_sums);
   const std::vector<double> areas = area_sums.areas(in.outlines.cells_per_site);
   if (pair_lengths) *pair_lengths = area_sums.pair_lengths();
-  trace("regions' edges sorted, areas");
+  trace("regions' areas");
 
   w.begin_features();
   // Direct GeoPackage rows: the union's fields, then site_layer, site_fid, cells, area_m2.

@@ -10,6 +10,7 @@
 #include "pipeline/staged_output.hpp"
 #include "pipeline/tile_product.hpp"
 #include "sites/fid_list.hpp"
+#include "write/output_size.hpp"
 #include "write/raster_writer.hpp"
 #include "write/vector_writer.hpp"
 
@@ -233,10 +234,16 @@ double write_stage(const std::string& path, const std::string& destination, cons
       // A temporary file, renamed into place only after a clean close, needs no durability
       // while it is written: no fsync, no rollback journal (nothing is rolled back; a failed
       // write is removed). Only where the user has not set these, and never for a direct write.
-      std::unique_ptr<CPLConfigOptionSetter> no_sync, no_journal;
+      // A large file gets SQLite's largest pages (write/output_size.hpp says why).
+      std::unique_ptr<CPLConfigOptionSetter> no_sync, no_journal, page_size;
       if (path != destination) {
         no_sync = std::make_unique<CPLConfigOptionSetter>("OGR_SQLITE_SYNCHRONOUS", "OFF", true);
         no_journal = std::make_unique<CPLConfigOptionSetter>("OGR_SQLITE_JOURNAL", "OFF", true);
+        const std::uint32_t page = write::sqlite_page_size(
+            write::expected_vector_bytes(plan.level, vector_options, labels.outlines.cells.size()));
+        if (page != 0) {
+          page_size = std::make_unique<CPLConfigOptionSetter>("OGR_SQLITE_PRAGMA", ("page_size=" + std::to_string(page)).c_str(), true);
+        }
       }
       write::write_vector(path, labels.outlines, cell_tiles, sites.table, vector_options);
     }

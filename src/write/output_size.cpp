@@ -54,6 +54,12 @@ OutputSize estimate_vector_size(int level, const VectorOptions& options) {
   return out;
 }
 
+std::uint64_t expected_vector_bytes(int level, const VectorOptions& options, std::uint64_t outline_cells) {
+  const bool other_layers = std::any_of(options.layers.begin(), options.layers.end(),
+                                        [](const std::string& name) { return name != "cells"; });
+  return estimate_vector_size(level, options).bytes + (other_layers ? kBytesPerOutlineCell * outline_cells : 0);
+}
+
 std::string format_bytes(double bytes) {
   static const char* const units[] = {"bytes", "kB", "MB", "GB", "TB", "PB", "EB"};
   int unit = 0;

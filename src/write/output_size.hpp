@@ -33,6 +33,27 @@ OutputSize estimate_raster_size(int level, const RasterOptions& options, bool wi
 /// The vector output's size: bytes of its cells layer (0 without one).
 OutputSize estimate_vector_size(int level, const VectorOptions& options);
 
+/// Bytes the vector output's layers other than cells take per outline cell
+/// (label/outline_cells.hpp), at least: about a ring vertex of 16 bytes each (a GeoPackage of the
+/// regions of 135 233 points at level 13 holds 23).
+constexpr std::uint64_t kBytesPerOutlineCell = 16;
+
+/// The vector output's size once labelled (bytes): estimate_vector_size's cells layer, and
+/// kBytesPerOutlineCell for each of `outline_cells` where any other layer is written.
+std::uint64_t expected_vector_bytes(int level, const VectorOptions& options, std::uint64_t outline_cells);
+
+/// A GeoPackage or SQLite output of at least this many bytes gets pages of kLargeSqlitePageSize.
+constexpr std::uint64_t kLargeSqliteFileBytes = std::uint64_t{64} << 20;
+/// SQLite's largest page (bytes): a region of thousands of vertices fits one page instead of a
+/// chain of 4096-byte overflow pages. Measured on the regions of 135 233 points at level 13: the
+/// rows written 2x faster, the file 18% smaller. Small files keep SQLite's 4096 (a table or index
+/// takes a page at least).
+constexpr std::uint32_t kLargeSqlitePageSize = 65536;
+
+/// The page size (bytes) for a new SQLite file (GeoPackage, SQLite) of about `bytes`:
+/// kLargeSqlitePageSize from kLargeSqliteFileBytes up, else 0 (SQLite's default).
+inline std::uint32_t sqlite_page_size(std::uint64_t bytes) { return bytes >= kLargeSqliteFileBytes ? kLargeSqlitePageSize : 0; }
+
 /// Bytes per row of the cells layer for `driver` (a polygon of 4 points and 4 fields).
 std::uint64_t bytes_per_cell_row(const std::string& driver);
 

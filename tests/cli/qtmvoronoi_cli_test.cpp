@@ -619,6 +619,74 @@ TEST(QtmvoronoiLibrary, RunsIntoVsimemWithProgressAndMessages) {
   VSIUnlink(dst.c_str());
 }
 
+/// SQLite's page size of a GeoPackage (bytes).
+long long sqlite_page_size_of(const std::string& path) {
+  const auto ds = open(path, GDAL_OF_VECTOR);
+  if (!ds) return -1;
+  OGRLayer* result = ds->ExecuteSQL("PRAGMA page_size", nullptr, nullptr);
+  if (!result) return -1;
+  const OGRFeatureUniquePtr row(result->GetNextFeature());
+  const long long size = row ? row->GetFieldAsInteger64(0) : -1;
+  ds->ReleaseResultSet(result);
+  return size;
+}
+
+/// Same FID, field values and geometry (as WKB) of two features of different datasets.
+bool same_row(OGRFeature& a, OGRFeature& b) {
+  if (a.GetFID() != b.GetFID() || a.GetFieldCount() != b.GetFieldCount()) return false;
+  for (int f = 0; f < a.GetFieldCount(); ++f) {
+    if (std::string(a.GetFieldAsString(f)) != b.GetFieldAsString(f)) return false;
+  }
+  const OGRGeometry* ga = a.GetGeometryRef();
+  const OGRGeometry* gb = b.GetGeometryRef();
+  if (!ga || !gb) return !ga && !gb;
+  std::vector<unsigned char> wa(ga->WkbSize()), wb(gb->WkbSize());
+  ga->exportToWkb(wkbNDR, wa.data(), wkbVariantIso);
+  gb->exportToWkb(wkbNDR, wb.data(), wkbVariantIso);
+  return wa == wb;
+}
+
+TEST(QtmvoronoiLibrary, LargeGeoPackagesGetSqlitesLargestPagesAndTheSameRows) {
+  const std::string dir = test_dir();
+  qtmv::VoronoiOptions options;
+  options.read.open_options = {"X_POSSIBLE_NAMES=lon", "Y_POSSIBLE_NAMES=lat"};
+  options.device = "cpu";
+  options.vector.layers = {"cells", "regions"};
+  // Level 7's cells layer is about 20 MB, level 8's 79 MB: past write::kLargeSqliteFileBytes.
+  options.level = 7;
+  qtmv::run_voronoi(kCentres, dir + "/small.gpkg", options);
+  EXPECT_EQ(sqlite_page_size_of(dir + "/small.gpkg"), 4096);
+  options.level = 8;
+  qtmv::run_voronoi(kCentres, dir + "/large.gpkg", options);
+  EXPECT_EQ(sqlite_page_size_of(dir + "/large.gpkg"), 65536);
+  {
+    // The user's own pragmas win.
+    const CPLConfigOptionSetter user("OGR_SQLITE_PRAGMA", "page_size=4096", false);
+    qtmv::run_voronoi(kCentres, dir + "/user.gpkg", options);
+  }
+  EXPECT_EQ(sqlite_page_size_of(dir + "/user.gpkg"), 4096);
+  const auto large = open(dir + "/large.gpkg", GDAL_OF_VECTOR), user = open(dir + "/user.gpkg", GDAL_OF_VECTOR);
+  ASSERT_TRUE(large && user);
+  for (const char* name : {"cells", "regions"}) {
+    SCOPED_TRACE(name);
+    OGRLayer* a = large->GetLayerByName(name);
+    OGRLayer* b = user->GetLayerByName(name);
+    ASSERT_TRUE(a && b);
+    ASSERT_EQ(a->GetFeatureCount(), b->GetFeatureCount());
+    EXPECT_GT(a->GetFeatureCount(), 200);
+    std::int64_t different = 0;
+    for (;;) {
+      const OGRFeatureUniquePtr fa(a->GetNextFeature()), fb(b->GetNextFeature());
+      if (!fa || !fb) {
+        EXPECT_EQ(!fa, !fb);
+        break;
+      }
+      if (!same_row(*fa, *fb)) ++different;
+    }
+    EXPECT_EQ(different, 0);
+  }
+}
+
 TEST(QtmvoronoiLibrary, RasterUnderASmallMemoryLimitIsWrittenInManyStripsAndEqualsTheWholeRun) {
   for (const auto layout : {qtmv::write::RasterOptions::Layout::qtm, qtmv::write::RasterOptions::Layout::lonlat}) {
     const bool qtm = layout == qtmv::write::RasterOptions::Layout::qtm;

@@ -48,6 +48,19 @@ TEST(OutputSize, VectorCountsTheCellsLayerOnly) {
   EXPECT_EQ(bytes_per_cell_row("ESRI Shapefile"), 200u);
 }
 
+TEST(OutputSize, ExpectedVectorBytesAddTheOutlinesAndChooseTheSqlitePage) {
+  VectorOptions o;
+  o.layers = {"regions", "voronoi_edges"};
+  EXPECT_EQ(expected_vector_bytes(10, o, 1000), 1000 * kBytesPerOutlineCell);
+  o.layers = {"cells"};
+  EXPECT_EQ(expected_vector_bytes(10, o, 1000), estimate_vector_size(10, o).bytes);
+  o.layers = {"cells", "boundary_cells"};
+  EXPECT_EQ(expected_vector_bytes(10, o, 1000), estimate_vector_size(10, o).bytes + 1000 * kBytesPerOutlineCell);
+  EXPECT_EQ(sqlite_page_size(kLargeSqliteFileBytes - 1), 0u);
+  EXPECT_EQ(sqlite_page_size(kLargeSqliteFileBytes), kLargeSqlitePageSize);
+  EXPECT_EQ(sqlite_page_size(std::uint64_t{1} << 40), 65536u);
+}
+
 TEST(OutputSize, BytesInDecimalUnits) {
   EXPECT_EQ(format_bytes(24e12), "24.0 TB");
   EXPECT_EQ(format_bytes(80.1e9), "80.1 GB");

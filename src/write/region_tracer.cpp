@@ -111,44 +111,40 @@ struct Box {
   }
 };
 
-/// Order of the edges: by start, then end.
-bool edge_less(const Edge& a, const Edge& b) {
-  return point_less(a.from, b.from) || (same_point(a.from, b.from) && point_less(a.to, b.to));
-}
-
-/// The first edge leaving a point, among edges sorted by edge_less: a hash of the points for
-/// long lists (a binary search costs a region of millions of edges most of its walk), a binary
-/// search for short ones. count when no edge leaves the point.
-class FirstEdgeIndex {
+/// The edges leaving each point of a site's edges: a hash of the points (exact bits; a shared
+/// vertex is computed to the same bits from every cell around it), each point's edges chained
+/// in the order given. A point's first edge is its vertex's id.
+class EdgesFrom {
  public:
-  FirstEdgeIndex(const Edge* edges, std::size_t count) : edges_(edges), count_(count) {
-    if (count < kHashFrom) return;
-    std::size_t size = 1;
+  EdgesFrom(const Edge* edges, std::size_t count) : edges_(edges), next_(count, kNone) {
+    std::size_t size = 16;
     while (size < 2 * count) size <<= 1;
     mask_ = size - 1;
     table_.assign(size, kNone);
+    std::vector<std::size_t> last(count, kNone);  // the chain's last edge, kept at its first
     for (std::size_t k = 0; k < count; ++k) {
-      if (k > 0 && same_point(edges[k].from, edges[k - 1].from)) continue;
       std::size_t h = hash(edges[k].from) & mask_;
-      while (table_[h] != kNone) h = (h + 1) & mask_;
-      table_[h] = k;
+      while (table_[h] != kNone && !same_point(edges[table_[h]].from, edges[k].from)) h = (h + 1) & mask_;
+      const std::size_t first = table_[h];
+      if (first == kNone) {
+        table_[h] = last[k] = k;
+      } else {
+        next_[last[first]] = k;
+        last[first] = k;
+      }
     }
   }
-  std::size_t operator()(const LonLat& p) const {
-    if (table_.empty()) {
-      return static_cast<std::size_t>(std::lower_bound(edges_, edges_ + count_, p, [](const Edge& x, const LonLat& q) {
-                                        return point_less(x.from, q);
-                                      }) - edges_);
-    }
+  /// The first edge leaving p, or kNone.
+  std::size_t first(const LonLat& p) const {
     for (std::size_t h = hash(p) & mask_;; h = (h + 1) & mask_) {
       const std::size_t k = table_[h];
-      if (k == kNone) return count_;
-      if (same_point(edges_[k].from, p)) return k;
+      if (k == kNone || same_point(edges_[k].from, p)) return k;
     }
   }
+  /// The edge after k leaving the same point, or kNone.
+  std::size_t next(std::size_t k) const { return next_[k]; }
 
  private:
-  static constexpr std::size_t kHashFrom = 1024;
   static std::uint64_t bits(double x) {
     x += 0.0;  // -0 and +0 are the same point
     std::uint64_t b;
@@ -162,30 +158,29 @@ class FirstEdgeIndex {
     return static_cast<std::size_t>(h * 0xBF58476D1CE4E5B9ull >> 16);
   }
   const Edge* edges_;
-  std::size_t count_;
   std::size_t mask_ = 0;
-  std::vector<std::size_t> table_;
+  std::vector<std::size_t> table_, next_;
 };
 
-/// Links one site's boundary edges, sorted by edge_less (so that the rings come out the same
-/// whatever order the edges came in), into rings and groups them into polygons.
+/// Links one site's boundary edges into rings and groups them into polygons. The edges come in
+/// an order that does not depend on the threads (their cells' code order), and so do the rings.
 Region link_rings(const Edge* edges, std::size_t count, RingVertices parallels) {
   std::vector<char> used(count, 0);
-  const FirstEdgeIndex first_from(edges, count);  // a point's first edge: the vertex's id
+  const EdgesFrom from(edges, count);
   const auto next_edge = [&](std::size_t e, std::size_t first) {
     const LonLat at = edges[e].to;
-    std::size_t best = count;
+    std::size_t best = kNone;
     double best_angle = 1e300;
     // Reverse of the incoming edge; the region lies clockwise from it, so the outgoing edge of
     // the same wedge is the first one met turning clockwise.
     std::size_t unused = 0;
-    for (std::size_t k = first; k < count && same_point(edges[k].from, at); ++k) {
+    for (std::size_t k = first; k != kNone; k = from.next(k)) {
       if (used[k]) continue;
       if (unused++ == 0) best = k;
     }
     if (unused < 2) return best;  // mostly: no choice to make
     const double dx = edges[e].from.lon - at.lon, dy = edges[e].from.lat - at.lat;
-    for (std::size_t k = first; k < count && same_point(edges[k].from, at); ++k) {
+    for (std::size_t k = first; k != kNone; k = from.next(k)) {
       if (used[k]) continue;
       const double angle = clockwise_angle(dx, dy, edges[k].to.lon - at.lon, edges[k].to.lat - at.lat);
       if (angle < best_angle) {
@@ -203,11 +198,11 @@ Region link_rings(const Edge* edges, std::size_t count, RingVertices parallels) 
     if (used[start]) continue;
     walk.clear();
     std::size_t e = start;
-    std::size_t vertex = first_from(edges[start].from);
-    while (e < count && !used[e]) {
+    std::size_t vertex = from.first(edges[start].from);
+    while (e != kNone && !used[e]) {
       used[e] = 1;
       walk.push_back({edges[e].from, vertex});
-      vertex = first_from(edges[e].to);
+      vertex = from.first(edges[e].to);
       e = next_edge(e, vertex);
     }
     for (std::vector<LonLat>& simple : split_at_repeated_vertices(walk, position)) {
@@ -360,20 +355,20 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertice
 
 Region RegionTracer::trace(std::int32_t site) const {
   const auto s = static_cast<std::size_t>(site);
-  // The site's edges drawn again from its cells, and sorted as link_rings needs them (so the rings
-  // do not depend on the order the threads listed the cells in): no two edges of a site are
-  // equal, a cell edge being drawn once.
+  // The site's edges drawn again from its cells, in code order (so that the rings do not depend
+  // on the order the threads listed the cells in).
+  std::vector<CellEdges> cells(cells_.begin() + static_cast<std::ptrdiff_t>(start_[s]),
+                               cells_.begin() + static_cast<std::ptrdiff_t>(start_[s + 1]));
+  std::sort(cells.begin(), cells.end());
   std::vector<Edge> edges;
-  edges.reserve(2 * (start_[s + 1] - start_[s]));
-  for (std::size_t k = start_[s]; k < start_[s + 1]; ++k) {
-    const CellEdges entry = cells_[k];
+  edges.reserve(2 * cells.size());
+  for (const CellEdges entry : cells) {
     LonLat ring[grid::kMaxPolygonCorners];
     const int corners = grid::cell_polygon(grid::cell_of(entry >> kEdgeMaskBits, level_), level_, ring);
     for (int e = 0; e < corners; ++e) {
       if (entry >> e & 1) edges.push_back({ring[e], ring[(e + 1) % corners]});
     }
   }
-  std::sort(edges.begin(), edges.end(), edge_less);
   return link_rings(edges.data(), edges.size(), vertices_);
 }
 

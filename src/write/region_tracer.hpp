@@ -72,7 +72,7 @@ class RegionEdgeObserver {
 /// and a writer holds only the regions it is writing.
 ///
 /// The lists hold 8 bytes per outline cell with region edges (its code and which of its drawn
-/// edges bound the region); a site's edges are drawn again, sorted and linked when it is traced.
+/// edges bound the region); a site's edges are drawn again in code order and linked when it is traced.
 class RegionTracer {
  public:
   /// Gathers the edges on all cores. `step_done` (may be empty) is called on the calling thread

@@ -41,11 +41,24 @@ void GpkgGeometry::u32(std::uint32_t v) {
   bytes_.insert(bytes_.end(), b, b + 4);
 }
 
-void GpkgGeometry::point(const grid::LonLat& p) {
-  unsigned char b[16];
-  put_f64(put_f64(b, p.lon), p.lat);
-  bytes_.insert(bytes_.end(), b, b + 16);
-  envelope_.add(p.lon, p.lat);
+void GpkgGeometry::points(const grid::LonLat* p, std::size_t n, bool closed) {
+  // Sized once, then stored in place: a point is 16 bytes of the blob and the geometries of a
+  // level-15 run hold hundreds of millions of them.
+  const std::size_t count = n + (closed && n > 0 ? 1 : 0);
+  const std::size_t at = bytes_.size();
+  bytes_.resize(at + 4 + 16 * count);
+  unsigned char* out = put_u32(bytes_.data() + at, static_cast<std::uint32_t>(count));
+  for (std::size_t k = 0; k < count; ++k) {
+    const grid::LonLat& q = p[k < n ? k : 0];
+    out = put_f64(put_f64(out, q.lon), q.lat);
+  }
+  if (n == 0) return;
+  GpkgEnvelope box{false, p[0].lon, p[0].lon, p[0].lat, p[0].lat};
+  for (std::size_t k = 1; k < n; ++k) {
+    box.min_x = std::min(box.min_x, p[k].lon), box.max_x = std::max(box.max_x, p[k].lon);
+    box.min_y = std::min(box.min_y, p[k].lat), box.max_y = std::max(box.max_y, p[k].lat);
+  }
+  envelope_.add(box);
 }
 
 void GpkgGeometry::begin(std::uint32_t type, std::uint32_t parts) {
@@ -62,17 +75,12 @@ void GpkgGeometry::polygon(std::uint32_t rings) {
   u32(rings);
 }
 
-void GpkgGeometry::ring(const grid::LonLat* points, std::size_t n) {
-  u32(static_cast<std::uint32_t>(n + 1));
-  for (std::size_t k = 0; k < n; ++k) point(points[k]);
-  point(points[0]);
-}
+void GpkgGeometry::ring(const grid::LonLat* p, std::size_t n) { points(p, n, true); }
 
-void GpkgGeometry::line(const grid::LonLat* points, std::size_t n) {
+void GpkgGeometry::line(const grid::LonLat* p, std::size_t n) {
   bytes_.push_back(1);
   u32(2);  // LineString
-  u32(static_cast<std::uint32_t>(n));
-  for (std::size_t k = 0; k < n; ++k) point(points[k]);
+  points(p, n, false);
 }
 
 void GpkgGeometry::end() {

@@ -96,7 +96,8 @@ class GpkgGeometry {
 
  private:
   void u32(std::uint32_t v);
-  void point(const grid::LonLat& p);
+  /// A point count and `n` points (degrees), the first repeated at the end when `closed`.
+  void points(const grid::LonLat* p, std::size_t n, bool closed);
 
   std::vector<unsigned char> bytes_;
   GpkgEnvelope envelope_;

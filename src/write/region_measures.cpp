@@ -6,6 +6,7 @@
 #include <atomic>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <mutex>
 
 #include "common/first_exception.hpp"
@@ -49,12 +50,32 @@ struct EdgeTerms {
   EdgeTerms reversed() const { return {0 - area, 0 - rough, 0 - crossings}; }
 };
 
+/// sin(latitude) of the last few latitudes (degrees) asked for: a cell's vertices lie on two
+/// rows, so a thread's consecutive edges share a handful of latitudes.
+class LatitudeSines {
+ public:
+  double operator()(double lat) {
+    std::uint64_t bits;
+    std::memcpy(&bits, &lat, sizeof bits);
+    Slot& slot = slots_[(bits * 0x9E3779B97F4A7C15ull) >> (64 - kSlotBits)];
+    if (slot.bits != bits) slot = {bits, std::sin(lat * grid::kDegree)};
+    return slot.sine;
+  }
+
+ private:
+  static constexpr int kSlotBits = 4;
+  struct Slot {
+    std::uint64_t bits = ~std::uint64_t{0};  // a NaN: no latitude
+    double sine = 0;
+  };
+  Slot slots_[1 << kSlotBits];
+};
+
 /// The terms of the edge from -> to, whose S12 the solver gave (`units`).
-EdgeTerms edge_terms(const LonLat& from, const LonLat& to, const measure::EdgeUnits& units) {
+EdgeTerms edge_terms(const LonLat& from, const LonLat& to, const measure::EdgeUnits& units, LatitudeSines& sine) {
   static const double m2_per_steradian =
       GeographicLib::Geodesic::WGS84().EllipsoidArea() / (4 * grid::kPi);
-  const double rough = (to.lon - from.lon) * grid::kDegree * 0.5 *
-                       (std::sin(from.lat * grid::kDegree) + std::sin(to.lat * grid::kDegree)) * m2_per_steradian;
+  const double rough = (to.lon - from.lon) * grid::kDegree * 0.5 * (sine(from.lat) + sine(to.lat)) * m2_per_steradian;
   EdgeTerms t;
   t.area = static_cast<std::uint64_t>(units.area);
   t.rough = static_cast<std::uint64_t>(std::llround(rough));
@@ -136,7 +157,7 @@ class SumCache : public RegionEdgeObserver::Local {
     shared_.solver.solve(ends_.data(), ends_.size(), units_.data());
     for (std::size_t k = 0; k < pending_.size(); ++k) {
       const auto [site, other] = pending_[k];
-      const EdgeTerms t = edge_terms(ends_[k].from, ends_[k].to, units_[k]);
+      const EdgeTerms t = edge_terms(ends_[k].from, ends_[k].to, units_[k], sines_);
       add(site, t);
       if (other == kBorderEdge) continue;
       add(other, t.reversed());
@@ -170,6 +191,7 @@ class SumCache : public RegionEdgeObserver::Local {
   std::vector<Sides> pending_;  // the edges not solved yet: their sites, and their ends
   std::vector<measure::EdgeEnds> ends_;
   std::vector<measure::EdgeUnits> units_;
+  LatitudeSines sines_;
 };
 
 /// A region's area from its sums: PolygonArea's reduction of the S12 sum (modulo the ellipsoid's

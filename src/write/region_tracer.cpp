@@ -121,17 +121,17 @@ class EdgesFrom {
     while (size < 2 * count) size <<= 1;
     mask_ = size - 1;
     table_.assign(size, kNone);
-    std::vector<std::size_t> last(count, kNone);  // the chain's last edge, kept at its first
     for (std::size_t k = 0; k < count; ++k) {
       std::size_t h = hash(edges[k].from) & mask_;
       while (table_[h] != kNone && !same_point(edges[table_[h]].from, edges[k].from)) h = (h + 1) & mask_;
-      const std::size_t first = table_[h];
-      if (first == kNone) {
-        table_[h] = last[k] = k;
-      } else {
-        next_[last[first]] = k;
-        last[first] = k;
+      if (table_[h] == kNone) {
+        table_[h] = k;
+        continue;
       }
+      // Appended to the point's chain: a few edges at most (a region's edges leaving one vertex).
+      std::size_t tail = table_[h];
+      while (next_[tail] != kNone) tail = next_[tail];
+      next_[tail] = k;
     }
   }
   /// The first edge leaving p, or kNone.

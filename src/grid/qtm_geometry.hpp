@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cmath>
+#include <utility>
 
 #include "qtm_code.hpp"
 #include "qtm_math.hpp"
@@ -111,6 +112,37 @@ QTMV_HD inline Vec3 cell_centre_vector(const Cell& c, int level) {
 }
 
 QTMV_HD inline Vec3 cell_centre_vector(Code code, int level) { return cell_centre_vector(cell_of(code, level), level); }
+
+/// cell_centre_vector to the same bits, keeping the sine and cosine of the last two latitudes
+/// (degrees) met: a row's up cells share one latitude and its down cells another, so a pass
+/// along a row computes only its longitudes'. One per thread.
+class CentreVectors {
+ public:
+  Vec3 operator()(const Cell& c, int level) {
+    const LonLat p = cell_centre(c, level);
+    double slon, clon;
+    sincos_deg(p.lon, &slon, &clon);
+    const Latitude& lat = latitude(p.lat);
+    return {lat.cos * clon, lat.cos * slon, lat.sin};
+  }
+  Vec3 operator()(Code code, int level) { return (*this)(cell_of(code, level), level); }
+
+ private:
+  struct Latitude {
+    double lat = 1000.0;  // none yet
+    double sin = 0.0, cos = 0.0;
+  };
+  const Latitude& latitude(double lat) {
+    if (last_[0].lat == lat) return last_[0];
+    if (last_[1].lat != lat) {
+      last_[1].lat = lat;
+      sincos_deg(lat, &last_[1].sin, &last_[1].cos);
+    }
+    std::swap(last_[0], last_[1]);  // the most recent first
+    return last_[0];
+  }
+  Latitude last_[2];
+};
 
 /// Grid vertex (r, k), 0 <= k <= r <= 2^L, of an octant (degrees). The pole (r = 0) gets the
 /// longitude of the octant's lon' = 0 side.

@@ -46,6 +46,15 @@ void boundary_from_labels(int level, grid::Code first, std::uint64_t count, cons
 }
 
 
+/// Whether the cell `code` of row `codes` of a node (row_codes_below) has all three neighbours in
+/// the node: not a row's first or last cell, nor a cell on the node's base (the up cells of an
+/// up node's last row, the down cells of a down node's first row). interior_of_ancestor's rule
+/// along a row.
+bool inner_in_row(grid::Code code, const grid::RowCodes& codes, bool base_row, bool up_node) {
+  const bool down_cell = ((code - codes.row_start) & 1u) != 0;
+  return code > codes.first && code < codes.last && !(base_row && (up_node ? !down_cell : down_cell));
+}
+
 /// The items of one list leaf in the order of a lower bound (chord) on their distance from any
 /// point of the leaf, so that each cell's search (best) meets its nearest items first and stops
 /// at the first item whose bound exceeds its best. Same best as best_of_list, tie included (the
@@ -124,6 +133,7 @@ void cpu_tree_range(const Tree& tree, const TreeView& tv, grid::Code first, std:
 #pragma omp parallel num_threads(threads)
   {
   LeafOrder order;  // the list leaf's, per thread
+  grid::CentreVectors centres;
 #pragma omp for schedule(dynamic, 16)
   for (std::int64_t q = 0; q < leaves; ++q) {
     const TreeLeaf& leaf = tree.leaves[q];
@@ -147,11 +157,9 @@ void cpu_tree_range(const Tree& tree, const TreeView& tv, grid::Code first, std:
         if (boundary) {
           // Inner cells of the leaf (interior_of_ancestor) have all three neighbours in it: flag
           // 0 now; the others (1: to be decided) go through boundary_from_labels.
-          const bool edge_row = up ? r + 1 == rows : r == 0;
+          const bool base_row = up ? r + 1 == rows : r == 0;
           for (std::uint64_t code = lo; code < hi; ++code) {
-            const bool odd = ((code - codes.row_start) & 1u) != 0;  // a down cell
-            const bool inner = code > codes.first && code < codes.last && !(edge_row && (up ? !odd : odd));
-            boundary[code - first] = inner ? 0 : 1;
+            boundary[code - first] = inner_in_row(code, codes, base_row, up) ? 0 : 1;
           }
         }
       } else {
@@ -161,8 +169,9 @@ void cpu_tree_range(const Tree& tree, const TreeView& tv, grid::Code first, std:
                      node_radius(leaf.level, leaf.cell));
           ordered = true;
         }
-        for (std::uint64_t code = lo; code < hi; ++code) {
-          const Best best = order.best(tv, grid::cell_centre_vector(code, level));
+        grid::Cell c = grid::cell_of(lo, level);
+        for (std::uint64_t code = lo; code < hi; ++code, grid::next_in_code_order(c, level)) {
+          const Best best = order.best(tv, centres(c, level));
           site[code - first] = best.site;
           if (metres) metres[code - first] = static_cast<float>(chord2_to_metres(best.chord2));
         }
@@ -183,15 +192,37 @@ bool same_cell(const grid::Cell& a, const grid::Cell& b) {
   return a.octant == b.octant && a.row == b.row && a.col == b.col;
 }
 
-/// A leaf's cells of the labelling level that it has labelled (code order), for its cells'
-/// neighbours inside it.
+/// A list leaf's cells of the labelling level with their sites, row by row from its apex (so in
+/// code order), for its cells' neighbours inside it.
 struct LeafLabels {
+  grid::Cell leaf;
+  int k = 0;                           ///< levels from the leaf down to the labelling level
+  std::vector<grid::RowCodes> rows;    ///< the leaf's rows' codes
+  std::vector<std::size_t> row_start;  ///< index of each row's first cell
   std::vector<grid::Code> code;
-  std::vector<std::int32_t> site;
+  std::vector<std::int32_t> site;   ///< -1 until labelled
   std::vector<std::uint8_t> inner;  ///< all three neighbours in a settled node of its site
-  std::int32_t find(grid::Code c) const {
-    const auto it = std::lower_bound(code.begin(), code.end(), c);
-    return it != code.end() && *it == c ? site[static_cast<std::size_t>(it - code.begin())] : -1;
+
+  /// Lists the cells of `leaf_cell` (of level `level - k`), unlabelled.
+  void reset(const grid::Cell& leaf_cell, int leaf_k, int level) {
+    leaf = leaf_cell;
+    k = leaf_k;
+    rows.clear();
+    row_start.clear();
+    code.clear();
+    for (std::uint64_t r = 0; r < (std::uint64_t{1} << k); ++r) {
+      const grid::RowCodes codes = grid::row_codes_below(leaf, k, r, level);
+      rows.push_back(codes);
+      row_start.push_back(code.size());
+      for (grid::Code c = codes.first; c <= codes.last; ++c) code.push_back(c);
+    }
+    site.assign(code.size(), -1);
+    inner.assign(code.size(), 0);
+  }
+  /// Index of cell `c` (of the labelling level, inside the leaf).
+  std::size_t index(const grid::Cell& c, grid::Code c_code) const {
+    const std::size_t r = c.row - (std::size_t{leaf.row} << k);
+    return row_start[r] + static_cast<std::size_t>(c_code - rows[r].first);
   }
 };
 
@@ -250,13 +281,17 @@ void settle_below(const TreeView& tv, const TreeNode& list, const grid::Cell& ce
   }
 }
 
-/// A thread's scratch for the outline pass: the visited leaf's order and labels, and the order
-/// of the list leaf last met across its rim (consecutive rim cells mostly border the same one).
+/// A thread's scratch for the outline pass: the visited leaf's order and labels, and the orders
+/// of the list leaves last met across its rim (a leaf's rows end on its left and right
+/// neighbours in turn, so a few are kept, the oldest made again).
 struct OutlineScratch {
+  grid::CentreVectors centres;
   LeafOrder order;
   LeafLabels labels;
-  LeafOrder neighbour;
-  std::int32_t neighbour_node = -1;
+  static constexpr std::size_t kNeighbours = 4;
+  LeafOrder neighbour[kNeighbours];
+  std::int32_t neighbour_node[kNeighbours] = {-1, -1, -1, -1};
+  std::size_t oldest = 0;
   std::vector<SettledNode> settled;
   std::vector<ItemBound> bounds;
   /// The site of cell c (not in the visited leaf): its leaf's, or the best of its list.
@@ -265,13 +300,17 @@ struct OutlineScratch {
     const std::int32_t node = find_leaf(tv, c, &leaf_level);
     const TreeNode leaf = tv.nodes[node];
     if (leaf.count == kUniform) return leaf.value;
-    if (node != neighbour_node) {
+    std::size_t slot = 0;
+    while (slot < kNeighbours && neighbour_node[slot] != node) ++slot;
+    if (slot == kNeighbours) {
+      slot = oldest;
+      oldest = (oldest + 1) % kNeighbours;
       const grid::Cell at = grid::ancestor(c, tv.level, leaf_level);
-      neighbour.make(tv, leaf, grid::cell_centre_vector(grid::code_of(at, leaf_level), leaf_level),
-                     node_radius(leaf_level, at));
-      neighbour_node = node;
+      neighbour[slot].make(tv, leaf, grid::cell_centre_vector(grid::code_of(at, leaf_level), leaf_level),
+                           node_radius(leaf_level, at));
+      neighbour_node[slot] = node;
     }
-    return neighbour.best(tv, grid::cell_centre_vector(c, tv.level)).site;
+    return neighbour[slot].best(tv, centres(c, tv.level)).site;
   }
 };
 
@@ -295,31 +334,35 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
   bool uniform = node.count == kUniform;
   std::int32_t uniform_site = node.value;
   if (!uniform) {
-    labels.code.clear();
-    labels.site.clear();
+    labels.reset(leaf.cell, k, level);
     order.make(tv, node, grid::cell_centre_vector(grid::code_of(leaf.cell, leaf.level), leaf.level),
                node_radius(leaf.level, leaf.cell));
     // Nodes below the leaf whose kept items all have one site (the build's own rule, carried on
     // below the list level): their cells need no search, and their inner cells no neighbours.
     scratch.settled.clear();
     settle_below(tv, node, leaf.cell, leaf.level, scratch.settled, scratch.bounds);
-    labels.inner.clear();
-    for (std::uint64_t r = 0; r < rows; ++r) {
-      const grid::RowCodes codes = grid::row_codes_below(leaf.cell, k, r, level);
-      for (grid::Code code = codes.first; code <= codes.last; ++code) {
-        const grid::Cell c = grid::cell_of(code, level);
-        std::int32_t site = -1;
-        bool inner = false;
-        for (const SettledNode& n : scratch.settled) {
-          if (same_cell(grid::ancestor(c, level, n.level), n.cell)) {
-            site = n.site;
-            inner = grid::interior_of_ancestor(c, level, n.level);
-            break;
-          }
+    // The settled nodes' cells take their sites, row by row; the others are searched.
+    for (const SettledNode& n : scratch.settled) {
+      const int nk = level - n.level;
+      const std::uint64_t node_rows = std::uint64_t{1} << nk;
+      const bool up = grid::is_up(n.cell);
+      for (std::uint64_t r = 0; r < node_rows; ++r) {
+        const grid::RowCodes codes = grid::row_codes_below(n.cell, nk, r, level);
+        const bool base_row = up ? r + 1 == node_rows : r == 0;
+        const std::size_t leaf_row = static_cast<std::size_t>((std::uint64_t{n.cell.row} << nk) + r - (std::uint64_t{leaf.cell.row} << k));
+        const std::size_t at = labels.row_start[leaf_row] + static_cast<std::size_t>(codes.first - labels.rows[leaf_row].first);
+        for (grid::Code code = codes.first; code <= codes.last; ++code) {
+          labels.site[at + (code - codes.first)] = n.site;
+          labels.inner[at + (code - codes.first)] = inner_in_row(code, codes, base_row, up) ? 1 : 0;
         }
-        labels.code.push_back(code);
-        labels.site.push_back(site >= 0 ? site : order.best(tv, grid::cell_centre_vector(code, level)).site);
-        labels.inner.push_back(inner ? 1 : 0);
+      }
+    }
+    for (std::uint64_t r = 0; r < rows; ++r) {
+      const grid::RowCodes& codes = labels.rows[r];
+      grid::Cell c = grid::cell_of(codes.first, level);
+      for (std::size_t m = labels.row_start[r]; m < labels.row_start[r] + (codes.last - codes.first + 1);
+           ++m, grid::next_in_code_order(c, level)) {
+        if (labels.site[m] < 0) labels.site[m] = order.best(tv, scratch.centres(c, level)).site;
       }
     }
     uniform = std::all_of(labels.site.begin(), labels.site.end(), [&](std::int32_t s) { return s == labels.site[0]; });
@@ -345,7 +388,7 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
   // The site of a neighbour: inside this leaf, its site or label; elsewhere, the tree's.
   const auto neighbour_site = [&](const grid::Cell& nb) {
     if (same_cell(grid::ancestor(nb, level, leaf.level), leaf.cell)) {
-      return uniform ? uniform_site : labels.find(grid::code_of(nb, level));
+      return uniform ? uniform_site : labels.site[labels.index(nb, grid::code_of(nb, level))];
     }
     return scratch.site_of(tv, nb);
   };
@@ -375,7 +418,7 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
     }
     return;
   }
-  // Row by row from the apex, codes increase: labels.code is sorted, as find() needs.
+  // Row by row from the apex: code order.
   for (std::size_t m = 0; m < labels.code.size(); ++m) {
     if (!labels.inner[m]) consider(labels.code[m], labels.site[m]);
   }

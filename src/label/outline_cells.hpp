@@ -80,41 +80,60 @@ inline std::int32_t site_of(const OutlineCells& cells, grid::Code code) {
   return (after - 1)->site;
 }
 
-/// site_of for a cell near the k-th outline cell, such as one of its neighbours: the cells next to
-/// it in its row are settled by the outline cells next to it in the list; others (the cell above
-/// or below, a row away) by a search that gallops out from k, so that it stays in memory near k.
-inline std::int32_t site_of_near(const OutlineCells& cells, std::size_t k, grid::Code code) {
+/// The index of the last outline cell at or before `code`, searched forwards from index `lo`
+/// (cells[lo].code <= code): galloping, so that the cost grows with the log of the distance.
+inline std::size_t last_at_or_before(const OutlineCells& cells, std::size_t lo, grid::Code code) {
   const std::size_t n = cells.size();
-  // The answer is the last index j with cells[j].code <= code; find lo <= j < hi around k.
-  std::size_t lo, hi;
-  if (code < cells[k].code) {
-    if (k > 0 && cells[k - 1].code <= code) return cells[k - 1].site;
-    std::size_t step = 2;
-    hi = k;
-    lo = k >= step ? k - step : 0;
-    while (lo > 0 && cells[lo].code > code) {
-      hi = lo;
-      step *= 2;
-      lo = lo >= step ? lo - step : 0;
-    }
-    if (cells[lo].code > code) throw std::logic_error("outline cells: no row start at or before code " + std::to_string(code));
-  } else {
-    if (k + 1 == n || cells[k + 1].code > code) return cells[k].site;
-    if (k + 2 == n || cells[k + 2].code > code) return cells[k + 1].site;
-    std::size_t step = 2;
-    lo = k + 2;
-    hi = std::min(n, lo + step);
-    while (hi < n && cells[hi].code <= code) {
-      lo = hi;
-      step *= 2;
-      hi = std::min(n, hi + step);
-    }
+  if (lo + 1 == n || cells[lo + 1].code > code) return lo;
+  std::size_t step = 1, hi = lo + 1;
+  while (hi < n && cells[hi].code <= code) {
+    lo = hi;
+    step *= 2;
+    hi = std::min(n, hi + step);
   }
   // cells[lo].code <= code < cells[hi].code (or hi == n).
   const auto after = std::upper_bound(cells.begin() + static_cast<std::ptrdiff_t>(lo), cells.begin() + static_cast<std::ptrdiff_t>(hi), code,
                                       [](grid::Code c, const OutlineCell& o) { return c < o.code; });
-  return (after - 1)->site;
+  return static_cast<std::size_t>(after - cells.begin()) - 1;
 }
+
+/// The index behind site_of_near.
+inline std::size_t index_near(const OutlineCells& cells, std::size_t k, grid::Code code) {
+  if (code >= cells[k].code) return last_at_or_before(cells, k, code);
+  if (k > 0 && cells[k - 1].code <= code) return k - 1;
+  std::size_t step = 2, lo = k >= step ? k - step : 0;
+  while (lo > 0 && cells[lo].code > code) {
+    step *= 2;
+    lo = lo >= step ? lo - step : 0;
+  }
+  if (cells[lo].code > code) throw std::logic_error("outline cells: no row start at or before code " + std::to_string(code));
+  return last_at_or_before(cells, lo, code);
+}
+
+/// site_of for a cell near the k-th outline cell, such as one of its neighbours: the cells next to
+/// it in its row are settled by the outline cells next to it in the list; others (the cell above
+/// or below, a row away) by a search that gallops out from k, so that it stays in memory near k.
+inline std::int32_t site_of_near(const OutlineCells& cells, std::size_t k, grid::Code code) {
+  return cells[index_near(cells, k, code)].site;
+}
+
+/// site_of_near for one thread that asks about the outline cells in code order: the cells a row
+/// above them, and those a row below, then come in code order too, so each search starts where
+/// the last one of its kind ended (a few cells on) rather than a row away at k.
+class NearSearch {
+ public:
+  std::int32_t site(const OutlineCells& cells, std::size_t k, grid::Code code) {
+    const bool before = code < cells[k].code;
+    std::size_t& last = before ? above_ : below_;
+    const bool usable = last < cells.size() && cells[last].code <= code && (before ? last < k : last >= k);
+    last = usable ? last_at_or_before(cells, last, code) : index_near(cells, k, code);
+    return cells[last].site;
+  }
+
+ private:
+  static constexpr std::size_t kNone = ~std::size_t{0};
+  std::size_t above_ = kNone, below_ = kNone;
+};
 
 /// The cells per site from the outline cells (in code order, row ends included) of a range that
 /// ends at `end` (0: the level's end): each outline cell's site owns the cells from it up to the

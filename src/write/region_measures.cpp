@@ -248,12 +248,13 @@ std::vector<double> region_areas(const label::Outlines& outlines, int cuda_devic
 #pragma omp parallel
   {
     std::unique_ptr<RegionEdgeObserver::Local> cache;
+    label::NearSearch search;
     failure.run([&] { cache = sums.local(); });
 #pragma omp for schedule(dynamic, 4096)
     for (std::int64_t k = 0; k < n; ++k) {
       failure.run([&] {
         const std::int32_t site = cells[static_cast<std::size_t>(k)].site;
-        visit_region_edges(outlines, static_cast<std::size_t>(k),
+        visit_region_edges(outlines, static_cast<std::size_t>(k), search,
                            [&](int, const LonLat& from, const LonLat& to, std::int32_t other) { cache->edge(site, from, to, other); });
       });
     }

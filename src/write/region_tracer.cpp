@@ -294,6 +294,7 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertice
   {
     CellEdgesList& local = parts[static_cast<std::size_t>(thread_index())];
     std::unique_ptr<RegionEdgeObserver::Local> seen;
+    label::NearSearch search;
     failure.run([&] {
       if (observer) seen = observer->local();
     });
@@ -306,7 +307,7 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertice
           mask |= CellEdges{1} << e;
           if (seen) seen->edge(site, from, to, other);
         };
-        visit_region_edges(outlines, static_cast<std::size_t>(k), add);
+        visit_region_edges(outlines, static_cast<std::size_t>(k), search, add);
         if (mask != 0) local.push_back(static_cast<CellEdges>(k) << kEdgeMaskBits | mask);
       });
     }

@@ -68,7 +68,7 @@ class RegionEdgeObserver {
 /// The regions' boundary edges, gathered from the outline cells (label/outline_cells.hpp) and
 /// listed per site, from which each region is traced on demand: the edges between sites are
 /// edges of boundary cells, the cuts at +-180 and along the poles' lines edges of row ends; a
-/// neighbour's site comes from label::site_of_near. Work and memory follow the outline cells,
+/// neighbour's site comes from label::NearSearch. Work and memory follow the outline cells,
 /// and a writer holds only the regions it is writing.
 ///
 /// The lists hold 8 bytes per outline cell with region edges (its code and which of its drawn
@@ -146,22 +146,28 @@ inline bool on_cut(const LonLat& from, const LonLat& to) {
 /// on their left): visit(edge, from, to, other), `edge` the edge's index in drawn_ring's ring,
 /// `other` the site across the edge or kBorderEdge. Only
 /// a boundary cell has a neighbour of another site; any cell may have border edges. The regions'
-/// tracing and their areas both walk the outlines by this one rule.
+/// tracing and their areas both walk the outlines by this one rule. `search`: the calling
+/// thread's, which then visits its cells in code order.
 template <class Visit>
-void visit_region_edges(const label::Outlines& outlines, std::size_t k, const Visit& visit) {
+void visit_region_edges(const label::Outlines& outlines, std::size_t k, label::NearSearch& search, const Visit& visit) {
   const label::OutlineCell& outline = outlines.cells[k];
+  const int level = outlines.level;
+  const grid::Cell cell = grid::cell_of(outline.code, level);
   LonLat ring[grid::kMaxPolygonCorners];
   int across[grid::kMaxPolygonCorners];
-  const int corners = drawn_ring(grid::cell_of(outline.code, outlines.level), outlines.level, ring, across);
+  const int corners = drawn_ring(cell, level, ring, across);
   grid::Code nb[3];
-  if (outline.boundary) grid::neighbours(outline.code, outlines.level, nb);
+  if (outline.boundary) grid::neighbours(cell, outline.code, level, nb);
   for (int e = 0; e < corners; ++e) {
     const LonLat& from = ring[e];
     const LonLat& to = ring[(e + 1) % corners];
     if (across[e] == kAcrossPoleLine || on_cut(from, to)) {
       visit(e, from, to, kBorderEdge);
     } else if (outline.boundary) {
-      const std::int32_t other = label::site_of_near(outlines.cells, k, nb[across[e]]);
+      // The cell across a row line lies a row away in the list; those beside it, next to k.
+      const grid::Code code = nb[across[e]];
+      const std::int32_t other = across[e] == grid::kNeighbourVertical ? search.site(outlines.cells, k, code)
+                                                                       : label::site_of_near(outlines.cells, k, code);
       if (other != outline.site) visit(e, from, to, other);
     }
   }

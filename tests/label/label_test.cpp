@@ -974,6 +974,26 @@ TEST(LabelOutlines, DenseOutlinesCountEveryCell) {
     for (const Code c : {nb[0], nb[1], nb[2], any(rng)}) disagree += site_of_near(o.cells, k, c) != site_of(o.cells, c);
   }
   EXPECT_EQ(disagree, 0u);
+  // So does NearSearch, which starts from its last answers: asked in code order about each cell's
+  // neighbours (its use), then in chunks that start anywhere, and about far cells, which leave
+  // its answers behind or ahead of the next cell's.
+  for (const std::size_t chunk : {o.cells.size(), std::size_t{37}}) {
+    NearSearch search;
+    std::vector<std::size_t> firsts;
+    for (std::size_t k = 0; k < o.cells.size(); k += chunk) firsts.push_back(k);
+    std::shuffle(firsts.begin(), firsts.end(), rng);
+    for (const std::size_t first : firsts) {
+      for (std::size_t k = first; k < std::min(o.cells.size(), first + chunk); ++k) {
+        Code nb[3];
+        grid::neighbours(o.cells[k].code, 6, nb);
+        std::uniform_int_distribution<Code> any(0, grid::cell_count(6) - 1);
+        for (const Code c : {nb[grid::kNeighbourVertical], any(rng), nb[0], nb[1], nb[2]}) {
+          disagree += search.site(o.cells, k, c) != site_of(o.cells, c);
+        }
+      }
+    }
+  }
+  EXPECT_EQ(disagree, 0u);
   Outlines broken = o;
   broken.cells.erase(broken.cells.begin());  // the first row end
   EXPECT_THROW(check_outlines(broken), std::logic_error);

@@ -36,6 +36,30 @@ TEST(GridSweep, ExhaustiveLevels0To8) {
   }
 }
 
+TEST(GridSweep, CentreVectorsEqualCellCentreVectorBitForBit) {
+  // In code order (rows, as the CPU's passes walk them), then in random order (no latitude
+  // kept), at every level to the exhaustive limit and a sample of finer ones.
+  const auto same = [](const Vec3& a, const Vec3& b) { return a.x == b.x && a.y == b.y && a.z == b.z; };
+  std::mt19937_64 rng(5);
+  for (int level = 0; level <= 12; ++level) {
+    CentreVectors centres;
+    std::uint64_t differ = 0;
+    const Code step = level <= kExhaustiveMaxLevel ? 1 : cell_count(level) / 500000 + 1;
+    Cell c = cell_of(0, level);
+    for (Code code = 0; code < cell_count(level); code += step) {
+      if (step > 1) c = cell_of(code, level);
+      differ += !same(centres(c, level), cell_centre_vector(c, level));
+      if (step == 1) next_in_code_order(c, level);
+    }
+    std::uniform_int_distribution<Code> any(0, cell_count(level) - 1);
+    for (int k = 0; k < 20000; ++k) {
+      const Code code = any(rng);
+      differ += !same(centres(code, level), cell_centre_vector(code, level));
+    }
+    EXPECT_EQ(differ, 0u) << "level " << level;
+  }
+}
+
 TEST(GridSweep, CellCountsAndCodeLayout) {
   for (int level = 0; level <= kMaxLevel; ++level) {
     EXPECT_EQ(cell_count(level), 8 * cells_per_octant(level));

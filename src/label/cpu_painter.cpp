@@ -219,6 +219,8 @@ struct LeafLabels {
     site.assign(code.size(), -1);
     inner.assign(code.size(), 0);
   }
+  /// One past the index of row r's last cell.
+  std::size_t row_end(std::size_t r) const { return row_start[r] + static_cast<std::size_t>(rows[r].last - rows[r].first + 1); }
   /// Index of cell `c` (of the labelling level, inside the leaf).
   std::size_t index(const grid::Cell& c, grid::Code c_code) const {
     const std::size_t r = c.row - (std::size_t{leaf.row} << k);
@@ -358,10 +360,8 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
       }
     }
     for (std::uint64_t r = 0; r < rows; ++r) {
-      const grid::RowCodes& codes = labels.rows[r];
-      grid::Cell c = grid::cell_of(codes.first, level);
-      for (std::size_t m = labels.row_start[r]; m < labels.row_start[r] + (codes.last - codes.first + 1);
-           ++m, grid::next_in_code_order(c, level)) {
+      grid::Cell c = grid::cell_of(labels.rows[r].first, level);
+      for (std::size_t m = labels.row_start[r]; m < labels.row_end(r); ++m, grid::next_in_code_order(c, level)) {
         if (labels.site[m] < 0) labels.site[m] = order.best(tv, scratch.centres(c, level)).site;
       }
     }
@@ -392,8 +392,7 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
     }
     return scratch.site_of(tv, nb);
   };
-  const auto consider = [&](grid::Code code, std::int32_t site) {
-    const grid::Cell c = grid::cell_of(code, level);
+  const auto consider = [&](const grid::Cell& c, grid::Code code, std::int32_t site) {
     grid::Cell nb[3];
     grid::neighbours(c, level, nb);
     bool boundary = false;
@@ -408,19 +407,23 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
     for (std::uint64_t r = 0; r < rows; ++r) {
       const grid::RowCodes codes = grid::row_codes_below(leaf.cell, k, r, level);
       if (r == base_row) {
-        for (grid::Code code = codes.first; code <= codes.last; ++code) {
-          if (!grid::interior_of_ancestor(grid::cell_of(code, level), level, leaf.level)) consider(code, site);
+        grid::Cell c = grid::cell_of(codes.first, level);
+        for (grid::Code code = codes.first; code <= codes.last; ++code, grid::next_in_code_order(c, level)) {
+          if (!grid::interior_of_ancestor(c, level, leaf.level)) consider(c, code, site);
         }
       } else {
-        consider(codes.first, site);
-        if (codes.last != codes.first) consider(codes.last, site);
+        consider(grid::cell_of(codes.first, level), codes.first, site);
+        if (codes.last != codes.first) consider(grid::cell_of(codes.last, level), codes.last, site);
       }
     }
     return;
   }
   // Row by row from the apex: code order.
-  for (std::size_t m = 0; m < labels.code.size(); ++m) {
-    if (!labels.inner[m]) consider(labels.code[m], labels.site[m]);
+  for (std::uint64_t r = 0; r < rows; ++r) {
+    grid::Cell c = grid::cell_of(labels.rows[r].first, level);
+    for (std::size_t m = labels.row_start[r]; m < labels.row_end(r); ++m, grid::next_in_code_order(c, level)) {
+      if (!labels.inner[m]) consider(c, labels.code[m], labels.site[m]);
+    }
   }
 }
 

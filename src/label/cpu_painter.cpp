@@ -199,7 +199,6 @@ struct LeafLabels {
   int k = 0;                           ///< levels from the leaf down to the labelling level
   std::vector<grid::RowCodes> rows;    ///< the leaf's rows' codes
   std::vector<std::size_t> row_start;  ///< index of each row's first cell
-  std::vector<grid::Code> code;
   std::vector<std::int32_t> site;   ///< -1 until labelled
   std::vector<std::uint8_t> inner;  ///< all three neighbours in a settled node of its site
 
@@ -209,15 +208,14 @@ struct LeafLabels {
     k = leaf_k;
     rows.clear();
     row_start.clear();
-    code.clear();
+    std::size_t cells = 0;
     for (std::uint64_t r = 0; r < (std::uint64_t{1} << k); ++r) {
-      const grid::RowCodes codes = grid::row_codes_below(leaf, k, r, level);
-      rows.push_back(codes);
-      row_start.push_back(code.size());
-      for (grid::Code c = codes.first; c <= codes.last; ++c) code.push_back(c);
+      rows.push_back(grid::row_codes_below(leaf, k, r, level));
+      row_start.push_back(cells);
+      cells += static_cast<std::size_t>(rows.back().last - rows.back().first + 1);
     }
-    site.assign(code.size(), -1);
-    inner.assign(code.size(), 0);
+    site.assign(cells, -1);
+    inner.assign(cells, 0);
   }
   /// One past the index of row r's last cell.
   std::size_t row_end(std::size_t r) const { return row_start[r] + static_cast<std::size_t>(rows[r].last - rows[r].first + 1); }
@@ -420,9 +418,10 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
   }
   // Row by row from the apex: code order.
   for (std::uint64_t r = 0; r < rows; ++r) {
-    grid::Cell c = grid::cell_of(labels.rows[r].first, level);
-    for (std::size_t m = labels.row_start[r]; m < labels.row_end(r); ++m, grid::next_in_code_order(c, level)) {
-      if (!labels.inner[m]) consider(c, labels.code[m], labels.site[m]);
+    grid::Code code = labels.rows[r].first;
+    grid::Cell c = grid::cell_of(code, level);
+    for (std::size_t m = labels.row_start[r]; m < labels.row_end(r); ++m, ++code, grid::next_in_code_order(c, level)) {
+      if (!labels.inner[m]) consider(c, code, labels.site[m]);
     }
   }
 }

@@ -125,7 +125,9 @@ class NearSearch {
   std::int32_t site(const OutlineCells& cells, std::size_t k, grid::Code code) {
     const bool before = code < cells[k].code;
     std::size_t& last = before ? above_ : below_;
-    const bool usable = last < cells.size() && cells[last].code <= code && (before ? last < k : last >= k);
+    // A last answer at or before `code` is a start; one of the cells below left behind k (a thread
+    // that moved on) is not: the search from k is shorter.
+    const bool usable = last < cells.size() && cells[last].code <= code && (before || last >= k);
     last = usable ? last_at_or_before(cells, last, code) : index_near(cells, k, code);
     return cells[last].site;
   }

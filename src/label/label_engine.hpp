@@ -100,7 +100,14 @@ struct Tree {
 /// does not lie in a node of level <= tree_list_level(level) of the cover. The device build
 /// (cuda::Labeller, given the same cover) makes the same tree node for node: both apply
 /// decide_node (tree_node_rule.hpp).
+/// `jump`: the jump table's level, full (tree_jump_level: every cell's walk, the dense paths) or
+/// outline (tree_outline_jump_level: the outline pass's few look-ups); fill_jump_table changes it.
+enum class JumpTable { full, outline };
 Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_distance, int threads = 0,
-                const std::function<void(double fraction)>& level_done = {}, const CoverView* cover = nullptr);
+                const std::function<void(double fraction)>& level_done = {}, const CoverView* cover = nullptr,
+                JumpTable jump = JumpTable::full);
+
+/// Makes `tree`'s jump table the one of `jump_level` (nothing to do when it is already).
+void fill_jump_table(Tree& tree, int jump_level, int threads = 0);
 
 }  // namespace qtmv::label

@@ -324,9 +324,11 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
     stats.tree_list_entries = info.list_entries;
     stats.mean_candidates = info.mean_candidates;
   } else if (hier) {
+    const JumpTable jump_table = outline ? JumpTable::outline : JumpTable::full;
     // Progress after each level of the build, so that a caller can stop a long build.
+    // The outline pass needs only a coarse jump table; the dense paths fill the full one.
     tree = build_tree(host_candidates(), input.level, options.want_distance, threads,
-                      [&](double fraction) { progress(fraction, "prepare"); }, &cover_view);
+                      [&](double fraction) { progress(fraction, "prepare"); }, &cover_view, jump_table);
     stats.tree_nodes = tree.nodes.size();
     stats.tree_list_entries = tree.lists.size();
     stats.mean_candidates = tree.mean_candidates;
@@ -358,6 +360,7 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
   if (on_gpu) {
     try {
       if (!gpu_built) {
+        if (hier) fill_jump_table(tree, tree_jump_level(input.level), threads);
         gpu_built =
             std::make_unique<cuda::Labeller>(device.index, host_candidates(), hier ? &tree : nullptr, input.level);
       }
@@ -376,11 +379,12 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
       leave_gpu(e, done);
     }
     if (hier && tree.nodes.empty()) {
-      tree = build_tree(host_candidates(), input.level, options.want_distance, threads, {}, &cover_view);
+      tree = build_tree(host_candidates(), input.level, options.want_distance, threads, {}, &cover_view,
+                        outline ? JumpTable::outline : JumpTable::full);
     }
   }
-  const TreeView tv = tree.view(host_candidates().data());
   if (outline && hier && outline_pass_pays(tree)) {
+    const TreeView tv = tree.view(host_candidates().data());
     // Only the leaves that can touch an outline are visited (after a GPU that ran out of memory,
     // those of the cells it had not done).
     const double start = now_seconds();
@@ -392,6 +396,8 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
     progress(1.0, "label");
     return stats;
   }
+  if (hier) fill_jump_table(tree, tree_jump_level(input.level), threads);
+  const TreeView tv = tree.view(host_candidates().data());
   if (outline) {  // the CPU's dense tiles, compacted as they come
     site.resize(host_tile);
     boundary.resize(host_tile);

@@ -38,7 +38,8 @@ struct Decision {
 }  // namespace
 
 Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_distance, int threads_requested,
-                const std::function<void(double fraction)>& level_done, const CoverView* cover_given) {
+                const std::function<void(double fraction)>& level_done, const CoverView* cover_given,
+                JumpTable jump) {
   grid::require_level(level);
   if (candidates.empty()) throw std::invalid_argument("build_tree: no candidates");
   if (candidates.size() > 0x7fffffffu) throw std::invalid_argument("build_tree: more than 2^31 candidates");
@@ -48,7 +49,6 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
   // Nodes still mixed at this level become list leaves: their cells test the few candidates
   // left rather than the tree going on down (the last levels hold most of the nodes).
   const int list_level = tree_list_level(level);
-  tree.jump_level = tree_jump_level(level);
   tree.nodes.resize(grid::kOctants);
 
   // QTMV_LABEL_TRACE set: each step's time and size on stderr (for tuning).
@@ -232,16 +232,27 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
   }
   tree.mean_candidates = weighted_candidates / static_cast<double>(grid::cell_count(level));
 
-  // The jump table: where each cell of jump_level starts its walk.
-  const std::uint64_t jump_cells = grid::cell_count(tree.jump_level);
+  const double t_jump = now_seconds();
+  fill_jump_table(tree, jump == JumpTable::full ? tree_jump_level(level) : tree_outline_jump_level(level), threads);
+  if (trace) {
+    std::fprintf(stderr, "trace: host jump table %9.3f ms  %zu entries of level %d\n", (now_seconds() - t_jump) * 1e3,
+                 tree.jump.size(), tree.jump_level);
+  }
+  return tree;
+}
+
+void fill_jump_table(Tree& tree, int jump_level, int threads_requested) {
+  if (tree.jump_level == jump_level && !tree.jump.empty()) return;
+  const int threads = thread_count(threads_requested);
+  // Where each cell of jump_level starts its walk.
+  tree.jump_level = jump_level;
+  const std::uint64_t jump_cells = grid::cell_count(jump_level);
   tree.jump.resize(jump_cells);
   const std::int64_t jn = static_cast<std::int64_t>(jump_cells);
 #pragma omp parallel for schedule(static) num_threads(threads)
   for (std::int64_t k = 0; k < jn; ++k) {
-    tree.jump[k] = walk_to_jump_level(tree.nodes.data(), grid::cell_of(static_cast<grid::Code>(k), tree.jump_level),
-                                      tree.jump_level);
+    tree.jump[k] = walk_to_jump_level(tree.nodes.data(), grid::cell_of(static_cast<grid::Code>(k), jump_level), jump_level);
   }
-  return tree;
 }
 
 }  // namespace qtmv::label

@@ -239,12 +239,27 @@ struct ItemBound {
   std::int32_t site;
 };
 
+/// The centres and radii of the nodes that settle_below weighs, for one level: the children of a
+/// node lie in two rows, so their latitudes' sines and their radii's stretch repeat.
+struct NodeShapes {
+  grid::CentreVectors centres;
+  std::uint32_t row = ~0u;  ///< of `stretch`
+  double stretch = 0.0;
+  double radius(int l, const grid::Cell& cell) {
+    if (cell.row != row) {
+      row = cell.row;
+      stretch = node_radius_stretch(l, row);
+    }
+    return node_radius(l, cell, stretch);
+  }
+};
+
 /// The site of every cell of node `cell` (level l) when the list's items that can be nearest to
 /// some point of it (those within prune_threshold of its centre, as build_tree keeps them) all
-/// have one site; else -1. `bounds`: scratch.
+/// have one site; else -1. `shapes`: level l's; `bounds`: scratch.
 std::int32_t one_site_below(const TreeView& tv, const TreeNode& list, const grid::Cell& cell, int l,
-                            std::vector<ItemBound>& bounds) {
-  const Vec3 centre = grid::cell_centre_vector(grid::code_of(cell, l), l);
+                            NodeShapes& shapes, std::vector<ItemBound>& bounds) {
+  const Vec3 centre = shapes.centres(cell, l);
   const std::int32_t* items = tv.lists + list.value;
   bounds.resize(static_cast<std::size_t>(list.count));
   double min_ub2 = 1e300;
@@ -254,7 +269,7 @@ std::int32_t one_site_below(const TreeView& tv, const TreeNode& list, const grid
     item_bounds(centre, items[k], tv.pieces, tv.groups, &b.lb2, &ub2, &b.site);
     min_ub2 = std::min(min_ub2, ub2);
   }
-  const double threshold = prune_threshold(min_ub2, node_radius(l, cell));
+  const double threshold = prune_threshold(min_ub2, shapes.radius(l, cell));
   std::int32_t one = -1;
   for (const ItemBound& b : bounds) {
     if (b.lb2 > threshold) continue;
@@ -266,17 +281,18 @@ std::int32_t one_site_below(const TreeView& tv, const TreeNode& list, const grid
 
 /// The settled nodes below node `cell` (level l) of a list leaf, down to a level above the
 /// labelling level (single cells are searched anyway).
+/// `shapes`: one per level.
 void settle_below(const TreeView& tv, const TreeNode& list, const grid::Cell& cell, int l, std::vector<SettledNode>& out,
-                  std::vector<ItemBound>& bounds) {
+                  NodeShapes* shapes, std::vector<ItemBound>& bounds) {
   if (l + 1 >= tv.level) return;
   grid::Cell kids[4];
   grid::children(cell, kids);
   for (const grid::Cell& kid : kids) {
-    const std::int32_t site = one_site_below(tv, list, kid, l + 1, bounds);
+    const std::int32_t site = one_site_below(tv, list, kid, l + 1, shapes[l + 1], bounds);
     if (site >= 0) {
       out.push_back({kid, l + 1, site});
     } else {
-      settle_below(tv, list, kid, l + 1, out, bounds);
+      settle_below(tv, list, kid, l + 1, out, shapes, bounds);
     }
   }
 }
@@ -293,6 +309,7 @@ struct OutlineScratch {
   std::int32_t neighbour_node[kNeighbours] = {-1, -1, -1, -1};
   std::size_t oldest = 0;
   std::vector<SettledNode> settled;
+  NodeShapes shapes[grid::kMaxLevel + 1];  ///< settle_below's, per level
   std::vector<ItemBound> bounds;
   /// The site of cell c (not in the visited leaf): its leaf's, or the best of its list.
   std::int32_t site_of(const TreeView& tv, const grid::Cell& c) {
@@ -340,7 +357,7 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
     // Nodes below the leaf whose kept items all have one site (the build's own rule, carried on
     // below the list level): their cells need no search, and their inner cells no neighbours.
     scratch.settled.clear();
-    settle_below(tv, node, leaf.cell, leaf.level, scratch.settled, scratch.bounds);
+    settle_below(tv, node, leaf.cell, leaf.level, scratch.settled, scratch.shapes, scratch.bounds);
     // The settled nodes' cells take their sites, row by row; the others are searched.
     for (const SettledNode& n : scratch.settled) {
       const int nk = level - n.level;
@@ -366,12 +383,15 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
     uniform = std::all_of(labels.site.begin(), labels.site.end(), [&](std::int32_t s) { return s == labels.site[0]; });
     uniform_site = labels.site[0];
   }
+  // For a leaf of one site: which of its edges (kNeighbourLeft, kNeighbourRight, kNeighbourVertical)
+  // has a neighbour of the leaf's level in a uniform leaf of that site. No boundary cell lies
+  // along such an edge, since the cells across it lie in that neighbour.
+  bool settled_edge[3] = {false, false, false};
   if (uniform) {
     grid::Cell around[3];
     grid::neighbours(leaf.cell, leaf.level, around);
-    if (in_uniform_leaf_of(tv, around[0], leaf.level, uniform_site) &&
-        in_uniform_leaf_of(tv, around[1], leaf.level, uniform_site) &&
-        in_uniform_leaf_of(tv, around[2], leaf.level, uniform_site)) {
+    for (int s = 0; s < 3; ++s) settled_edge[s] = in_uniform_leaf_of(tv, around[s], leaf.level, uniform_site);
+    if (settled_edge[0] && settled_edge[1] && settled_edge[2]) {
       // Row ends only: each row's first cell on the octant's left edge (column 0), its last on
       // the right edge (column 2 row); only up cells reach them.
       const bool left = leaf.cell.col == 0, right = leaf.cell.col == 2 * leaf.cell.row;
@@ -398,20 +418,33 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
     if (boundary || is_row_end(c)) out.push_back({code, site, boundary ? 1u : 0u});
   };
   if (uniform) {
-    // The rim: each row's first and last cell, and the whole row on the leaf's base (the last
-    // row of an up leaf, the first of a down leaf); interior_of_ancestor says which are inner.
+    // The rim: each row's first cell (on the left edge) and last (on the right edge), and the
+    // whole row on the leaf's base (the up cells of an up leaf's last row, the down cells of a
+    // down leaf's first row lie on the base edge); interior_of_ancestor says which are inner.
+    // A rim cell on settled edges only is no boundary cell: it is listed only as a row end.
     const std::int32_t site = uniform_site;
-    const std::uint64_t base_row = grid::is_up(leaf.cell) ? rows - 1 : 0;
+    const bool up_leaf = grid::is_up(leaf.cell);
+    const std::uint64_t base_row = up_leaf ? rows - 1 : 0;
+    const auto rim = [&](const grid::Cell& c, grid::Code code, bool on_left, bool on_right, bool on_base) {
+      if ((on_left && !settled_edge[grid::kNeighbourLeft]) || (on_right && !settled_edge[grid::kNeighbourRight]) ||
+          (on_base && !settled_edge[grid::kNeighbourVertical])) {
+        consider(c, code, site);
+      } else if (is_row_end(c)) {
+        out.push_back({code, site, 0u});
+      }
+    };
     for (std::uint64_t r = 0; r < rows; ++r) {
       const grid::RowCodes codes = grid::row_codes_below(leaf.cell, k, r, level);
       if (r == base_row) {
         grid::Cell c = grid::cell_of(codes.first, level);
         for (grid::Code code = codes.first; code <= codes.last; ++code, grid::next_in_code_order(c, level)) {
-          if (!grid::interior_of_ancestor(c, level, leaf.level)) consider(c, code, site);
+          if (!grid::interior_of_ancestor(c, level, leaf.level)) {
+            rim(c, code, code == codes.first, code == codes.last, grid::is_up(c) == up_leaf);
+          }
         }
       } else {
-        consider(grid::cell_of(codes.first, level), codes.first, site);
-        if (codes.last != codes.first) consider(grid::cell_of(codes.last, level), codes.last, site);
+        rim(grid::cell_of(codes.first, level), codes.first, true, codes.last == codes.first, false);
+        if (codes.last != codes.first) rim(grid::cell_of(codes.last, level), codes.last, false, true, false);
       }
     }
     return;

@@ -131,16 +131,22 @@ QTMV_HD inline double chord2_to_metres(double chord2) { return chord2_to_angle(c
 // centres are computed in float64 (error ~1e-16 rad); we add a relative margin of 1e-9 and
 // kPruneMarginRadians in the pruning test. tests/label checks the bound on every cell of
 // levels 1 to 8 against nodes up to 6 levels above.
-QTMV_HD inline double node_radius(int level, const grid::Cell& cell) {
-  const double rows = static_cast<double>(grid::rows_per_octant(level));
-  const double i = static_cast<double>(cell.row), a = static_cast<double>(cell.col / 2);
-  const double v0 = i / rows;
+///
+/// node_radius_stretch(level, row) is G for the cells of one row; node_radius(level, cell, G) the
+/// radius from it (the same bits as node_radius(level, cell)).
+QTMV_HD inline double node_radius_stretch(int level, std::uint32_t row) {
+  const double v0 = static_cast<double>(row) / static_cast<double>(grid::rows_per_octant(level));
   double g = grid::kPi / 2.0;
   if (v0 > 0.0) {
     double s, c;
     grid::sincos_deg(90.0 * v0, &s, &c);
     g = s / v0;
   }
+  return g;
+}
+QTMV_HD inline double node_radius(int level, const grid::Cell& cell, double g) {
+  const double rows = static_cast<double>(grid::rows_per_octant(level));
+  const double i = static_cast<double>(cell.row), a = static_cast<double>(cell.col / 2);
   const bool up = grid::is_up(cell);
   // rho = k / r of the vertices (r, k); a vertex at the pole (r = 0) allows [0, 1].
   double rho0 = 0.0, rho1 = 1.0;
@@ -163,6 +169,9 @@ QTMV_HD inline double node_radius(int level, const grid::Cell& cell) {
     worst = f2 > worst ? f2 : worst;
   }
   return (grid::kPi / 2.0) / rows * sqrt(worst) * (1.0 + 1e-9);
+}
+QTMV_HD inline double node_radius(int level, const grid::Cell& cell) {
+  return node_radius(level, cell, node_radius_stretch(level, cell.row));
 }
 
 /// Slack (radians, about 1.3 m on the Earth) added to every pruning threshold. It covers the

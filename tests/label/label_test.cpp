@@ -19,6 +19,7 @@
 #include "common/device_spec.hpp"
 #include "grid/qtm.hpp"
 #include "grid/qtm_key_ranges.hpp"
+#include "label/cpu_painter.hpp"
 #include "label/fixed_cover.hpp"
 #include "label/label_engine.hpp"
 #include "label/synthetic_sites.hpp"
@@ -942,6 +943,58 @@ TEST(LabelInterface, SeveralDevicesStopAndFailAsOne) {
     EXPECT_NE(std::string(e.what()).find("cuda:99"), std::string::npos) << e.what();
   }
   for (const std::string& m : said) EXPECT_EQ(m.rfind("cpu: ", 0), 0u) << m;  // each names its device
+}
+
+// The CPU's tree pass (cpu_tree_outlines), taken whatever share of the cells its list leaves hold,
+// gives the outline cells of the dense labels: for points, lines and polygons at levels where the
+// tree has uniform leaves of many levels (whose rims it checks edge by edge) and list leaves with
+// settled nodes; with the outline pass's coarse jump table and with the full one; for the whole
+// level and for ranges joined.
+TEST(LabelOutlines, TreePassGivesTheDenseLabelsOutlines) {
+  const std::vector<SiteSet> sets = {{"points L9", random_points(9, 40, 21)},
+                                     {"points L8", random_points(8, 300, 22)},
+                                     {"arcs L8", arcs(8, 5, 20, 708)},
+                                     {"wiggly lines L7", test::wiggly_sites(7, 717)},
+                                     {"polygons L7", polygons(7)},
+                                     {"solid polygon L8", solid_polygon(8)}};
+  for (const SiteSet& set : sets) {
+    SCOPED_TRACE(set.name);
+    const LabelInput in = set.geometry.input();
+    const int level = set.geometry.level;
+    LabelOptions options;
+    options.device = "cpu";
+    options.want_distance = false;
+    const LabelResult dense = label_all(in, options);
+    const Outlines want = outlines_of_dense(level, dense.site.data(), dense.boundary.data(), set.geometry.site_count);
+    const std::vector<Piece> candidates = make_candidates(in, Rule::exact);
+    const FixedCover cover = make_fixed_cover(in);
+    const CoverView view = cover.view();
+    for (const JumpTable jump : {JumpTable::outline, JumpTable::full}) {
+      SCOPED_TRACE(jump == JumpTable::outline ? "outline jump table" : "full jump table");
+      const Tree tree = build_tree(candidates, level, false, 2, {}, &view, jump);
+      EXPECT_EQ(tree.jump_level, jump == JumpTable::outline ? tree_outline_jump_level(level) : tree_jump_level(level));
+      const TreeView tv = tree.view(candidates.data());
+      const grid::CodeRange whole = grid::whole_level(level);
+      OutlineCells got = cpu_tree_outlines(tree, tv, 2, whole, {});
+      // Three ranges, cut inside octants, joined in order.
+      OutlineCells joined;
+      const Code cuts[4] = {0, whole.end / 3 + 5, 2 * (whole.end / 3) + 11, whole.end};
+      for (int r = 0; r < 3; ++r) {
+        const OutlineCells part = cpu_tree_outlines(tree, tv, 2, {cuts[r], cuts[r + 1]}, {});
+        joined.insert(joined.end(), part.begin(), part.end());
+      }
+      for (const OutlineCells* cells : {&got, &joined}) {
+        ASSERT_EQ(cells->size(), want.cells.size());
+        std::size_t mismatches = 0;
+        for (std::size_t k = 0; k < want.cells.size(); ++k) {
+          const OutlineCell& a = (*cells)[k];
+          const OutlineCell& b = want.cells[k];
+          mismatches += a.code != b.code || a.site != b.site || a.boundary != b.boundary;
+        }
+        EXPECT_EQ(mismatches, 0u);
+      }
+    }
+  }
 }
 
 // The counts and flags that outlines_of_dense derives agree with a direct count over the labels.

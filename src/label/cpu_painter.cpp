@@ -311,10 +311,31 @@ struct OutlineScratch {
   std::vector<SettledNode> settled;
   NodeShapes shapes[grid::kMaxLevel + 1];  ///< settle_below's, per level
   std::vector<ItemBound> bounds;
+  /// The leaf met last across each edge of a uniform leaf (kNeighbourLeft, kNeighbourRight,
+  /// kNeighbourVertical): consecutive rim cells mostly face one leaf.
+  struct AcrossLeaf {
+    grid::Cell cell{};
+    int level = -1;  ///< -1: none yet
+    std::int32_t node = -1;
+  };
+  AcrossLeaf across[3];
   /// The site of cell c (not in the visited leaf): its leaf's, or the best of its list.
   std::int32_t site_of(const TreeView& tv, const grid::Cell& c) {
     int leaf_level;
     const std::int32_t node = find_leaf(tv, c, &leaf_level);
+    return site_in_leaf(tv, c, node, leaf_level);
+  }
+  /// site_of for a cell c across `edge` of the visited leaf.
+  std::int32_t site_across(const TreeView& tv, const grid::Cell& c, int edge) {
+    AcrossLeaf& a = across[edge];
+    if (a.level < 0 || !same_cell(grid::ancestor(c, tv.level, a.level), a.cell)) {
+      a.node = find_leaf(tv, c, &a.level);
+      a.cell = grid::ancestor(c, tv.level, a.level);
+    }
+    return site_in_leaf(tv, c, a.node, a.level);
+  }
+  /// The site of cell c in leaf `node` (of level leaf_level).
+  std::int32_t site_in_leaf(const TreeView& tv, const grid::Cell& c, std::int32_t node, int leaf_level) {
     const TreeNode leaf = tv.nodes[node];
     if (leaf.count == kUniform) return leaf.value;
     std::size_t slot = 0;
@@ -421,17 +442,22 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
     // The rim: each row's first cell (on the left edge) and last (on the right edge), and the
     // whole row on the leaf's base (the up cells of an up leaf's last row, the down cells of a
     // down leaf's first row lie on the base edge); interior_of_ancestor says which are inner.
-    // A rim cell on settled edges only is no boundary cell: it is listed only as a row end.
+    // Only a rim cell's neighbours across the edges it lies on can have another site, and only
+    // across edges not settled.
     const std::int32_t site = uniform_site;
     const bool up_leaf = grid::is_up(leaf.cell);
     const std::uint64_t base_row = up_leaf ? rows - 1 : 0;
     const auto rim = [&](const grid::Cell& c, grid::Code code, bool on_left, bool on_right, bool on_base) {
-      if ((on_left && !settled_edge[grid::kNeighbourLeft]) || (on_right && !settled_edge[grid::kNeighbourRight]) ||
-          (on_base && !settled_edge[grid::kNeighbourVertical])) {
-        consider(c, code, site);
-      } else if (is_row_end(c)) {
-        out.push_back({code, site, 0u});
+      const bool check[3] = {on_left && !settled_edge[grid::kNeighbourLeft],
+                             on_right && !settled_edge[grid::kNeighbourRight],
+                             on_base && !settled_edge[grid::kNeighbourVertical]};
+      bool boundary = false;
+      if (check[0] || check[1] || check[2]) {
+        grid::Cell nb[3];
+        grid::neighbours(c, level, nb);
+        for (int s = 0; s < 3 && !boundary; ++s) boundary = check[s] && scratch.site_across(tv, nb[s], s) != site;
       }
+      if (boundary || is_row_end(c)) out.push_back({code, site, boundary ? 1u : 0u});
     };
     for (std::uint64_t r = 0; r < rows; ++r) {
       const grid::RowCodes codes = grid::row_codes_below(leaf.cell, k, r, level);

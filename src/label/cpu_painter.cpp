@@ -226,6 +226,16 @@ struct LeafLabels {
   }
 };
 
+/// Index of cell c (of the labelling level) among the cells of `leaf` (k levels up) in
+/// LeafLabels' order: rows from the leaf's apex, an up leaf's row r holding 2r + 1 cells from its
+/// base column, a down leaf's 2 (2^k - r) - 1 from two columns further per row.
+std::size_t leaf_cell_index(const grid::Cell& leaf, int k, const grid::Cell& c) {
+  const std::uint64_t r = c.row - (std::uint64_t{leaf.row} << k), base = std::uint64_t{leaf.col / 2} << (k + 1);
+  if (grid::is_up(leaf)) return static_cast<std::size_t>(r * r + (c.col - base));
+  const std::uint64_t side = std::uint64_t{1} << k;
+  return static_cast<std::size_t>(2 * side * r - r * r + (c.col - (base + 2 * r + 1)));
+}
+
 /// A node below a list leaf whose cells all have one site.
 struct SettledNode {
   grid::Cell cell;
@@ -334,10 +344,33 @@ struct OutlineScratch {
     }
     return site_in_leaf(tv, c, a.node, a.level);
   }
+  /// The labels of the list leaves this thread visited last: the leaves after them, often their
+  /// siblings in the tree's order, border them.
+  struct LabelledLeaf {
+    std::int32_t node = -1;
+    grid::Cell cell{};
+    int k = 0;
+    std::vector<std::int32_t> site;  ///< in LeafLabels' order
+  };
+  static constexpr std::size_t kLabelled = 8;
+  LabelledLeaf labelled[kLabelled];
+  std::size_t next_labelled = 0;
+  /// Keeps `labels` (of leaf `node`) among the labelled leaves, in place of the oldest.
+  void keep_labels(std::int32_t node) {
+    LabelledLeaf& kept = labelled[next_labelled];
+    next_labelled = (next_labelled + 1) % kLabelled;
+    kept.node = node;
+    kept.cell = labels.leaf;
+    kept.k = labels.k;
+    kept.site.assign(labels.site.begin(), labels.site.end());
+  }
   /// The site of cell c in leaf `node` (of level leaf_level).
   std::int32_t site_in_leaf(const TreeView& tv, const grid::Cell& c, std::int32_t node, int leaf_level) {
     const TreeNode leaf = tv.nodes[node];
     if (leaf.count == kUniform) return leaf.value;
+    for (const LabelledLeaf& l : labelled) {
+      if (l.node == node) return l.site[leaf_cell_index(l.cell, l.k, c)];
+    }
     std::size_t slot = 0;
     while (slot < kNeighbours && neighbour_node[slot] != node) ++slot;
     if (slot == kNeighbours) {
@@ -401,6 +434,7 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
         if (labels.site[m] < 0) labels.site[m] = order.best(tv, scratch.centres(c, level)).site;
       }
     }
+    scratch.keep_labels(leaf.node);
     uniform = std::all_of(labels.site.begin(), labels.site.end(), [&](std::int32_t s) { return s == labels.site[0]; });
     uniform_site = labels.site[0];
   }

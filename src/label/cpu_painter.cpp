@@ -219,11 +219,6 @@ struct LeafLabels {
   }
   /// One past the index of row r's last cell.
   std::size_t row_end(std::size_t r) const { return row_start[r] + static_cast<std::size_t>(rows[r].last - rows[r].first + 1); }
-  /// Index of cell `c` (of the labelling level, inside the leaf).
-  std::size_t index(const grid::Cell& c, grid::Code c_code) const {
-    const std::size_t r = c.row - (std::size_t{leaf.row} << k);
-    return row_start[r] + static_cast<std::size_t>(c_code - rows[r].first);
-  }
 };
 
 /// Index of cell c (of the labelling level) among the cells of `leaf` (k levels up) in
@@ -307,8 +302,9 @@ void settle_below(const TreeView& tv, const TreeNode& list, const grid::Cell& ce
   }
 }
 
-/// A thread's scratch for the outline pass: the visited leaf's order and labels, and the orders
-/// of the list leaves last met across its rim (a leaf's rows end on its left and right
+/// A thread's scratch for the outline pass: the visited leaf's order and labels; for the cells
+/// across its edges, the leaf met last across each edge, the labels of the list leaves visited
+/// last, and the orders of the list leaves last searched (a leaf's rows end on its left and right
 /// neighbours in turn, so a few are kept, the oldest made again).
 struct OutlineScratch {
   grid::CentreVectors centres;
@@ -329,13 +325,7 @@ struct OutlineScratch {
     std::int32_t node = -1;
   };
   AcrossLeaf across[3];
-  /// The site of cell c (not in the visited leaf): its leaf's, or the best of its list.
-  std::int32_t site_of(const TreeView& tv, const grid::Cell& c) {
-    int leaf_level;
-    const std::int32_t node = find_leaf(tv, c, &leaf_level);
-    return site_in_leaf(tv, c, node, leaf_level);
-  }
-  /// site_of for a cell c across `edge` of the visited leaf.
+  /// The site of cell c across `edge` of the visited leaf: its leaf's, or the best of its list.
   std::int32_t site_across(const TreeView& tv, const grid::Cell& c, int edge) {
     AcrossLeaf& a = across[edge];
     if (a.level < 0 || !same_cell(grid::ancestor(c, tv.level, a.level), a.cell)) {
@@ -458,20 +448,6 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
       return;
     }
   }
-  // The site of a neighbour: inside this leaf, its site or label; elsewhere, the tree's.
-  const auto neighbour_site = [&](const grid::Cell& nb) {
-    if (same_cell(grid::ancestor(nb, level, leaf.level), leaf.cell)) {
-      return uniform ? uniform_site : labels.site[labels.index(nb, grid::code_of(nb, level))];
-    }
-    return scratch.site_of(tv, nb);
-  };
-  const auto consider = [&](const grid::Cell& c, grid::Code code, std::int32_t site) {
-    grid::Cell nb[3];
-    grid::neighbours(c, level, nb);
-    bool boundary = false;
-    for (int s = 0; s < 3 && !boundary; ++s) boundary = neighbour_site(nb[s]) != site;
-    if (boundary || is_row_end(c)) out.push_back({code, site, boundary ? 1u : 0u});
-  };
   if (uniform) {
     // The rim: each row's first cell (on the left edge) and last (on the right edge), and the
     // whole row on the leaf's base (the up cells of an up leaf's last row, the down cells of a
@@ -509,12 +485,39 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
     }
     return;
   }
-  // Row by row from the apex: code order.
+  // Row by row from the apex: code order. A cell's neighbours inside the leaf are found by index:
+  // left and right in its row, the vertical one (above a down cell: code - 2 row; below an up
+  // cell: code + 2 row + 2) in the row before or after; the others across the leaf's edges.
+  const auto index_in_row = [&](std::uint64_t r, grid::Code code) -> std::ptrdiff_t {
+    const grid::RowCodes& codes = labels.rows[r];
+    return code >= codes.first && code <= codes.last ? static_cast<std::ptrdiff_t>(labels.row_start[r] + (code - codes.first))
+                                                     : -1;
+  };
   for (std::uint64_t r = 0; r < rows; ++r) {
     grid::Code code = labels.rows[r].first;
     grid::Cell c = grid::cell_of(code, level);
-    for (std::size_t m = labels.row_start[r]; m < labels.row_end(r); ++m, ++code, grid::next_in_code_order(c, level)) {
-      if (!labels.inner[m]) consider(c, code, labels.site[m]);
+    const std::size_t first = labels.row_start[r], end = labels.row_end(r);
+    for (std::size_t m = first; m < end; ++m, ++code, grid::next_in_code_order(c, level)) {
+      if (labels.inner[m]) continue;
+      const std::int32_t site = labels.site[m];
+      const bool down = (c.col & 1u) != 0;
+      std::ptrdiff_t inside[3] = {m > first ? static_cast<std::ptrdiff_t>(m - 1) : -1,
+                                  m + 1 < end ? static_cast<std::ptrdiff_t>(m + 1) : -1, -1};
+      if (down && r > 0) inside[grid::kNeighbourVertical] = index_in_row(r - 1, code - 2 * grid::Code{c.row});
+      if (!down && r + 1 < rows) inside[grid::kNeighbourVertical] = index_in_row(r + 1, code + 2 * grid::Code{c.row} + 2);
+      bool boundary = false;
+      grid::Cell nb[3];
+      bool across = false;  // nb made
+      for (int s = 0; s < 3 && !boundary; ++s) {
+        if (inside[s] >= 0) {
+          boundary = labels.site[static_cast<std::size_t>(inside[s])] != site;
+        } else {
+          if (!across) grid::neighbours(c, level, nb);
+          across = true;
+          boundary = scratch.site_across(tv, nb[s], s) != site;
+        }
+      }
+      if (boundary || is_row_end(c)) out.push_back({code, site, boundary ? 1u : 0u});
     }
   }
 }

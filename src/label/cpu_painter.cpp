@@ -302,6 +302,16 @@ void settle_below(const TreeView& tv, const TreeNode& list, const grid::Cell& ce
   }
 }
 
+/// Whether the outline pass over `range` visits the leaf `cell` (of level leaf_level, in a tree of
+/// `level`): whether its rows hold codes of the range. A leaf's cells lie in its rows, between
+/// the first code of its first row and the first code of the row after its last.
+bool leaf_visited(const grid::Cell& cell, int leaf_level, int level, grid::CodeRange range) {
+  const int k = level - leaf_level;
+  const grid::Code octant_first = static_cast<grid::Code>(cell.octant) * grid::cells_per_octant(level);
+  const std::uint64_t row_first = std::uint64_t{cell.row} << k, row_end = row_first + (std::uint64_t{1} << k);
+  return octant_first + row_end * row_end > range.first && octant_first + row_first * row_first < range.end;
+}
+
 /// A thread's scratch for the outline pass: the visited leaf's order and labels; for the cells
 /// across its edges, the leaf met last across each edge, the labels of the list leaves visited
 /// last, and the orders of the list leaves last searched (a leaf's rows end on its left and right
@@ -325,14 +335,15 @@ struct OutlineScratch {
     std::int32_t node = -1;
   };
   AcrossLeaf across[3];
-  /// The site of cell c across `edge` of the visited leaf: its leaf's, or the best of its list.
-  std::int32_t site_across(const TreeView& tv, const grid::Cell& c, int edge) {
+  grid::CodeRange range;  ///< of the pass
+  /// The leaf that holds cell c, across `edge` of the visited leaf.
+  const AcrossLeaf& across_leaf(const TreeView& tv, const grid::Cell& c, int edge) {
     AcrossLeaf& a = across[edge];
     if (a.level < 0 || !same_cell(grid::ancestor(c, tv.level, a.level), a.cell)) {
       a.node = find_leaf(tv, c, &a.level);
       a.cell = grid::ancestor(c, tv.level, a.level);
     }
-    return site_in_leaf(tv, c, a.node, a.level);
+    return a;
   }
   /// The labels of the list leaves this thread visited last: the leaves after them, often their
   /// siblings in the tree's order, border them.
@@ -377,8 +388,14 @@ struct OutlineScratch {
 
 /// True when the cell `c` of level `l` lies in a uniform leaf of `site` (at level l or above).
 bool in_uniform_leaf_of(const TreeView& tv, const grid::Cell& c, int l, std::int32_t site) {
-  const TreeNode node = tv.nodes[walk_to_jump_level(tv.nodes, c, l).node];  // the walk down to level l
-  return node.count == kUniform && node.value == site;
+  // The walk down to level l, from the jump table's entry where l is below its level.
+  JumpEntry at{c.octant, 0};
+  if (l >= tv.jump_level) at = tv.jump[grid::code_of(grid::ancestor(c, l, tv.jump_level), tv.jump_level)];
+  std::int32_t node = at.node;
+  for (int level = at.level; level < l && tv.nodes[node].count == kInternal; ++level) {
+    node = tv.nodes[node].value + grid::child_digit(grid::ancestor(c, l, level + 1));
+  }
+  return tv.nodes[node].count == kUniform && tv.nodes[node].value == site;
 }
 
 /// Visits one leaf: every cell of a list leaf, the rim of a uniform leaf (or of a list leaf
@@ -392,7 +409,24 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
   const int level = tv.level;
   const int k = level - leaf.level;
   const std::uint64_t rows = std::uint64_t{1} << k;
-  bool uniform = node.count == kUniform;
+  const bool list_leaf = node.count != kUniform;
+  // Whether the neighbour nb of a cell of `site`, across edge s of this leaf, has another site. A
+  // pair of a list leaf's cell and a uniform leaf's is settled by the list leaf's visit, which
+  // then lists the uniform leaf's cell too (a uniform leaf's rim beside a list leaf would
+  // otherwise search the list leaf's cells again); the uniform leaf's visit leaves the pair to a
+  // list leaf that the pass visits. join_in_code_order lists a cell listed twice once.
+  const auto across_differs = [&](const grid::Cell& nb, int s, std::int32_t site) {
+    const OutlineScratch::AcrossLeaf& a = scratch.across_leaf(tv, nb, s);
+    const TreeNode other = tv.nodes[a.node];
+    if (other.count == kUniform) {
+      if (other.value == site) return false;
+      if (list_leaf) out.push_back({grid::code_of(nb, level), other.value, 1u});
+      return true;
+    }
+    if (!list_leaf && leaf_visited(a.cell, a.level, level, scratch.range)) return false;
+    return scratch.site_in_leaf(tv, nb, a.node, a.level) != site;
+  };
+  bool uniform = !list_leaf;
   std::int32_t uniform_site = node.value;
   if (!uniform) {
     labels.reset(leaf.cell, k, level);
@@ -465,7 +499,8 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
       if (check[0] || check[1] || check[2]) {
         grid::Cell nb[3];
         grid::neighbours(c, level, nb);
-        for (int s = 0; s < 3 && !boundary; ++s) boundary = check[s] && scratch.site_across(tv, nb[s], s) != site;
+        // A list leaf's visit asks every neighbour across its edges (it may list theirs).
+        for (int s = 0; s < 3 && (list_leaf || !boundary); ++s) boundary = (check[s] && across_differs(nb[s], s, site)) || boundary;
       }
       if (boundary || is_row_end(c)) out.push_back({code, site, boundary ? 1u : 0u});
     };
@@ -508,13 +543,13 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
       bool boundary = false;
       grid::Cell nb[3];
       bool across = false;  // nb made
-      for (int s = 0; s < 3 && !boundary; ++s) {
+      for (int s = 0; s < 3; ++s) {
         if (inside[s] >= 0) {
-          boundary = labels.site[static_cast<std::size_t>(inside[s])] != site;
+          boundary = boundary || labels.site[static_cast<std::size_t>(inside[s])] != site;
         } else {
           if (!across) grid::neighbours(c, level, nb);
           across = true;
-          boundary = scratch.site_across(tv, nb[s], s) != site;
+          boundary = across_differs(nb[s], s, site) || boundary;
         }
       }
       if (boundary || is_row_end(c)) out.push_back({code, site, boundary ? 1u : 0u});
@@ -534,7 +569,18 @@ OutlineCells join_in_code_order(std::vector<OutlineCells>& parts) {
     all.insert(all.end(), p.begin(), p.end());
     OutlineCells().swap(p);
   }
-  parallel_sort(all.begin(), all.end(), code_less);  // codes are unique
+  parallel_sort(all.begin(), all.end(), code_less);
+  // A uniform leaf's cell beside a list leaf may come from both leaves' visits: once, a boundary
+  // cell if either says so.
+  std::size_t kept = 0;
+  for (std::size_t r = 0; r < all.size(); ++r) {
+    if (kept > 0 && all[kept - 1].code == all[r].code) {
+      all[kept - 1].boundary |= all[r].boundary;
+    } else {
+      all[kept++] = all[r];
+    }
+  }
+  all.resize(kept);
   return all;
 }
 
@@ -545,6 +591,7 @@ OutlineCells cpu_tree_outlines(const Tree& tree, const TreeView& tv, int threads
   const std::size_t leaves = tree.leaves.size();
   std::vector<OutlineCells> parts(static_cast<std::size_t>(threads));
   std::vector<OutlineScratch> scratch(static_cast<std::size_t>(threads));
+  for (OutlineScratch& s : scratch) s.range = range;
   // Leaves in batches, so that `done` (which may throw to stop the run) is called every so often.
   const std::size_t batch = std::max<std::size_t>(4096, leaves / 256);
   for (std::size_t first = 0; first < leaves; first += batch) {
@@ -555,12 +602,7 @@ OutlineCells cpu_tree_outlines(const Tree& tree, const TreeView& tv, int threads
 #pragma omp for schedule(dynamic, 16)
       for (std::int64_t q = static_cast<std::int64_t>(first); q < static_cast<std::int64_t>(last); ++q) {
         const TreeLeaf& leaf = tree.leaves[static_cast<std::size_t>(q)];
-        // The leaf's cells lie in its rows, between the first code of its first row and the
-        // first code of the row after its last.
-        const int k = tree.level - leaf.level;
-        const grid::Code octant_first = static_cast<grid::Code>(leaf.cell.octant) * grid::cells_per_octant(tree.level);
-        const std::uint64_t row_first = std::uint64_t{leaf.cell.row} << k, row_end = row_first + (std::uint64_t{1} << k);
-        if (octant_first + row_end * row_end <= range.first || octant_first + row_first * row_first >= range.end) continue;
+        if (!leaf_visited(leaf.cell, leaf.level, tree.level, range)) continue;
         leaf_outline_cells(tv, leaf, tree.nodes[static_cast<std::size_t>(leaf.node)], scratch[t], parts[t]);
       }
     }

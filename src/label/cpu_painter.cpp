@@ -462,61 +462,49 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
     uniform = std::all_of(labels.site.begin(), labels.site.end(), [&](std::int32_t s) { return s == labels.site[0]; });
     uniform_site = labels.site[0];
   }
-  // For a leaf of one site: which of its edges (kNeighbourLeft, kNeighbourRight, kNeighbourVertical)
-  // has a neighbour of the leaf's level in a uniform leaf of that site. No boundary cell lies
-  // along such an edge, since the cells across it lie in that neighbour.
-  bool settled_edge[3] = {false, false, false};
   if (uniform) {
+    // A leaf of one site lists cells along its edges only, edge by edge: the left edge holds each
+    // row's first cell, the right edge each row's last, the base edge the up cells of an up leaf's
+    // last row (the down cells of a down leaf's first row). Along an edge whose neighbour (of the
+    // leaf's level) lies in a uniform leaf of the same site no cell is a boundary cell, since the
+    // cells across it lie in that neighbour: such an edge lists only the row ends on it (on the
+    // octant's left edge, column 0, or its right edge, column 2 row). A corner cell, on two edges,
+    // is listed by each (join_in_code_order keeps it once).
+    const std::int32_t site = uniform_site;
     grid::Cell around[3];
     grid::neighbours(leaf.cell, leaf.level, around);
-    for (int s = 0; s < 3; ++s) settled_edge[s] = in_uniform_leaf_of(tv, around[s], leaf.level, uniform_site);
-    if (settled_edge[0] && settled_edge[1] && settled_edge[2]) {
-      // Row ends only: each row's first cell on the octant's left edge (column 0), its last on
-      // the right edge (column 2 row); only up cells reach them.
-      const bool left = leaf.cell.col == 0, right = leaf.cell.col == 2 * leaf.cell.row;
-      for (std::uint64_t r = 0; (left || right) && r < rows; ++r) {
-        const grid::RowCodes codes = grid::row_codes_below(leaf.cell, k, r, level);
-        if (left) out.push_back({codes.first, uniform_site, 0u});
-        if (right && !(left && codes.last == codes.first)) out.push_back({codes.last, uniform_site, 0u});
-      }
-      return;
-    }
-  }
-  if (uniform) {
-    // The rim: each row's first cell (on the left edge) and last (on the right edge), and the
-    // whole row on the leaf's base (the up cells of an up leaf's last row, the down cells of a
-    // down leaf's first row lie on the base edge); interior_of_ancestor says which are inner.
-    // Only a rim cell's neighbours across the edges it lies on can have another site, and only
-    // across edges not settled.
-    const std::int32_t site = uniform_site;
+    bool settled[3];
+    for (int s = 0; s < 3; ++s) settled[s] = in_uniform_leaf_of(tv, around[s], leaf.level, site);
     const bool up_leaf = grid::is_up(leaf.cell);
-    const std::uint64_t base_row = up_leaf ? rows - 1 : 0;
-    const auto rim = [&](const grid::Cell& c, grid::Code code, bool on_left, bool on_right, bool on_base) {
-      const bool check[3] = {on_left && !settled_edge[grid::kNeighbourLeft],
-                             on_right && !settled_edge[grid::kNeighbourRight],
-                             on_base && !settled_edge[grid::kNeighbourVertical]};
+    const grid::Code octant_first = static_cast<grid::Code>(leaf.cell.octant) * grid::cells_per_octant(level);
+    const std::uint32_t first_row = leaf.cell.row << k;
+    const std::uint32_t base = (leaf.cell.col / 2) << (k + 1);  // the leaf's first column in its rows' blocks
+    const auto edge_cell = [&](std::uint32_t row, std::uint32_t col, int s) {
+      const grid::Cell c{leaf.cell.octant, row, col};
       bool boundary = false;
-      if (check[0] || check[1] || check[2]) {
+      if (!settled[s]) {
         grid::Cell nb[3];
         grid::neighbours(c, level, nb);
-        // A list leaf's visit asks every neighbour across its edges (it may list theirs).
-        for (int s = 0; s < 3 && (list_leaf || !boundary); ++s) boundary = (check[s] && across_differs(nb[s], s, site)) || boundary;
+        boundary = across_differs(nb[s], s, site);
       }
-      if (boundary || is_row_end(c)) out.push_back({code, site, boundary ? 1u : 0u});
+      if (boundary || is_row_end(c)) {
+        out.push_back({octant_first + std::uint64_t{row} * row + col, site, boundary ? 1u : 0u});
+      }
     };
-    for (std::uint64_t r = 0; r < rows; ++r) {
-      const grid::RowCodes codes = grid::row_codes_below(leaf.cell, k, r, level);
-      if (r == base_row) {
-        grid::Cell c = grid::cell_of(codes.first, level);
-        for (grid::Code code = codes.first; code <= codes.last; ++code, grid::next_in_code_order(c, level)) {
-          if (!grid::interior_of_ancestor(c, level, leaf.level)) {
-            rim(c, code, code == codes.first, code == codes.last, grid::is_up(c) == up_leaf);
-          }
-        }
-      } else {
-        rim(grid::cell_of(codes.first, level), codes.first, true, codes.last == codes.first, false);
-        if (codes.last != codes.first) rim(grid::cell_of(codes.last, level), codes.last, false, true, false);
+    const std::uint32_t last_col = base + 2 * static_cast<std::uint32_t>(rows) - 1;  // of a down leaf's rows
+    if (!settled[grid::kNeighbourLeft] || leaf.cell.col == 0) {
+      for (std::uint32_t r = 0; r < rows; ++r) {
+        edge_cell(first_row + r, up_leaf ? base : base + 2 * r + 1, grid::kNeighbourLeft);
       }
+    }
+    if (!settled[grid::kNeighbourRight] || leaf.cell.col == 2 * leaf.cell.row) {
+      for (std::uint32_t r = 0; r < rows; ++r) {
+        edge_cell(first_row + r, up_leaf ? base + 2 * r : last_col, grid::kNeighbourRight);
+      }
+    }
+    if (!settled[grid::kNeighbourVertical]) {
+      const std::uint32_t row = up_leaf ? first_row + static_cast<std::uint32_t>(rows) - 1 : first_row;
+      for (std::uint32_t m = 0; m < rows; ++m) edge_cell(row, (up_leaf ? base : base + 1) + 2 * m, grid::kNeighbourVertical);
     }
     return;
   }

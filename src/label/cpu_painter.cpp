@@ -274,7 +274,7 @@ std::int32_t one_site_below(const TreeView& tv, const TreeNode& list, const grid
     item_bounds(centre, items[k], tv.pieces, tv.groups, &b.lb2, &ub2, &b.site);
     min_ub2 = std::min(min_ub2, ub2);
   }
-  const double threshold = prune_threshold(min_ub2, shapes.radius(l, cell));
+  const double threshold = prune_threshold_above(min_ub2, shapes.radius(l, cell));
   std::int32_t one = -1;
   for (const ItemBound& b : bounds) {
     if (b.lb2 > threshold) continue;

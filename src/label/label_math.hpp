@@ -191,4 +191,16 @@ QTMV_HD inline double prune_threshold(double min_chord2, double radius) {
   return 4.0 * half_chord * half_chord * (1.0 + 1e-12);
 }
 
+/// At least prune_threshold(min_chord2, radius), from square roots alone where the node is small
+/// (radius up to 0.05 radians) and the nearest candidate not near the antipode: with a the angle
+/// of min_chord2 and h = radius + kPruneMarginRadians / 2, sin(a/2 + h) <= sin(a/2) + cos(a/2) h.
+/// For callers to whom a larger threshold costs only work (it keeps every candidate that
+/// prune_threshold keeps), not for the tree build, whose CPU and GPU trees must agree.
+QTMV_HD inline double prune_threshold_above(double min_chord2, double radius) {
+  const double h = radius + 0.5 * kPruneMarginRadians;
+  if (min_chord2 > 3.9 || h > 0.05) return prune_threshold(min_chord2, radius);
+  const double half_chord = 0.5 * sqrt(min_chord2) + sqrt(1.0 - 0.25 * min_chord2) * h;
+  return 4.0 * half_chord * half_chord * (1.0 + 1e-12);
+}
+
 }  // namespace qtmv::label

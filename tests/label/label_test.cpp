@@ -150,6 +150,27 @@ TEST(LabelTree, NodeRadiusBoundsEveryCellCentreOfTheSubtree) {
   RecordProperty("worst_ratio", std::to_string(worst_ratio));
 }
 
+// prune_threshold_above keeps every candidate that prune_threshold keeps (it is never below it)
+// and is not much above it where it takes its own route (small nodes): over squared chords from 0
+// to 4 and radii from 0 to 0.1 radians, the node_radius of every level from 4 to 30 among them.
+TEST(LabelMath, PruneThresholdAboveBoundsPruneThreshold) {
+  std::vector<double> radii = {0.0, 1e-12, 1e-9, 0.049, 0.05, 0.051, 0.1};
+  for (int level = 4; level <= 24; ++level) radii.push_back(node_radius(level, Cell{0, 1, 0}));
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> any_chord2(0.0, 4.0);
+  std::vector<double> chords2 = {0.0, 1e-18, 1e-12, 1e-6, 0.5, 2.0, 3.89, 3.9, 3.91, 4.0};
+  for (int k = 0; k < 2000; ++k) chords2.push_back(any_chord2(rng));
+  double worst = 0;  // relative excess where the square-root route is taken
+  for (const double r : radii) {
+    for (const double c2 : chords2) {
+      const double exact = prune_threshold(c2, r), above = prune_threshold_above(c2, r);
+      ASSERT_GE(above, exact) << "chord2 " << c2 << " radius " << r;
+      if (c2 <= 3.9 && r < 0.05 && exact > 0) worst = std::max(worst, above / exact - 1.0);
+    }
+  }
+  EXPECT_LT(worst, 5e-3);  // cos h <= 1 costs h^2 / 2 at h = 0.05
+}
+
 // --- the labelling ----------------------------------------------------------------------------
 
 /// The reference: float64 brute force over the raw input, its own candidate list and ordering.

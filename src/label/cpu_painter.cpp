@@ -415,15 +415,21 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
   // then lists the uniform leaf's cell too (a uniform leaf's rim beside a list leaf would
   // otherwise search the list leaf's cells again); the uniform leaf's visit leaves the pair to a
   // list leaf that the pass visits. join_in_code_order lists a cell listed twice once.
+  // Whether no cell of `site` beside leaf `a` has to ask: `a` is uniform with that site, or a
+  // visited list leaf beside a uniform leaf.
+  const auto nothing_to_ask = [&](const OutlineScratch::AcrossLeaf& a, std::int32_t site) {
+    const TreeNode other = tv.nodes[a.node];
+    if (other.count == kUniform) return other.value == site;
+    return !list_leaf && leaf_visited(a.cell, a.level, level, scratch.range);
+  };
   const auto across_differs = [&](const grid::Cell& nb, int s, std::int32_t site) {
     const OutlineScratch::AcrossLeaf& a = scratch.across_leaf(tv, nb, s);
+    if (nothing_to_ask(a, site)) return false;
     const TreeNode other = tv.nodes[a.node];
     if (other.count == kUniform) {
-      if (other.value == site) return false;
       if (list_leaf) out.push_back({grid::code_of(nb, level), other.value, 1u});
       return true;
     }
-    if (!list_leaf && leaf_visited(a.cell, a.level, level, scratch.range)) return false;
     return scratch.site_in_leaf(tv, nb, a.node, a.level) != site;
   };
   bool uniform = !list_leaf;
@@ -479,32 +485,64 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
     const grid::Code octant_first = static_cast<grid::Code>(leaf.cell.octant) * grid::cells_per_octant(level);
     const std::uint32_t first_row = leaf.cell.row << k;
     const std::uint32_t base = (leaf.cell.col / 2) << (k + 1);  // the leaf's first column in its rows' blocks
-    const auto edge_cell = [&](std::uint32_t row, std::uint32_t col, int s) {
-      const grid::Cell c{leaf.cell.octant, row, col};
-      bool boundary = false;
-      if (!settled[s]) {
-        grid::Cell nb[3];
-        grid::neighbours(c, level, nb);
-        boundary = across_differs(nb[s], s, site);
-      }
-      if (boundary || is_row_end(c)) {
-        out.push_back({octant_first + std::uint64_t{row} * row + col, site, boundary ? 1u : 0u});
+    // The cells of edge s, n of them, the m-th in (row_of(m), col_of(m)). Where the leaf across
+    // a cell asks nothing of it, the cells after it that face the same leaf ask nothing either:
+    // `beyond(a)` is the index past them (the leaf across a side edge is a triangle whose
+    // matching edge runs along it, holding the across cells of all its rows; across the base it
+    // holds a run of the next row's columns).
+    const auto walk_edge = [&](int s, std::uint32_t n, auto row_of, auto col_of, auto beyond) {
+      for (std::uint32_t m = 0; m < n;) {
+        const grid::Cell c{leaf.cell.octant, row_of(m), col_of(m)};
+        std::uint32_t next = m + 1;
+        bool boundary = false;
+        if (!settled[s]) {
+          grid::Cell nb[3];
+          grid::neighbours(c, level, nb);
+          const OutlineScratch::AcrossLeaf& a = scratch.across_leaf(tv, nb[s], s);
+          if (nothing_to_ask(a, site)) {
+            next = std::max(next, std::min(n, beyond(a)));
+          } else {
+            boundary = across_differs(nb[s], s, site);
+          }
+        }
+        for (; m < next; ++m) {
+          const grid::Cell e{leaf.cell.octant, row_of(m), col_of(m)};
+          if (boundary || is_row_end(e)) {
+            out.push_back({octant_first + std::uint64_t{e.row} * e.row + e.col, site, boundary ? 1u : 0u});
+          }
+        }
       }
     };
-    const std::uint32_t last_col = base + 2 * static_cast<std::uint32_t>(rows) - 1;  // of a down leaf's rows
+    // Past the rows of leaf a (in its octant; the side edges keep the row across octants).
+    const auto past_rows = [&](const OutlineScratch::AcrossLeaf& a) {
+      const std::uint32_t end = (a.cell.row + 1) << (level - a.level);
+      return end > first_row ? end - first_row : 0u;
+    };
+    const std::uint32_t n = static_cast<std::uint32_t>(rows);
+    const std::uint32_t last_col = base + 2 * n - 1;  // of a down leaf's rows
+    const auto row_at = [&](std::uint32_t m) { return first_row + m; };
     if (!settled[grid::kNeighbourLeft] || leaf.cell.col == 0) {
-      for (std::uint32_t r = 0; r < rows; ++r) {
-        edge_cell(first_row + r, up_leaf ? base : base + 2 * r + 1, grid::kNeighbourLeft);
-      }
+      walk_edge(grid::kNeighbourLeft, n, row_at, [&](std::uint32_t m) { return up_leaf ? base : base + 2 * m + 1; },
+                past_rows);
     }
     if (!settled[grid::kNeighbourRight] || leaf.cell.col == 2 * leaf.cell.row) {
-      for (std::uint32_t r = 0; r < rows; ++r) {
-        edge_cell(first_row + r, up_leaf ? base + 2 * r : last_col, grid::kNeighbourRight);
-      }
+      walk_edge(grid::kNeighbourRight, n, row_at, [&](std::uint32_t m) { return up_leaf ? base + 2 * m : last_col; },
+                past_rows);
     }
     if (!settled[grid::kNeighbourVertical]) {
-      const std::uint32_t row = up_leaf ? first_row + static_cast<std::uint32_t>(rows) - 1 : first_row;
-      for (std::uint32_t m = 0; m < rows; ++m) edge_cell(row, (up_leaf ? base : base + 1) + 2 * m, grid::kNeighbourVertical);
+      const std::uint32_t row = up_leaf ? first_row + n - 1 : first_row;
+      // The leaf across holds the columns up to its own base's last in the next row (an up
+      // leaf's base) or the row before (a down leaf's); past the octant's last row the
+      // columns run the other way, so each cell asks.
+      const bool mirrored = up_leaf && std::uint64_t{row} + 1 == grid::rows_per_octant(level);
+      walk_edge(grid::kNeighbourVertical, n, [&](std::uint32_t) { return row; },
+                [&](std::uint32_t m) { return (up_leaf ? base : base + 1) + 2 * m; },
+                [&](const OutlineScratch::AcrossLeaf& a) -> std::uint32_t {
+                  if (mirrored) return 0;
+                  const int ka = level - a.level;
+                  const std::uint32_t a_end = ((a.cell.col / 2) << (ka + 1)) + (2u << ka);  // its columns' block end
+                  return a_end > base ? (a_end - base) / 2 : 0u;
+                });
     }
     return;
   }
@@ -545,8 +583,6 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
   }
 }
 
-bool code_less(const OutlineCell& a, const OutlineCell& b) { return a.code < b.code; }
-
 /// Per-thread lists joined and put in code order.
 OutlineCells join_in_code_order(std::vector<OutlineCells>& parts) {
   std::size_t total = 0;
@@ -557,7 +593,7 @@ OutlineCells join_in_code_order(std::vector<OutlineCells>& parts) {
     all.insert(all.end(), p.begin(), p.end());
     OutlineCells().swap(p);
   }
-  parallel_sort(all.begin(), all.end(), code_less);
+  parallel_sort(all.begin(), all.end(), [](const OutlineCell& a, const OutlineCell& b) { return a.code < b.code; });
   // A uniform leaf's cell beside a list leaf may come from both leaves' visits: once, a boundary
   // cell if either says so.
   std::size_t kept = 0;

@@ -643,18 +643,48 @@ OutlineCells cpu_tree_outlines(const Tree& tree, const TreeView& tv, int threads
 
 void append_outline_cells(int level, grid::Code first, std::uint64_t count, const std::int32_t* site,
                           const std::uint8_t* boundary, int threads, OutlineCells* out) {
+  // Each block's outline cells are counted first (its boundary flags, and its row ends that are
+  // not boundary cells), so that all are written once, in place, on all threads.
   const std::int64_t blocks = static_cast<std::int64_t>((count + kCpuBlock - 1) / kCpuBlock);
-  std::vector<OutlineCells> parts(static_cast<std::size_t>(blocks));
-#pragma omp parallel for schedule(dynamic, 4) num_threads(threads)
+  std::vector<std::uint64_t> at(static_cast<std::size_t>(blocks) + 1, 0);
+  const std::uint64_t rows = grid::rows_per_octant(level);
+#pragma omp parallel for schedule(dynamic, 16) num_threads(threads)
   for (std::int64_t b = 0; b < blocks; ++b) {
     const std::uint64_t begin = static_cast<std::uint64_t>(b) * kCpuBlock;
     const std::uint64_t end = std::min(count, begin + kCpuBlock);
+    std::uint64_t n = 0;
+    for (std::uint64_t k = begin; k < end; ++k) n += boundary[k] != 0 ? 1 : 0;
+    // The row ends in the block: row i of an octant starts at its code i^2 and ends 2i later.
+    const grid::Cell c = grid::cell_of(first + begin, level);
+    grid::Code octant_first = static_cast<grid::Code>(c.octant) * grid::cells_per_octant(level);
+    for (std::uint64_t i = c.row;; ++i) {
+      if (i == rows) {
+        octant_first += grid::cells_per_octant(level);
+        i = 0;
+      }
+      const grid::Code row_first = octant_first + i * i;
+      if (row_first >= first + end) break;
+      const auto row_end_only = [&](grid::Code e) {
+        return e >= first + begin && e < first + end && boundary[e - first] == 0 ? 1u : 0u;
+      };
+      n += row_end_only(row_first) + (i > 0 ? row_end_only(row_first + 2 * i) : 0u);
+    }
+    at[static_cast<std::size_t>(b) + 1] = n;
+  }
+  for (std::size_t b = 0; b < static_cast<std::size_t>(blocks); ++b) at[b + 1] += at[b];
+  const std::size_t base = out->size();
+  out->resize(base + at[static_cast<std::size_t>(blocks)]);  // not zeroed
+  OutlineCell* const cells = out->data() + base;
+#pragma omp parallel for schedule(dynamic, 16) num_threads(threads)
+  for (std::int64_t b = 0; b < blocks; ++b) {
+    const std::uint64_t begin = static_cast<std::uint64_t>(b) * kCpuBlock;
+    const std::uint64_t end = std::min(count, begin + kCpuBlock);
+    OutlineCell* next = cells + at[static_cast<std::size_t>(b)];
     grid::Cell c = grid::cell_of(first + begin, level);
     for (std::uint64_t k = begin; k < end; ++k, grid::next_in_code_order(c, level)) {
-      if (boundary[k] != 0 || is_row_end(c)) parts[static_cast<std::size_t>(b)].push_back({first + k, site[k], boundary[k] != 0 ? 1u : 0u});
+      if (boundary[k] != 0 || is_row_end(c)) *next++ = {first + k, site[k], boundary[k] != 0 ? 1u : 0u};
     }
   }
-  for (const auto& p : parts) out->insert(out->end(), p.begin(), p.end());  // blocks are in code order
 }
 
 void cpu_brute_range(const std::vector<Piece>& candidates, int level, grid::Code first, std::uint64_t count,

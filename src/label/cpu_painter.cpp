@@ -285,8 +285,7 @@ std::int32_t one_site_below(const TreeView& tv, const TreeNode& list, const grid
 }
 
 /// The settled nodes below node `cell` (level l) of a list leaf, down to a level above the
-/// labelling level (single cells are searched anyway).
-/// `shapes`: one per level.
+/// labelling level (single cells are searched anyway). `shapes`: one per level.
 void settle_below(const TreeView& tv, const TreeNode& list, const grid::Cell& cell, int l, std::vector<SettledNode>& out,
                   NodeShapes* shapes, std::vector<ItemBound>& bounds) {
   if (l + 1 >= tv.level) return;
@@ -327,8 +326,8 @@ struct OutlineScratch {
   std::vector<SettledNode> settled;
   NodeShapes shapes[grid::kMaxLevel + 1];  ///< settle_below's, per level
   std::vector<ItemBound> bounds;
-  /// The leaf met last across each edge of a uniform leaf (kNeighbourLeft, kNeighbourRight,
-  /// kNeighbourVertical): consecutive rim cells mostly face one leaf.
+  /// The leaf met last across each edge of the visited leaf (kNeighbourLeft, kNeighbourRight,
+  /// kNeighbourVertical): consecutive cells along an edge mostly face one leaf.
   struct AcrossLeaf {
     grid::Cell cell{};
     int level = -1;  ///< -1: none yet
@@ -410,8 +409,7 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
   const int k = level - leaf.level;
   const std::uint64_t rows = std::uint64_t{1} << k;
   const bool list_leaf = node.count != kUniform;
-  // Whether the neighbour nb of a cell of `site`, across edge s of this leaf, has another site. A
-  // pair of a list leaf's cell and a uniform leaf's is settled by the list leaf's visit, which
+  // A pair of a list leaf's cell and a uniform leaf's is settled by the list leaf's visit, which
   // then lists the uniform leaf's cell too (a uniform leaf's rim beside a list leaf would
   // otherwise search the list leaf's cells again); the uniform leaf's visit leaves the pair to a
   // list leaf that the pass visits. join_in_code_order lists a cell listed twice once.
@@ -422,6 +420,7 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
     if (other.count == kUniform) return other.value == site;
     return !list_leaf && leaf_visited(a.cell, a.level, level, scratch.range);
   };
+  // Whether the neighbour nb of a cell of `site`, across edge s of this leaf, has another site.
   const auto across_differs = [&](const grid::Cell& nb, int s, std::int32_t site) {
     const OutlineScratch::AcrossLeaf& a = scratch.across_leaf(tv, nb, s);
     if (nothing_to_ask(a, site)) return false;

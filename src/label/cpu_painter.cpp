@@ -420,12 +420,11 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
     if (other.count == kUniform) return other.value == site;
     return !list_leaf && leaf_visited(a.cell, a.level, level, scratch.range);
   };
-  // Whether the neighbour nb of a cell of `site`, across edge s of this leaf, has another site.
-  const auto across_differs = [&](const grid::Cell& nb, int s, std::int32_t site) {
-    const OutlineScratch::AcrossLeaf& a = scratch.across_leaf(tv, nb, s);
-    if (nothing_to_ask(a, site)) return false;
+  // Whether the neighbour nb of a cell of `site`, in leaf `a` across an edge of this leaf, has
+  // another site, where nothing_to_ask(a, site) does not settle it.
+  const auto differs_in = [&](const grid::Cell& nb, const OutlineScratch::AcrossLeaf& a, std::int32_t site) {
     const TreeNode other = tv.nodes[a.node];
-    if (other.count == kUniform) {
+    if (other.count == kUniform) {  // of another site
       if (list_leaf) out.push_back({grid::code_of(nb, level), other.value, 1u});
       return true;
     }
@@ -501,7 +500,7 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
           if (nothing_to_ask(a, site)) {
             next = std::max(next, std::min(n, beyond(a)));
           } else {
-            boundary = across_differs(nb[s], s, site);
+            boundary = differs_in(nb[s], a, site);
           }
         }
         for (; m < next; ++m) {
@@ -574,7 +573,8 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
         } else {
           if (!across) grid::neighbours(c, level, nb);
           across = true;
-          boundary = across_differs(nb[s], s, site) || boundary;
+          const OutlineScratch::AcrossLeaf& a = scratch.across_leaf(tv, nb[s], s);
+          boundary = (!nothing_to_ask(a, site) && differs_in(nb[s], a, site)) || boundary;
         }
       }
       if (boundary || is_row_end(c)) out.push_back({code, site, boundary ? 1u : 0u});

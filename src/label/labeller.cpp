@@ -273,6 +273,9 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
     stats.algorithm = device.cuda && work <= kBruteWorkLimit ? Algorithm::brute : Algorithm::hier;
   }
   const bool hier = stats.algorithm == Algorithm::hier;
+  // The host's tree: the outline pass needs only a coarse jump table; the dense paths and a GPU
+  // given the host's tree fill the full one (fill_jump_table) when they run.
+  const JumpTable jump_table = outline ? JumpTable::outline : JumpTable::full;
   // Fixed nodes: the tree takes them as its cover (a node of its list level or above is a
   // uniform leaf at once) and fixed points only where a list leaf may meet claimed cells; brute
   // force takes every claimed cell as a fixed point.
@@ -324,9 +327,7 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
     stats.tree_list_entries = info.list_entries;
     stats.mean_candidates = info.mean_candidates;
   } else if (hier) {
-    const JumpTable jump_table = outline ? JumpTable::outline : JumpTable::full;
     // Progress after each level of the build, so that a caller can stop a long build.
-    // The outline pass needs only a coarse jump table; the dense paths fill the full one.
     tree = build_tree(host_candidates(), input.level, options.want_distance, threads,
                       [&](double fraction) { progress(fraction, "prepare"); }, &cover_view, jump_table);
     stats.tree_nodes = tree.nodes.size();
@@ -379,8 +380,7 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
       leave_gpu(e, done);
     }
     if (hier && tree.nodes.empty()) {
-      tree = build_tree(host_candidates(), input.level, options.want_distance, threads, {}, &cover_view,
-                        outline ? JumpTable::outline : JumpTable::full);
+      tree = build_tree(host_candidates(), input.level, options.want_distance, threads, {}, &cover_view, jump_table);
     }
   }
   if (outline && hier && outline_pass_pays(tree)) {

@@ -102,10 +102,15 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
 #endif
       out.clear();
       std::uint64_t leaf_entries = 0, internal_entries = 0, internals = 0, leaves = 0;
+      // A node's four children lie in two rows: their latitudes' sines and their radii's stretch
+      // repeat (the same bits as cell_centre_vector and node_radius, as the device build's).
+      grid::CentreVectors centres;
+      std::uint32_t stretch_row = ~0u;
+      double stretch = 0.0;
       for (std::int64_t q = begin; q < end; ++q) {
         const Pending& p = pending[q];
         evaluations += p.parent_count;
-        const Vec3 c = grid::cell_centre_vector(grid::code_of(p.cell, l), l);
+        const Vec3 c = centres(p.cell, l);
         const std::int32_t* list = parent_lists.data() + p.parent_offset;
         Decision dec{0, -1, out.size(), 0};
         bool one_site = true;  // the kept candidates all have site dec.site
@@ -127,7 +132,11 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
             item_bounds(c, list[k], candidates.data(), groups, &bounds[k].lb2, &ub2, &bounds[k].site);
             min_ub2 = std::min(min_ub2, ub2);
           }
-          const double radius = node_radius(l, p.cell);
+          if (p.cell.row != stretch_row) {
+            stretch_row = p.cell.row;
+            stretch = node_radius_stretch(l, stretch_row);
+          }
+          const double radius = node_radius(l, p.cell, stretch);
           const double threshold = prune_threshold(min_ub2, radius);
           for (std::uint32_t k = 0; k < p.parent_count; ++k) {
             if (bounds[k].lb2 <= threshold) {

@@ -456,12 +456,17 @@ QTMV_HD inline double sum_exact(double u, double v, double* t) {
   return s;
 }
 
+/// remainder(x, m) (m > 0), taken only where |x| > m / 2: within [-m/2, m/2] it is x itself,
+/// to the bit (a quotient of exactly 1/2 rounds to the even 0), and remainder is slow beside the
+/// rest of a geodesic's arithmetic.
+QTMV_HD inline double remainder_of(double x, double m) { return ::fabs(x) <= 0.5 * m ? x : ::remainder(x, m); }
+
 /// Difference y - x of two angles (degrees) reduced to [-180, 180], exactly as hi + *e.
 QTMV_HD inline double ang_diff(double x, double y, double* e) {
   double t;
-  double d = sum_exact(::remainder(-x, kFullTurn), ::remainder(y, kFullTurn), &t);
+  double d = sum_exact(remainder_of(-x, kFullTurn), remainder_of(y, kFullTurn), &t);
   // This second sum changes d only if |d| < 128, so no further remainder is needed.
-  d = sum_exact(::remainder(d, kFullTurn), t, &t);
+  d = sum_exact(remainder_of(d, kFullTurn), t, &t);
   // The sign of d = -180, 0, 180: from y - x if t = 0, else opposite to t.
   if (d == 0 || ::fabs(d) == kHalfTurn) d = ::copysign(d, t == 0 ? y - x : -t);
   *e = t;
@@ -485,7 +490,7 @@ QTMV_HD inline double lat_fix(double x) { return ::fabs(x) > kQuarterTurn ? ::na
 /// first (remainder is exact), t a small correction added if round_sum. With the signed zeros
 /// of GeographicLib.
 QTMV_HD inline void sincos_deg_reduced(double x, double t, bool round_sum, double* sinx, double* cosx) {
-  const double r0 = ::remainder(x, kQuarterTurn);  // |r0| <= 45
+  const double r0 = remainder_of(x, kQuarterTurn);  // |r0| <= 45
   const int q = static_cast<int>((x - r0) / kQuarterTurn);  // x - r0 is an exact multiple of 90
   const double r = round_sum ? ang_round(r0 + t) : r0;
   double s, c;

@@ -47,6 +47,33 @@ std::int64_t ulp_distance(double a, double b) {
   return d < 0 ? -d : d;
 }
 
+/// The bits of x (NaNs of any payload count as one).
+std::uint64_t bits_of(double x) {
+  if (std::isnan(x)) return ~std::uint64_t{0};
+  std::uint64_t b;
+  std::memcpy(&b, &x, sizeof b);
+  return b;
+}
+
+TEST(RemainderOf, GivesTheCLibrarysBits) {
+  // The halves and their neighbours, signed zeros, the turns' multiples, random angles, NaN.
+  std::vector<double> xs = {0.0, -0.0, std::nan(""), 1e300, -1e300, std::numeric_limits<double>::denorm_min()};
+  for (const double m : {detail::kQuarterTurn, detail::kFullTurn}) {
+    for (const double k : {-4.5, -2.0, -1.5, -1.0, -0.5, 0.5, 1.0, 1.5, 2.0, 4.5}) {
+      const double x = k * m;
+      xs.insert(xs.end(), {x, std::nextafter(x, -1e9), std::nextafter(x, 1e9)});
+    }
+  }
+  std::mt19937_64 random(7);
+  std::uniform_real_distribution<double> angle(-1000.0, 1000.0);
+  for (int k = 0; k < 200000; ++k) xs.push_back(angle(random));
+  for (const double m : {detail::kQuarterTurn, detail::kFullTurn}) {
+    for (const double x : xs) {
+      ASSERT_EQ(bits_of(detail::remainder_of(x, m)), bits_of(std::remainder(x, m))) << x << " mod " << m;
+    }
+  }
+}
+
 TEST(DetAtan2, WithinTwoUlpOfTheCLibrary) {
   std::int64_t worst = 0;
   long checked = 0;

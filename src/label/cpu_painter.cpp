@@ -412,13 +412,17 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
   // A pair of a list leaf's cell and a uniform leaf's is settled by the list leaf's visit, which
   // then lists the uniform leaf's cell too (a uniform leaf's rim beside a list leaf would
   // otherwise search the list leaf's cells again); the uniform leaf's visit leaves the pair to a
-  // list leaf that the pass visits. join_in_code_order lists a cell listed twice once.
+  // list leaf that the pass visits. A pair of two list leaves' cells is settled by the later leaf
+  // in the tree's order (the higher node) where the pass visits it, likewise listing both: the
+  // earlier leaf's labels are then often still at hand (OutlineScratch::labelled), whereas the
+  // earlier leaf would have to search the later one's cells. join_in_code_order lists a cell
+  // listed twice once.
   // Whether no cell of `site` beside leaf `a` has to ask: `a` is uniform with that site, or a
-  // visited list leaf beside a uniform leaf.
+  // visited list leaf that settles the pairs.
   const auto nothing_to_ask = [&](const OutlineScratch::AcrossLeaf& a, std::int32_t site) {
     const TreeNode other = tv.nodes[a.node];
     if (other.count == kUniform) return other.value == site;
-    return !list_leaf && leaf_visited(a.cell, a.level, level, scratch.range);
+    return (!list_leaf || a.node > leaf.node) && leaf_visited(a.cell, a.level, level, scratch.range);
   };
   // Whether the neighbour nb of a cell of `site`, in leaf `a` across an edge of this leaf, has
   // another site, where nothing_to_ask(a, site) does not settle it.
@@ -428,7 +432,10 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
       if (list_leaf) out.push_back({grid::code_of(nb, level), other.value, 1u});
       return true;
     }
-    return scratch.site_in_leaf(tv, nb, a.node, a.level) != site;
+    const std::int32_t other_site = scratch.site_in_leaf(tv, nb, a.node, a.level);
+    if (other_site == site) return false;
+    if (list_leaf && a.node < leaf.node) out.push_back({grid::code_of(nb, level), other_site, 1u});
+    return true;
   };
   bool uniform = !list_leaf;
   std::int32_t uniform_site = node.value;

@@ -113,9 +113,10 @@ QTMV_HD inline Vec3 cell_centre_vector(const Cell& c, int level) {
 
 QTMV_HD inline Vec3 cell_centre_vector(Code code, int level) { return cell_centre_vector(cell_of(code, level), level); }
 
-/// cell_centre_vector to the same bits, keeping the sine and cosine of the last two latitudes
+/// cell_centre_vector to the same bits, keeping the sine and cosine of the last four latitudes
 /// (degrees) met: a row's up cells share one latitude and its down cells another, so a pass
-/// along a row computes only its longitudes'. One per thread.
+/// along a row computes only its longitudes'; a node's four children have three latitudes. One
+/// per thread.
 class CentreVectors {
  public:
   Vec3 operator()(const Cell& c, int level) {
@@ -132,16 +133,20 @@ class CentreVectors {
     double lat = 1000.0;  // none yet
     double sin = 0.0, cos = 0.0;
   };
+  static constexpr int kLatitudes = 4;
+  /// The latitude's entry; a new one replaces the one made longest ago.
   const Latitude& latitude(double lat) {
-    if (last_[0].lat == lat) return last_[0];
-    if (last_[1].lat != lat) {
-      last_[1].lat = lat;
-      sincos_deg(lat, &last_[1].sin, &last_[1].cos);
+    for (const Latitude& l : last_) {
+      if (l.lat == lat) return l;
     }
-    std::swap(last_[0], last_[1]);  // the most recent first
-    return last_[0];
+    Latitude& made = last_[oldest_];
+    oldest_ = (oldest_ + 1) % kLatitudes;
+    made.lat = lat;
+    sincos_deg(lat, &made.sin, &made.cos);
+    return made;
   }
-  Latitude last_[2];
+  int oldest_ = 0;
+  Latitude last_[kLatitudes];
 };
 
 /// Grid vertex (r, k), 0 <= k <= r <= 2^L, of an octant (degrees). The pole (r = 0) gets the

@@ -248,15 +248,8 @@ struct ItemBound {
 /// node lie in two rows, so their latitudes' sines and their radii's stretch repeat.
 struct NodeShapes {
   grid::CentreVectors centres;
-  std::uint32_t row = ~0u;  ///< of `stretch`
-  double stretch = 0.0;
-  double radius(int l, const grid::Cell& cell) {
-    if (cell.row != row) {
-      row = cell.row;
-      stretch = node_radius_stretch(l, row);
-    }
-    return node_radius(l, cell, stretch);
-  }
+  RadiusStretches stretches;
+  double radius(int l, const grid::Cell& cell) { return node_radius(l, cell, stretches(l, cell.row)); }
 };
 
 /// The site of every cell of node `cell` (level l) when the list's items that can be nearest to

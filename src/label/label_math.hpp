@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstdint>
+#include <utility>
 
 #include "grid/qtm.hpp"
 
@@ -170,6 +171,26 @@ QTMV_HD inline double node_radius(int level, const grid::Cell& cell, double g) {
   }
   return (grid::kPi / 2.0) / rows * sqrt(worst) * (1.0 + 1e-9);
 }
+/// node_radius_stretch of the last two rows asked for, for a pass over the nodes of one level (a
+/// node's four children lie in two rows). One per thread and level.
+class RadiusStretches {
+ public:
+  double operator()(int level, std::uint32_t row) {
+    if (row_[0] != row) {
+      if (row_[1] != row) {
+        row_[1] = row;
+        g_[1] = node_radius_stretch(level, row);
+      }
+      std::swap(row_[0], row_[1]);
+      std::swap(g_[0], g_[1]);
+    }
+    return g_[0];
+  }
+
+ private:
+  std::uint32_t row_[2] = {~0u, ~0u};  // none yet
+  double g_[2] = {0.0, 0.0};
+};
 QTMV_HD inline double node_radius(int level, const grid::Cell& cell) {
   return node_radius(level, cell, node_radius_stretch(level, cell.row));
 }

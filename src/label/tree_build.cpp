@@ -105,8 +105,7 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
       // A node's four children lie in two rows: their latitudes' sines and their radii's stretch
       // repeat (the same bits as cell_centre_vector and node_radius, as the device build's).
       grid::CentreVectors centres;
-      std::uint32_t stretch_row = ~0u;
-      double stretch = 0.0;
+      RadiusStretches stretches;
       for (std::int64_t q = begin; q < end; ++q) {
         const Pending& p = pending[q];
         evaluations += p.parent_count;
@@ -132,11 +131,7 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
             item_bounds(c, list[k], candidates.data(), groups, &bounds[k].lb2, &ub2, &bounds[k].site);
             min_ub2 = std::min(min_ub2, ub2);
           }
-          if (p.cell.row != stretch_row) {
-            stretch_row = p.cell.row;
-            stretch = node_radius_stretch(l, stretch_row);
-          }
-          const double radius = node_radius(l, p.cell, stretch);
+          const double radius = node_radius(l, p.cell, stretches(l, p.cell.row));
           const double threshold = prune_threshold(min_ub2, radius);
           for (std::uint32_t k = 0; k < p.parent_count; ++k) {
             if (bounds[k].lb2 <= threshold) {

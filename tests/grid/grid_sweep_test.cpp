@@ -56,6 +56,16 @@ TEST(GridSweep, CentreVectorsEqualCellCentreVectorBitForBit) {
       const Code code = any(rng);
       differ += !same(centres(code, level), cell_centre_vector(code, level));
     }
+    // Children of random parents, four at a time, as the tree's passes meet them (three
+    // latitudes each, some kept from the parent before).
+    if (level > 0) {
+      std::uniform_int_distribution<Code> parent(0, cell_count(level - 1) - 1);
+      for (int k = 0; k < 5000; ++k) {
+        Cell kids[4];
+        children(cell_of(parent(rng), level - 1), kids);
+        for (const Cell& kid : kids) differ += !same(centres(kid, level), cell_centre_vector(kid, level));
+      }
+    }
     EXPECT_EQ(differ, 0u) << "level " << level;
   }
 }

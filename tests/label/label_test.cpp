@@ -153,6 +153,20 @@ TEST(LabelTree, NodeRadiusBoundsEveryCellCentreOfTheSubtree) {
 // prune_threshold_above keeps every candidate that prune_threshold keeps (it is never below it)
 // and is not much above it where it takes its own route (small nodes): over squared chords from 0
 // to 4 and radii from 0 to 0.1 radians, the node_radius of every level from 4 to 30 among them.
+TEST(LabelMath, RadiusStretchesGiveNodeRadiusStretchBits) {
+  // Rows in a pattern of children (r, r + 1, r, r + 1, ...), jumps, and returns to older rows.
+  for (int level = 0; level <= 20; level += 4) {
+    RadiusStretches stretches;
+    const std::uint32_t rows = static_cast<std::uint32_t>(grid::rows_per_octant(level));
+    std::mt19937 rng(static_cast<unsigned>(level));
+    std::uniform_int_distribution<std::uint32_t> any(0, rows - 1);
+    for (int k = 0; k < 4000; ++k) {
+      const std::uint32_t row = k % 5 == 4 ? any(rng) : std::min(rows - 1, static_cast<std::uint32_t>(k / 5 + (k & 1)));
+      EXPECT_EQ(stretches(level, row), node_radius_stretch(level, row)) << "level " << level << ", row " << row;
+    }
+  }
+}
+
 TEST(LabelMath, PruneThresholdAboveBoundsPruneThreshold) {
   std::vector<double> radii = {0.0, 1e-12, 1e-9, 0.049, 0.05, 0.051, 0.1};
   for (int level = 4; level <= 24; ++level) radii.push_back(node_radius(level, Cell{0, 1, 0}));

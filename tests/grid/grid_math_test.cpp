@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <random>
 
 #include "grid/qtm_math.hpp"
@@ -23,6 +24,37 @@ TEST(GridMath, SinCosDegreesMatchLibmToAnUlpOrTwo) {
     worst = std::max(worst, static_cast<double>(std::fabs(c - std::cos(r))));
   }
   EXPECT_LT(worst, 4e-16);
+}
+
+TEST(GridMath, SinCosSeriesInLanesGiveTheScalarBits) {
+  // The CPU's two-lane series against the scalar one that CUDA devices run, over the reduced
+  // range and its rounding margin, and through sincos_deg.
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> reduced(-0.7854, 0.7854), angle(-720.0, 720.0);
+  std::uint64_t differ = 0;
+  for (int n = 0; n < 300000; ++n) {
+    const double r = n < 1000 ? std::ldexp(1.0, -n % 1075) : reduced(rng);
+    double ps, pc, ps_scalar, pc_scalar;
+    sincos_series(r * r, &ps_scalar, &pc_scalar);
+#if QTMV_SSE2_SERIES
+    sincos_series_sse2(r * r, &ps, &pc);
+#else
+    sincos_series(r * r, &ps, &pc);
+#endif
+    differ += ps != ps_scalar || pc != pc_scalar;
+    const double x = angle(rng);
+    double s, c;
+    sincos_deg(x, &s, &c);
+    const double q = x * (1.0 / 90.0);
+    const long long quadrant = static_cast<long long>(q >= 0 ? q + 0.5 : q - 0.5);
+    const double rx = (x - 90.0 * static_cast<double>(quadrant)) * kDegree;
+    sincos_series(rx * rx, &ps_scalar, &pc_scalar);
+    const double sr = rx * ps_scalar, cr = 1.0 - rx * rx * (1.0 / 2.0) * pc_scalar;
+    const double sines[4] = {sr, cr, -sr, -cr}, cosines[4] = {cr, -sr, -cr, sr};
+    const int k = static_cast<int>(((quadrant % 4) + 4) % 4);
+    differ += s != sines[k] || c != cosines[k];
+  }
+  EXPECT_EQ(differ, 0u);
 }
 
 TEST(GridMath, ExactAtQuadrants) {

@@ -199,8 +199,8 @@ struct LeafLabels {
   int k = 0;                           ///< levels from the leaf down to the labelling level
   std::vector<grid::RowCodes> rows;    ///< the leaf's rows' codes
   std::vector<std::size_t> row_start;  ///< index of each row's first cell
-  std::vector<std::int32_t> site;   ///< -1 until labelled
-  std::vector<std::uint8_t> inner;  ///< all three neighbours in a settled node of its site
+  std::vector<std::int32_t> site;     ///< -1 until labelled
+  std::vector<std::uint8_t> differs;  ///< a neighbour has another site (a boundary cell)
 
   /// Lists the cells of `leaf_cell` (of level `level - k`), unlabelled.
   void reset(const grid::Cell& leaf_cell, int leaf_k, int level) {
@@ -215,7 +215,7 @@ struct LeafLabels {
       cells += static_cast<std::size_t>(rows.back().last - rows.back().first + 1);
     }
     site.assign(cells, -1);
-    inner.assign(cells, 0);
+    differs.assign(cells, 0);
   }
   /// One past the index of row r's last cell.
   std::size_t row_end(std::size_t r) const { return row_start[r] + static_cast<std::size_t>(rows[r].last - rows[r].first + 1); }
@@ -437,23 +437,18 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
     order.make(tv, node, grid::cell_centre_vector(grid::code_of(leaf.cell, leaf.level), leaf.level),
                node_radius(leaf.level, leaf.cell));
     // Nodes below the leaf whose kept items all have one site (the build's own rule, carried on
-    // below the list level): their cells need no search, and their inner cells no neighbours.
+    // below the list level): their cells need no search.
     scratch.settled.clear();
     settle_below(tv, node, leaf.cell, leaf.level, scratch.settled, scratch.shapes, scratch.bounds);
     // The settled nodes' cells take their sites, row by row; the others are searched.
     for (const SettledNode& n : scratch.settled) {
       const int nk = level - n.level;
       const std::uint64_t node_rows = std::uint64_t{1} << nk;
-      const bool up = grid::is_up(n.cell);
       for (std::uint64_t r = 0; r < node_rows; ++r) {
         const grid::RowCodes codes = grid::row_codes_below(n.cell, nk, r, level);
-        const bool base_row = up ? r + 1 == node_rows : r == 0;
         const std::size_t leaf_row = static_cast<std::size_t>((std::uint64_t{n.cell.row} << nk) + r - (std::uint64_t{leaf.cell.row} << k));
         const std::size_t at = labels.row_start[leaf_row] + static_cast<std::size_t>(codes.first - labels.rows[leaf_row].first);
-        for (grid::Code code = codes.first; code <= codes.last; ++code) {
-          labels.site[at + (code - codes.first)] = n.site;
-          labels.inner[at + (code - codes.first)] = inner_in_row(code, codes, base_row, up) ? 1 : 0;
-        }
+        std::fill_n(labels.site.begin() + static_cast<std::ptrdiff_t>(at), codes.last - codes.first + 1, n.site);
       }
     }
     for (std::uint64_t r = 0; r < rows; ++r) {
@@ -544,40 +539,61 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
     }
     return;
   }
-  // Row by row from the apex: code order. A cell's neighbours inside the leaf are found by index:
-  // left and right in its row, the vertical one (above a down cell: code - 2 row; below an up
-  // cell: code + 2 row + 2) in the row before or after; the others across the leaf's edges.
-  const auto index_in_row = [&](std::uint64_t r, grid::Code code) -> std::ptrdiff_t {
-    const grid::RowCodes& codes = labels.rows[r];
-    return code >= codes.first && code <= codes.last ? static_cast<std::ptrdiff_t>(labels.row_start[r] + (code - codes.first))
-                                                     : -1;
-  };
+  // Pairs of cells inside the leaf, each compared once, row by row from the apex: the neighbours
+  // along each row, then each row's down cells with their neighbours in the row before (one place
+  // before in an up leaf, whose rows grow by two cells from one first column; one place after in a
+  // down leaf, whose rows shrink by two and whose first cells are down cells).
+  std::vector<std::uint8_t>& differs = labels.differs;
+  const bool up_leaf = grid::is_up(leaf.cell);
   for (std::uint64_t r = 0; r < rows; ++r) {
-    grid::Code code = labels.rows[r].first;
-    grid::Cell c = grid::cell_of(code, level);
     const std::size_t first = labels.row_start[r], end = labels.row_end(r);
-    for (std::size_t m = first; m < end; ++m, ++code, grid::next_in_code_order(c, level)) {
-      if (labels.inner[m]) continue;
-      const std::int32_t site = labels.site[m];
-      const bool down = (c.col & 1u) != 0;
-      std::ptrdiff_t inside[3] = {m > first ? static_cast<std::ptrdiff_t>(m - 1) : -1,
-                                  m + 1 < end ? static_cast<std::ptrdiff_t>(m + 1) : -1, -1};
-      if (down && r > 0) inside[grid::kNeighbourVertical] = index_in_row(r - 1, code - 2 * grid::Code{c.row});
-      if (!down && r + 1 < rows) inside[grid::kNeighbourVertical] = index_in_row(r + 1, code + 2 * grid::Code{c.row} + 2);
-      bool boundary = false;
-      grid::Cell nb[3];
-      bool across = false;  // nb made
-      for (int s = 0; s < 3; ++s) {
-        if (inside[s] >= 0) {
-          boundary = boundary || labels.site[static_cast<std::size_t>(inside[s])] != site;
-        } else {
-          if (!across) grid::neighbours(c, level, nb);
-          across = true;
+    for (std::size_t m = first; m + 1 < end; ++m) {
+      if (labels.site[m] != labels.site[m + 1]) differs[m] = differs[m + 1] = 1;
+    }
+    if (r == 0) continue;
+    const std::size_t above = labels.row_start[r - 1];
+    for (std::size_t p = up_leaf ? 1 : 0; first + p < end; p += 2) {
+      const std::size_t q = up_leaf ? above + p - 1 : above + p + 1;
+      if (labels.site[first + p] != labels.site[q]) differs[first + p] = differs[q] = 1;
+    }
+  }
+  // The cells on the leaf's edges ask across them: each row's first cell its left neighbour, its
+  // last cell its right one, and the base row's cells on the base (an up leaf's last row's up
+  // cells, a down leaf's first row's down cells: even places) their vertical one. Then the
+  // boundary cells and the octant's row ends are listed.
+  const std::uint32_t first_row = leaf.cell.row << k;
+  const std::uint32_t base = (leaf.cell.col / 2) << (k + 1);  // the leaf's first column in its rows' blocks
+  const std::uint64_t base_row = up_leaf ? rows - 1 : 0;
+  for (std::uint64_t r = 0; r < rows; ++r) {
+    const std::size_t first = labels.row_start[r], end = labels.row_end(r);
+    const std::uint32_t row = first_row + static_cast<std::uint32_t>(r);
+    const std::uint32_t first_col = up_leaf ? base : base + 2 * static_cast<std::uint32_t>(r) + 1;
+    const grid::Code first_code = labels.rows[r].first;
+    const bool on_base = r == base_row;
+    for (std::size_t m = first; m < end;) {
+      const std::size_t p = m - first;
+      const grid::Cell c{leaf.cell.octant, row, first_col + static_cast<std::uint32_t>(p)};
+      const bool ask[3] = {m == first, m + 1 == end, on_base && p % 2 == 0};
+      if (ask[0] || ask[1] || ask[2]) {
+        const std::int32_t site = labels.site[m];
+        grid::Cell nb[3];
+        grid::neighbours(c, level, nb);
+        bool boundary = differs[m] != 0;
+        for (int s = 0; s < 3; ++s) {
+          if (!ask[s]) continue;
           const OutlineScratch::AcrossLeaf& a = scratch.across_leaf(tv, nb[s], s);
           boundary = (!nothing_to_ask(a, site) && differs_in(nb[s], a, site)) || boundary;
         }
+        if (boundary || is_row_end(c)) out.push_back({first_code + p, site, boundary ? 1u : 0u});
+      } else if (differs[m]) {
+        out.push_back({first_code + p, labels.site[m], 1u});
       }
-      if (boundary || is_row_end(c)) out.push_back({code, site, boundary ? 1u : 0u});
+      // Past the row's middle, off the base, only the last cell asks: skip to it or to the next
+      // boundary cell.
+      ++m;
+      if (!on_base) {
+        while (m + 1 < end && !differs[m]) ++m;
+      }
     }
   }
 }

@@ -51,6 +51,9 @@ QTMV_HD constexpr std::uint64_t cells_per_octant(int level) { return std::uint64
 /// Cells of the whole globe at a level: 8 * 4^L.
 QTMV_HD constexpr std::uint64_t cell_count(int level) { return std::uint64_t{8} << (2 * level); }
 
+/// The width (bits) of the codes of `level`: they lie below cell_count(level) = 2^(3 + 2 level).
+QTMV_HD constexpr int code_bits(int level) { return 3 + 2 * level; }
+
 QTMV_HD constexpr bool is_valid_code(Code code, int level) {
   return is_valid_level(level) && code < cell_count(level);
 }

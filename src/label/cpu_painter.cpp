@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "common/parallel_sort.hpp"
+#include "common/radix_sort.hpp"
 #include "label/label_tree.hpp"
 #include "common/openmp_threads.hpp"
 #include "label/piece_groups.hpp"
@@ -598,8 +599,8 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
   }
 }
 
-/// Per-thread lists joined and put in code order.
-OutlineCells join_in_code_order(std::vector<OutlineCells>& parts) {
+/// Per-thread lists joined and put in code order (codes of `level`).
+OutlineCells join_in_code_order(std::vector<OutlineCells>& parts, int level) {
   std::size_t total = 0;
   for (const auto& p : parts) total += p.size();
   OutlineCells all;
@@ -608,7 +609,7 @@ OutlineCells join_in_code_order(std::vector<OutlineCells>& parts) {
     all.insert(all.end(), p.begin(), p.end());
     OutlineCells().swap(p);
   }
-  parallel_sort(all.begin(), all.end(), [](const OutlineCell& a, const OutlineCell& b) { return a.code < b.code; });
+  radix_sort(all, grid::code_bits(level), [](const OutlineCell& c) { return c.code; });
   // A uniform leaf's cell beside a list leaf may come from both leaves' visits: once, a boundary
   // cell if either says so.
   std::size_t kept = 0;
@@ -647,7 +648,7 @@ OutlineCells cpu_tree_outlines(const Tree& tree, const TreeView& tv, int threads
     }
     if (done) done(static_cast<double>(last) / static_cast<double>(leaves));
   }
-  OutlineCells all = join_in_code_order(parts);
+  OutlineCells all = join_in_code_order(parts, tree.level);
   if (range == grid::whole_level(tree.level)) return all;
   // The leaves met at the range's ends bring cells from outside it.
   all.erase(std::remove_if(all.begin(), all.end(),

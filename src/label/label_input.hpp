@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "common/default_init_allocator.hpp"
-#include "common/parallel_sort.hpp"
+#include "common/radix_sort.hpp"
 #include "grid/qtm.hpp"
 #include "grid/qtm_key_ranges.hpp"
 
@@ -138,7 +138,9 @@ inline std::vector<grid::KeyRange> held_claims(const LabelInput& input) {
     const FixedNode& n = input.fixed_nodes[k];
     ranges[cells + k] = grid::node_key_range(grid::cell_of(n.code, n.level), n.level, input.level, n.site);
   }
-  parallel_sort(ranges.begin(), ranges.end(), grid::key_range_before);
+  // key_range_before's order: by first key, then owner.
+  sort_by_pair(ranges, [](const grid::KeyRange& r) { return r.first; },
+               [](const grid::KeyRange& r) { return static_cast<std::uint32_t>(r.owner); });
   return grid::lowest_owner_partition_of_sorted(ranges);
 }
 

@@ -3,15 +3,13 @@
 #include <algorithm>
 #include <functional>
 
-#include "common/parallel_sort.hpp"
+#include "common/radix_sort.hpp"
 #include "grid/qtm_key_ranges.hpp"
 
 namespace qtmv::sites {
 
 void append_site_cells(std::vector<CellHit>& hits, std::int32_t site, label::SiteArray<SiteCell>& out) {
-  std::sort(hits.begin(), hits.end(), [](const CellHit& a, const CellHit& b) {
-    return a.code != b.code ? a.code < b.code : a.piece < b.piece;
-  });
+  sort_by_pair(hits, [](const CellHit& h) { return h.code; }, [](const CellHit& h) { return h.piece; });
   for (std::size_t k = 0; k < hits.size(); ++k) {
     const CellHit& h = hits[k];
     if (!out.empty() && out.back().site == site && out.back().code == h.code && out.back().piece_end >= h.piece) {
@@ -30,7 +28,9 @@ SiteCellCounts resolve_claims(SiteGeometry& g, DistanceRule rule) {
   counts.has_own_cell.assign(sites, false);
 
   auto by_code_site = [](const auto& a, const auto& b) { return a.code != b.code ? a.code < b.code : a.site < b.site; };
-  parallel_sort(g.fixed_cells.begin(), g.fixed_cells.end(), by_code_site);
+  const auto code_of = [](const auto& c) { return c.code; };
+  const auto site_of = [](const auto& c) { return static_cast<std::uint32_t>(c.site); };
+  sort_by_pair(g.fixed_cells, code_of, site_of);
   g.fixed_cells.erase(std::unique(g.fixed_cells.begin(), g.fixed_cells.end(),
                                   [](const FixedCell& a, const FixedCell& b) { return a.code == b.code; }),
                       g.fixed_cells.end());
@@ -55,7 +55,7 @@ SiteCellCounts resolve_claims(SiteGeometry& g, DistanceRule rule) {
   std::vector<std::pair<std::int32_t, grid::Code>> site_codes;
   site_codes.reserve(g.site_cells.size());
   for (const SiteCell& c : g.site_cells) site_codes.emplace_back(c.site, c.code);
-  parallel_sort(site_codes.begin(), site_codes.end(), std::less<std::pair<std::int32_t, grid::Code>>());
+  sort_by_pair(site_codes, [](const auto& p) { return static_cast<std::uint32_t>(p.first); }, [](const auto& p) { return p.second; });
   site_codes.erase(std::unique(site_codes.begin(), site_codes.end()), site_codes.end());
   for (const auto& [site, code] : site_codes) {
     ++counts.site_cells[site];

@@ -1,5 +1,5 @@
-// radix_sort against std::stable_sort: keys of every width, sizes around its small-input cut,
-// equal keys (stability), and thread counts.
+// radix_sort and sort_by_pair against std::stable_sort: keys of every width, sizes around the
+// small-input cut and the items per thread, equal keys (stability), and thread counts.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -40,8 +40,8 @@ void expect_sorts_like_stable_sort(std::size_t n, int key_bits, std::uint64_t se
 
 TEST(RadixSort, SortsStablyLikeStableSort) {
   std::uint64_t seed = 1;
-  for (const std::size_t n : {std::size_t{0}, std::size_t{1}, std::size_t{1000}, std::size_t{32767},
-                              std::size_t{32768}, std::size_t{100003}, std::size_t{400000}}) {
+  for (const std::size_t n : {std::size_t{0}, std::size_t{1}, std::size_t{511}, std::size_t{512}, std::size_t{1000},
+                              std::size_t{16385}, std::size_t{100003}, std::size_t{400000}}) {
     for (const int bits : {1, 3, 11, 12, 27, 39, 45, 64}) expect_sorts_like_stable_sort(n, bits, seed++);
   }
 }
@@ -58,6 +58,25 @@ TEST(RadixSort, AnyThreadCountGivesTheSameOrder) {
 #else
   expect_sorts_like_stable_sort(300007, 27, 99);
 #endif
+}
+
+TEST(RadixSort, SortByPairOrdersByFirstThenSecond) {
+  std::mt19937_64 rng(17);
+  for (const std::size_t n : {std::size_t{100}, std::size_t{50000}}) {
+    for (const int second_bits : {0, 5, 31}) {
+      std::uniform_int_distribution<std::uint64_t> first(0, (std::uint64_t{1} << 27) - 1), second(0, (std::uint64_t{1} << second_bits) - 1);
+      std::vector<std::pair<std::uint64_t, std::uint32_t>> items(n);
+      for (auto& item : items) item = {first(rng) % (n / 4 + 1), static_cast<std::uint32_t>(second(rng))};
+      std::vector<std::pair<std::uint64_t, std::uint32_t>> expected = items;
+      std::sort(expected.begin(), expected.end());
+      sort_by_pair(items, [](const auto& p) { return p.first; }, [](const auto& p) { return p.second; });
+      EXPECT_EQ(items, expected) << "n " << n << ", second bits " << second_bits;
+    }
+  }
+  // Keys too wide for one radix key: the comparison sort's order.
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> wide = {{~0ull, 3}, {1, ~0u}, {~0ull, 1}, {1, 0}};
+  sort_by_pair(wide, [](const auto& p) { return p.first; }, [](const auto& p) { return p.second; });
+  EXPECT_EQ(wide, (std::vector<std::pair<std::uint64_t, std::uint32_t>>{{1, 0}, {1, ~0u}, {~0ull, 1}, {~0ull, 3}}));
 }
 
 }  // namespace

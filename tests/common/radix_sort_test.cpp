@@ -40,7 +40,7 @@ void expect_sorts_like_stable_sort(std::size_t n, int key_bits, std::uint64_t se
 
 TEST(RadixSort, SortsStablyLikeStableSort) {
   std::uint64_t seed = 1;
-  for (const std::size_t n : {std::size_t{0}, std::size_t{1}, std::size_t{255}, std::size_t{256}, std::size_t{2100}, std::size_t{1000},
+  for (const std::size_t n : {std::size_t{0}, std::size_t{1}, std::size_t{511}, std::size_t{512}, std::size_t{2100}, std::size_t{1000},
                               std::size_t{16385}, std::size_t{100003}, std::size_t{400000}}) {
     for (const int bits : {1, 3, 11, 12, 27, 39, 45, 64}) expect_sorts_like_stable_sort(n, bits, seed++);
   }

@@ -5,7 +5,6 @@
 #include <functional>
 #include <vector>
 
-#include "common/parallel_sort.hpp"
 #include "common/radix_sort.hpp"
 #include "label/label_tree.hpp"
 #include "common/openmp_threads.hpp"
@@ -589,8 +588,8 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
       } else if (differs[m]) {
         out.push_back({first_code + p, labels.site[m], 1u});
       }
-      // Past the row's middle, off the base, only the last cell asks: skip to it or to the next
-      // boundary cell.
+      // Off the base row only a row's first and last cells ask across: skip the cells between
+      // them that differ from no neighbour inside.
       ++m;
       if (!on_base) {
         while (m + 1 < end && !differs[m]) ++m;
@@ -610,8 +609,8 @@ OutlineCells join_in_code_order(std::vector<OutlineCells>& parts, int level) {
     OutlineCells().swap(p);
   }
   radix_sort(all, grid::code_bits(level), [](const OutlineCell& c) { return c.code; });
-  // A uniform leaf's cell beside a list leaf may come from both leaves' visits: once, a boundary
-  // cell if either says so.
+  // A cell beside a list leaf may come from both leaves' visits (the pairs' rule lists the other
+  // leaf's cell too): once, a boundary cell if either says so.
   std::size_t kept = 0;
   for (std::size_t r = 0; r < all.size(); ++r) {
     if (kept > 0 && all[kept - 1].code == all[r].code) {

@@ -94,9 +94,10 @@ void sort_by_pair(std::vector<T, Alloc>& items, First first, Second second) {
   }
   const int low = bits_for(max_second), width = bits_for(max_first) + low;
   if (width <= 64) {
+    // low is 64 only where every first key is 0 (a shift by 64 would be undefined).
     radix_sort(items, width, [&](const T& item) {
-      return low == 0 ? static_cast<std::uint64_t>(first(item))
-                      : static_cast<std::uint64_t>(first(item)) << low | static_cast<std::uint64_t>(second(item));
+      const auto high = static_cast<std::uint64_t>(first(item));
+      return (low < 64 ? high << low : 0) | static_cast<std::uint64_t>(second(item));
     });
   } else {
     std::sort(items.begin(), items.end(), [&](const T& a, const T& b) {

@@ -171,6 +171,10 @@ QTMV_HD inline double node_radius(int level, const grid::Cell& cell, double g) {
   }
   return (grid::kPi / 2.0) / rows * sqrt(worst) * (1.0 + 1e-9);
 }
+QTMV_HD inline double node_radius(int level, const grid::Cell& cell) {
+  return node_radius(level, cell, node_radius_stretch(level, cell.row));
+}
+
 /// node_radius_stretch of the last two rows asked for, for a pass over the nodes of one level (a
 /// node's four children lie in two rows). One per thread and level.
 class RadiusStretches {
@@ -191,9 +195,6 @@ class RadiusStretches {
   std::uint32_t row_[2] = {~0u, ~0u};  // none yet
   double g_[2] = {0.0, 0.0};
 };
-QTMV_HD inline double node_radius(int level, const grid::Cell& cell) {
-  return node_radius(level, cell, node_radius_stretch(level, cell.row));
-}
 
 /// Slack (radians, about 1.3 m on the Earth) added to every pruning threshold. It covers the
 /// rounding of the float64 distances (at most a few 1e-8 rad for squared chords near 0 or 4),

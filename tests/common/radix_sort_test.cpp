@@ -73,6 +73,13 @@ TEST(RadixSort, SortByPairOrdersByFirstThenSecond) {
       EXPECT_EQ(items, expected) << "n " << n << ", second bits " << second_bits;
     }
   }
+  // First keys all 0 beside second keys of 64 bits: one radix key of the second alone.
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> seconds(1000);
+  for (auto& item : seconds) item = {0, rng() | std::uint64_t{1} << 63};
+  auto sorted_seconds = seconds;
+  std::sort(sorted_seconds.begin(), sorted_seconds.end());
+  sort_by_pair(seconds, [](const auto& p) { return p.first; }, [](const auto& p) { return p.second; });
+  EXPECT_EQ(seconds, sorted_seconds);
   // Keys too wide for one radix key: the comparison sort's order.
   std::vector<std::pair<std::uint64_t, std::uint32_t>> wide = {{~0ull, 3}, {1, ~0u}, {~0ull, 1}, {1, 0}};
   sort_by_pair(wide, [](const auto& p) { return p.first; }, [](const auto& p) { return p.second; });

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "common/host_info.hpp"
+#include "common/openmp_threads.hpp"
 #include "label/device_startup.hpp"
 #include "pipeline/run_plan.hpp"
 #include "pipeline/staged_output.hpp"
@@ -40,6 +41,7 @@ std::string VoronoiSummary::line() const {
 
 VoronoiSummary run_voronoi(const std::string& source, const std::string& destination, const VoronoiOptions& options) {
   const double t_start = now_seconds();
+  const ScopedDefaultThreads thread_limit(options.threads);  // every stage's sorts and loops too
   const bool tile_job = options.tile_count > 0;
   // The GPUs are counted and their contexts made (tenths of a second a process: much of a small
   // run, and of every tile job) while the run is planned and its sites read; a merge makes none.

@@ -124,7 +124,7 @@ inline std::vector<grid::KeyRange> held_claims(const LabelInput& input) {
   std::vector<grid::KeyRange> ranges(static_cast<std::size_t>(cells + nodes));
   // On all cores where the includer is built with OpenMP (the readers and the labeller are).
 #ifdef _OPENMP
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) num_threads(thread_count(0))
 #endif
   for (std::int64_t k = 0; k < cells; ++k) {
     const FixedCell& f = input.fixed_cells[k];
@@ -132,7 +132,7 @@ inline std::vector<grid::KeyRange> held_claims(const LabelInput& input) {
     ranges[k] = {key, key, f.site};
   }
 #ifdef _OPENMP
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) num_threads(thread_count(0))
 #endif
   for (std::int64_t k = 0; k < nodes; ++k) {
     const FixedNode& n = input.fixed_nodes[k];

@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "common/default_init_allocator.hpp"
+#include "common/openmp_threads.hpp"
 #include "grid/qtm.hpp"
 #include "grid/qtm_code_ranges.hpp"
 
@@ -171,7 +172,7 @@ inline void check_outlines(const Outlines& o) {
   };
   std::uint64_t row_ends = 0;
   std::int64_t first_broken = n;
-#pragma omp parallel for schedule(static) reduction(+ : row_ends) reduction(min : first_broken)
+#pragma omp parallel for schedule(static) num_threads(thread_count(0)) reduction(+ : row_ends) reduction(min : first_broken)
   for (std::int64_t k = 0; k < n; ++k) {
     if (broken(k)) {
       first_broken = std::min(first_broken, k);

@@ -13,7 +13,9 @@
 #include <chrono>
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <sstream>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -143,6 +145,94 @@ CoordinateRange coordinate_range(const OGRSpatialReference& srs) {
   return range;
 }
 
+std::string format_coordinate(double x, double y) {
+  std::ostringstream s;
+  s.precision(15);
+  s << "(" << x << ", " << y << ")";
+  return s.str();
+}
+
+/// A feature read and its geometry taken: what the checks on all threads found of it (examine),
+/// for the reader to report and build in feature order.
+struct PendingFeature {
+  enum class Skip { none, unreadable, empty, type, coordinate };
+  GIntBig fid = 0;
+  OGRFeatureUniquePtr feature;  ///< its attributes
+  std::unique_ptr<OGRGeometry> geometry;
+  FeatureParts parts;
+  Skip skip = Skip::none;
+  std::string skip_reason;
+  std::optional<PolygonProblem> problem;  ///< of its polygons, as the source gives them
+};
+/// Features read before they are examined on all threads: work for every thread, memory bounded.
+constexpr std::size_t kChunkFeatures = 1024;
+constexpr std::size_t kChunkVertices = std::size_t{1} << 20;
+
+/// The points of a geometry's curves (a bound on its vertices, for the chunks' size).
+std::size_t point_count(const OGRGeometry& geometry) {
+  switch (wkbFlatten(geometry.getGeometryType())) {
+    case wkbPolygon:
+    case wkbTriangle: {
+      const auto& polygon = *geometry.toPolygon();
+      std::size_t n = 0;
+      for (const OGRLinearRing* ring : polygon) n += static_cast<std::size_t>(ring->getNumPoints());
+      return n;
+    }
+    case wkbLineString:
+      return static_cast<std::size_t>(geometry.toLineString()->getNumPoints());
+    case wkbMultiPoint:
+    case wkbMultiLineString:
+    case wkbMultiPolygon:
+    case wkbGeometryCollection: {
+      std::size_t n = 0;
+      for (const OGRGeometry* part : *geometry.toGeometryCollection()) n += point_count(*part);
+      return n;
+    }
+    default:
+      return 1;
+  }
+}
+
+/// A pending feature's parts, coordinate checks and polygon validity, or why it is skipped.
+/// Changes only `pending`: several threads examine a chunk's features at once.
+void examine(PendingFeature& pending, const CoordinateRange& range, const PolygonValidityCheck& validity) {
+  if (pending.skip != PendingFeature::Skip::none) return;  // found while reading
+  if (!gather_parts(*pending.geometry, pending.parts, pending.skip_reason)) {
+    pending.skip = PendingFeature::Skip::type;
+    return;
+  }
+  if (pending.parts.parts.empty()) {
+    pending.skip = PendingFeature::Skip::empty;
+    pending.skip_reason = "empty geometry";
+    return;
+  }
+  // Checked before PROJ sees them (GDAL 3.6 hangs on EPSG:3857 coordinates near +-1e20).
+  for (std::size_t k = 0; k < pending.parts.x.size(); ++k) {
+    const double x = pending.parts.x[k], y = pending.parts.y[k];
+    if (!std::isfinite(x) || !std::isfinite(y)) {
+      pending.skip = PendingFeature::Skip::coordinate;
+      pending.skip_reason = "NaN or infinite coordinate " + format_coordinate(x, y);
+      return;
+    }
+    if (std::fabs(x) > range.limit_x || std::fabs(y) > range.limit_y) {
+      pending.skip = PendingFeature::Skip::coordinate;
+      pending.skip_reason = "coordinate " + format_coordinate(x, y) + " beyond " + range.describe + " of its CRS";
+      return;
+    }
+  }
+  pending.problem = validity.problem_of(*pending.geometry);
+}
+
+/// The summary's count of the features skipped for `why`.
+std::uint64_t& skip_counter(ReadSummary& summary, PendingFeature::Skip why) {
+  switch (why) {
+    case PendingFeature::Skip::unreadable: return summary.skipped_unreadable;
+    case PendingFeature::Skip::type: return summary.skipped_type;
+    case PendingFeature::Skip::coordinate: return summary.skipped_coordinate;
+    default: return summary.skipped_empty;
+  }
+}
+
 /// A feature's site, or a share of its parts, to be traced and filled: its coordinates (lon/lat,
 /// shared by the shares) and parts.
 struct SiteJob {
@@ -156,7 +246,7 @@ constexpr std::size_t kBatchSites = 4096;
 constexpr std::size_t kBatchVertices = std::size_t{1} << 22;
 /// A feature with more vertices than this is shared out by its parts (whole polygons), so that
 /// one large multipolygon (a continent's coasts) keeps several threads busy.
-constexpr std::size_t kShareVertices = std::size_t{1} << 15;
+constexpr std::size_t kShareVertices = std::size_t{1} << 12;
 
 /// The feature's parts as jobs: one, or shares of about kShareVertices vertices, split between
 /// polygons (a polygon's rings stay together). The split depends on the feature only.
@@ -276,12 +366,6 @@ void append_sites(SiteGeometry& out, const std::vector<SiteGeometry>& built, con
   out.site_count = ids[n - 1] + 1;
 }
 
-std::string format_coordinate(double x, double y) {
-  std::ostringstream s;
-  s.precision(15);
-  s << "(" << x << ", " << y << ")";
-  return s.str();
-}
 
 }  // namespace
 
@@ -359,6 +443,7 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   SiteGeometry& geometry = out.geometry;
   geometry.level = options.level;
   std::chrono::steady_clock::duration rasterise{};  // tracing, filling and claims, within the read
+  const ScopedDefaultThreads thread_limit(options.threads);  // the claims' sorts too
   const int threads = thread_count(options.threads);
   std::vector<std::unique_ptr<SiteBuilder>> builders(static_cast<std::size_t>(threads));
   std::string validity_text;  // the layers' invalid polygons, for the summary line
@@ -476,6 +561,91 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
       batch_vertices = 0;
       rasterise += std::chrono::steady_clock::now() - start;
     };
+    // Features are read in chunks: GDAL reads them on this thread; their parts, coordinate checks
+    // and polygon validity are found on all threads; then, in feature order, they are reported and
+    // become sites: the same messages and sites whatever the thread count.
+    std::vector<PendingFeature> chunk;
+    std::size_t chunk_vertices = 0;
+    auto settle_chunk = [&] {
+      const auto n = static_cast<std::int64_t>(chunk.size());
+      FirstException failure;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+      for (std::int64_t k = 0; k < n; ++k) {
+        failure.run([&] { examine(chunk[static_cast<std::size_t>(k)], range, validity); });
+      }
+      failure.rethrow();
+      for (PendingFeature& pending : chunk) {
+        const GIntBig fid = pending.fid;
+        if (pending.skip != PendingFeature::Skip::none) {
+          skip(fid, pending.skip_reason, skip_counter(summary, pending.skip));
+          continue;
+        }
+        FeatureParts& parts = pending.parts;
+        std::unique_ptr<OGRGeometry>& geometry = pending.geometry;
+        // Invalid polygons are named (or repaired, -makevalid) as the source gives them.
+        if (validity.settle(fid, geometry, pending.problem)) {
+          parts = FeatureParts{};
+          std::string reason;
+          if (!gather_parts(*geometry, parts, reason) || parts.parts.empty()) {
+            skip(fid, "nothing left after -makevalid", summary.skipped_empty);
+            continue;
+          }
+        }
+        const std::size_t n_points = parts.x.size();
+        bool usable = true;
+        if (transform) {
+          transformed_ok.assign(n_points, FALSE);
+          gdal::ErrorCapture transform_errors;
+          const std::vector<double> x0 = parts.x, y0 = parts.y;
+          transform->Transform(static_cast<int>(n_points), parts.x.data(), parts.y.data(), nullptr,
+                               transformed_ok.data());
+          for (std::size_t k = 0; k < n_points && usable; ++k) {
+            if (!transformed_ok[k] || !std::isfinite(parts.x[k]) || !std::isfinite(parts.y[k])) {
+              skip(fid, with_gdal_message("coordinate " + format_coordinate(x0[k], y0[k]) + " fails to transform to WGS84",
+                                          transform_errors.take()),
+                   summary.skipped_transform);
+              usable = false;
+            }
+          }
+          if (!usable) continue;
+        }
+        lonlat.resize(n_points);
+        for (std::size_t k = 0; k < n_points && usable; ++k) {
+          double lat = parts.y[k];
+          if (std::fabs(lat) > 90.0) {
+            if (std::fabs(lat) > 90.0 + 1e-9) {
+              skip(fid, std::string("latitude beyond +-90") + (transform ? " after transformation" : "") + " at " +
+                            format_coordinate(parts.x[k], lat),
+                   summary.skipped_coordinate);
+              usable = false;
+              break;
+            }
+            lat = lat > 0 ? 90.0 : -90.0;  // rounding in the transformation
+          }
+          lonlat[k] = {parts.x[k], lat};
+        }
+        if (!usable) continue;
+
+        // --- one site, built with the next batch ---
+        SiteRecord record;
+        record.fid = fid;
+        record.layer = layer_index;
+        for (const FeatureParts::Part& part : parts.parts) {
+          record.kind |= part.kind == FeatureParts::kPoint ? kPointSite : part.kind == FeatureParts::kLine ? kLineSite
+                                                                                                           : kPolygonSite;
+        }
+        record.attributes.reset(pending.feature.release());
+        out.table.sites.push_back(std::move(record));
+        ++summary.sites;
+        batch_vertices += lonlat.size();
+        make_jobs(fid, std::move(lonlat), std::move(parts.parts), batch);
+        lonlat = {};
+        pending = PendingFeature{};  // its geometry's memory back before the next
+        if (batch.size() >= kBatchSites || batch_vertices >= kBatchVertices) build_batch();
+      }
+      chunk.clear();
+      chunk_vertices = 0;
+    };
     errors.take();
     layer->ResetReading();
     for (OGRFeatureUniquePtr feature(layer->GetNextFeature()); feature; feature.reset(layer->GetNextFeature())) {
@@ -487,101 +657,27 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
                             "reading sites")) {
         throw Interrupted();
       }
-      const GIntBig fid = feature->GetFID();
+      PendingFeature& pending = chunk.emplace_back();
+      pending.fid = feature->GetFID();
       // A driver that cannot decode one feature (a corrupt geometry blob, say) reports it while
       // reading that feature: skip it with GDAL's reason instead of failing the whole read.
       if (errors.failed()) {
-        skip(fid, "unreadable feature (GDAL: " + errors.take() + ")", summary.skipped_unreadable);
-        continue;
-      }
-      std::unique_ptr<OGRGeometry> geometry(feature->StealGeometry());
-      if (!geometry || geometry->IsEmpty()) {
-        skip(fid, "empty geometry", summary.skipped_empty);
-        continue;
-      }
-      if (geometry->hasCurveGeometry()) geometry.reset(geometry->getLinearGeometry());
-      FeatureParts parts;
-      std::string reason;
-      if (!gather_parts(*geometry, parts, reason)) {
-        skip(fid, reason, summary.skipped_type);
-        continue;
-      }
-      if (parts.parts.empty()) {
-        skip(fid, "empty geometry", summary.skipped_empty);
-        continue;
-      }
-      // Checked before PROJ sees them (GDAL 3.6 hangs on EPSG:3857 coordinates near +-1e20).
-      std::size_t n = parts.x.size();
-      bool usable = true;
-      for (std::size_t k = 0; k < n && usable; ++k) {
-        const double x = parts.x[k], y = parts.y[k];
-        if (!std::isfinite(x) || !std::isfinite(y)) {
-          skip(fid, "NaN or infinite coordinate " + format_coordinate(x, y), summary.skipped_coordinate);
-          usable = false;
-        } else if (std::fabs(x) > range.limit_x || std::fabs(y) > range.limit_y) {
-          skip(fid, "coordinate " + format_coordinate(x, y) + " beyond " + range.describe + " of its CRS",
-               summary.skipped_coordinate);
-          usable = false;
+        pending.skip = PendingFeature::Skip::unreadable;
+        pending.skip_reason = "unreadable feature (GDAL: " + errors.take() + ")";
+      } else {
+        pending.geometry.reset(feature->StealGeometry());
+        if (!pending.geometry || pending.geometry->IsEmpty()) {
+          pending.skip = PendingFeature::Skip::empty;
+          pending.skip_reason = "empty geometry";
+        } else if (pending.geometry->hasCurveGeometry()) {
+          pending.geometry.reset(pending.geometry->getLinearGeometry());
         }
       }
-      if (!usable) continue;
-      // Invalid polygons are named (or repaired, -makevalid) as the source gives them.
-      if (validity.inspect(fid, geometry)) {
-        parts = FeatureParts{};
-        if (!gather_parts(*geometry, parts, reason) || parts.parts.empty()) {
-          skip(fid, "nothing left after -makevalid", summary.skipped_empty);
-          continue;
-        }
-        n = parts.x.size();
-      }
-      if (transform) {
-        transformed_ok.assign(n, FALSE);
-        gdal::ErrorCapture transform_errors;
-        const std::vector<double> x0 = parts.x, y0 = parts.y;
-        transform->Transform(static_cast<int>(n), parts.x.data(), parts.y.data(), nullptr, transformed_ok.data());
-        for (std::size_t k = 0; k < n && usable; ++k) {
-          if (!transformed_ok[k] || !std::isfinite(parts.x[k]) || !std::isfinite(parts.y[k])) {
-            skip(fid, with_gdal_message("coordinate " + format_coordinate(x0[k], y0[k]) + " fails to transform to WGS84",
-                                        transform_errors.take()),
-                 summary.skipped_transform);
-            usable = false;
-          }
-        }
-        if (!usable) continue;
-      }
-      lonlat.resize(n);
-      for (std::size_t k = 0; k < n && usable; ++k) {
-        double lat = parts.y[k];
-        if (std::fabs(lat) > 90.0) {
-          if (std::fabs(lat) > 90.0 + 1e-9) {
-            skip(fid, std::string("latitude beyond +-90") + (transform ? " after transformation" : "") + " at " +
-                          format_coordinate(parts.x[k], lat),
-                 summary.skipped_coordinate);
-            usable = false;
-            break;
-          }
-          lat = lat > 0 ? 90.0 : -90.0;  // rounding in the transformation
-        }
-        lonlat[k] = {parts.x[k], lat};
-      }
-      if (!usable) continue;
-
-      // --- one site, built with the next batch ---
-      SiteRecord record;
-      record.fid = fid;
-      record.layer = layer_index;
-      for (const FeatureParts::Part& part : parts.parts) {
-        record.kind |= part.kind == FeatureParts::kPoint ? kPointSite : part.kind == FeatureParts::kLine ? kLineSite
-                                                                                                         : kPolygonSite;
-      }
-      record.attributes.reset(feature.release());
-      out.table.sites.push_back(std::move(record));
-      ++summary.sites;
-      batch_vertices += lonlat.size();
-      make_jobs(fid, std::move(lonlat), std::move(parts.parts), batch);
-      lonlat = {};
-      if (batch.size() >= kBatchSites || batch_vertices >= kBatchVertices) build_batch();
+      pending.feature = std::move(feature);
+      if (pending.geometry) chunk_vertices += point_count(*pending.geometry);
+      if (chunk.size() >= kChunkFeatures || chunk_vertices >= kChunkVertices) settle_chunk();
     }
+    settle_chunk();
     build_batch();
     validity.finish();
     if (summary.skipped > PolygonValidityCheck::kMostListed) {

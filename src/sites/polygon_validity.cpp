@@ -220,19 +220,22 @@ void PolygonValidityCheck::say(const std::string& message) {
   if (++listed_ <= kMostListed && options_.messages) options_.messages(Severity::warning, message);
 }
 
-bool PolygonValidityCheck::inspect(std::int64_t fid, std::unique_ptr<OGRGeometry>& geometry) {
-  if (!has_polygon(*geometry)) return false;
-  if (!enabled_) {
-    if (!told_no_geos_ && options_.messages) {
+std::optional<PolygonProblem> PolygonValidityCheck::problem_of(const OGRGeometry& geometry) const {
+  if (!enabled_ || !has_polygon(geometry)) return std::nullopt;
+  // Read across +-180 by -wrap auto: flat lon/lat would call it self-intersecting.
+  if (lon_axis_ >= 0 && ring_crosses_antimeridian(geometry, lon_axis_, half_turn_)) return std::nullopt;
+  return find_polygon_problem(geometry);
+}
+
+bool PolygonValidityCheck::settle(std::int64_t fid, std::unique_ptr<OGRGeometry>& geometry,
+                                  const std::optional<PolygonProblem>& problem) {
+  if (!enabled_ && !told_no_geos_ && has_polygon(*geometry)) {
+    if (options_.messages) {
       options_.messages(Severity::warning, where_from_ + ": this GDAL was built without GEOS: polygons are not "
                                                          "checked for validity");
     }
     told_no_geos_ = true;
-    return false;
   }
-  // Read across +-180 by -wrap auto: flat lon/lat would call it self-intersecting.
-  if (lon_axis_ >= 0 && ring_crosses_antimeridian(*geometry, lon_axis_, half_turn_)) return false;
-  const std::optional<PolygonProblem> problem = find_polygon_problem(*geometry);
   if (!problem) return false;
   ++invalid_;
   const std::string what = where_from_ + ", FID " + std::to_string(fid) + ": invalid polygon (" + problem->describe() + ")";

@@ -76,10 +76,20 @@ class PolygonValidityCheck {
   /// coordinates are in. Throws ReadError for -makevalid when OGR has no GEOS.
   PolygonValidityCheck(const ReadOptions& options, const OGRSpatialReference& source, std::string where_from);
 
-  /// Checks the polygons of feature `fid`. Invalid: a warning, or ReadError under -strict (unless
-  /// -makevalid repairs it); under -makevalid `geometry` is replaced by its repair. Returns true
-  /// when `geometry` was replaced.
-  bool inspect(std::int64_t fid, std::unique_ptr<OGRGeometry>& geometry);
+  /// The problem of `geometry`'s polygons: nullopt when they are valid, when it holds none, or
+  /// when they are not checked (no GEOS; rings across +-180 under -wrap auto). Changes nothing:
+  /// several threads may call it at once, on different features.
+  std::optional<PolygonProblem> problem_of(const OGRGeometry& geometry) const;
+
+  /// Reports feature `fid`'s `problem` (from problem_of; called in feature order): a warning, or
+  /// ReadError under -strict (unless -makevalid repairs it); under -makevalid `geometry` is
+  /// replaced by its repair. Returns true when `geometry` was replaced.
+  bool settle(std::int64_t fid, std::unique_ptr<OGRGeometry>& geometry, const std::optional<PolygonProblem>& problem);
+
+  /// problem_of and settle in one.
+  bool inspect(std::int64_t fid, std::unique_ptr<OGRGeometry>& geometry) {
+    return settle(fid, geometry, problem_of(*geometry));
+  }
 
   /// The line counting the warnings left out, if any (call once, after the last feature).
   void finish();

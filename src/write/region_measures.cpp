@@ -10,6 +10,7 @@
 #include <mutex>
 
 #include "common/first_exception.hpp"
+#include "common/openmp_threads.hpp"
 #include "common/parallel_sort.hpp"
 #include "grid/qtm.hpp"
 #include "measure/edge_solver.hpp"
@@ -245,7 +246,7 @@ std::vector<double> region_areas(const label::Outlines& outlines, int cuda_devic
   const auto n = static_cast<std::int64_t>(cells.size());
   RegionAreaSums sums(outlines.site_count, false, cuda_device);
   FirstException failure;
-#pragma omp parallel
+#pragma omp parallel num_threads(thread_count(0))
   {
     std::unique_ptr<RegionEdgeObserver::Local> cache;
     label::NearSearch search;

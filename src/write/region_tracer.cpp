@@ -324,7 +324,7 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertice
   constexpr CellEdges kMask = (CellEdges{1} << kEdgeMaskBits) - 1;
   const auto site_of_entry = [&](CellEdges entry) { return static_cast<std::size_t>(cells[entry >> kEdgeMaskBits].site); };
   std::vector<std::vector<std::size_t>> place(threads, std::vector<std::size_t>(sites + 1, 0));
-#pragma omp parallel for schedule(static, 1)
+#pragma omp parallel for schedule(static, 1) num_threads(thread_count(0))
   for (std::int64_t t = 0; t < static_cast<std::int64_t>(threads); ++t) {
     for (const CellEdges e : parts[static_cast<std::size_t>(t)]) ++place[static_cast<std::size_t>(t)][site_of_entry(e)];
   }
@@ -341,7 +341,7 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertice
   start[sites] = at;
   // Not zeroed (gigabytes at the finer levels, on one core): every slot is written below, on all cores.
   cells_.resize(at);
-#pragma omp parallel for schedule(static, 1)
+#pragma omp parallel for schedule(static, 1) num_threads(thread_count(0))
   for (std::int64_t t = 0; t < static_cast<std::int64_t>(threads); ++t) {
     std::vector<std::size_t>& next = place[static_cast<std::size_t>(t)];
     for (const CellEdges e : parts[static_cast<std::size_t>(t)]) {
@@ -380,7 +380,7 @@ std::vector<Region> trace_regions(const label::Outlines& outlines, const std::fu
   const RegionTracer tracer(outlines, RingVertices::corners, [&](double f) { done(0.7 * f); });
   std::vector<Region> regions(static_cast<std::size_t>(tracer.site_count()));
   FirstException failure;
-#pragma omp parallel for schedule(dynamic, 1)
+#pragma omp parallel for schedule(dynamic, 1) num_threads(thread_count(0))
   for (std::int32_t site = 0; site < tracer.site_count(); ++site) {
     failure.run([&] { regions[static_cast<std::size_t>(site)] = tracer.trace(site); });
   }

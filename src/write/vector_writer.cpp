@@ -22,6 +22,7 @@
 #include "gdal/error_capture.hpp"
 #include "grid/qtm.hpp"
 #include "common/first_exception.hpp"
+#include "common/openmp_threads.hpp"
 #include "write/gpkg_rows.hpp"
 #include "write/region_measures.hpp"
 #include "write/region_tracer.hpp"
@@ -118,7 +119,7 @@ std::vector<EdgeRef> gather_edges(const label::Outlines& outlines) {
   const auto n = static_cast<std::int64_t>(cells.size());
   std::vector<EdgeRef> all;
   FirstException failure;
-#pragma omp parallel
+#pragma omp parallel num_threads(thread_count(0))
   {
     std::vector<EdgeRef> local;
 #pragma omp for schedule(static)
@@ -688,7 +689,7 @@ void write_regions(Writer& w, const Input& in, double work, std::vector<PairLeng
     block.regions.resize(last - first);
     if (direct) block.geometries.resize(last - first);
     FirstException failure;
-#pragma omp parallel for schedule(dynamic, 1)
+#pragma omp parallel for schedule(dynamic, 1) num_threads(thread_count(0))
     for (std::int64_t s = static_cast<std::int64_t>(first); s < static_cast<std::int64_t>(last); ++s) {
       failure.run([&] {
         Region& region = block.regions[static_cast<std::size_t>(s) - first];
@@ -805,7 +806,7 @@ void write_voronoi_edges(Writer& w, const Input& in, double work, const std::vec
   const auto measure = [&](std::size_t first, std::size_t last) {
     std::vector<MeasuredPair> block(last - first);
     FirstException failure;
-#pragma omp parallel for schedule(dynamic, 16)
+#pragma omp parallel for schedule(dynamic, 16) num_threads(thread_count(0))
     for (std::int64_t p = static_cast<std::int64_t>(first); p < static_cast<std::int64_t>(last); ++p) {
       failure.run([&] {
         MeasuredPair& out = block[static_cast<std::size_t>(p) - first];
@@ -953,7 +954,7 @@ void write_vector(const std::string& path, const label::Outlines& outlines, cons
                  options.messages};
   std::uint64_t boundary_count = 0;
   const auto outline_cells = static_cast<std::int64_t>(outlines.cells.size());
-#pragma omp parallel for schedule(static) reduction(+ : boundary_count)
+#pragma omp parallel for schedule(static) num_threads(thread_count(0)) reduction(+ : boundary_count)
   for (std::int64_t k = 0; k < outline_cells; ++k) boundary_count += outlines.cells[static_cast<std::size_t>(k)].boundary;
 
   GDALDriver* driver = GetGDALDriverManager()->GetDriverByName(options.driver.c_str());

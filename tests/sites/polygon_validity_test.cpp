@@ -140,6 +140,52 @@ TEST(PolygonValidityCheck, WarnsByFidCountsAndCapsTheLines) {
   EXPECT_TRUE(any_contains(messages, "24 sites, ") && any_contains(messages, "; 23 invalid polygon(s) (read by even-odd)"));
 }
 
+// Features are examined on all threads in chunks of up to 1024: the warnings still come in
+// feature order, the same with one thread as with several, and -strict stops at the first.
+TEST(PolygonValidityCheck, WarningsComeInFeatureOrderWhateverTheThreads) {
+  std::vector<std::string> wkts;
+  for (int k = 0; k < 2600; ++k) {
+    const double x = -170.0 + 0.1 * (k % 3000), y = -60.0 + 0.04 * k;
+    const std::string a = std::to_string(x), b = std::to_string(x + 0.05), c = std::to_string(y),
+                      d = std::to_string(y + 0.05);
+    if (k % 97 == 5) {
+      wkts.push_back("POLYGON ((" + a + " " + c + "," + b + " " + d + "," + b + " " + c + "," + a + " " + d + "," + a +
+                     " " + c + "))");  // a bow-tie
+    } else if (k % 211 == 7) {
+      wkts.push_back("POINT (" + a + " 1000)");  // beyond +-540 degrees
+    } else if (k % 389 == 3) {
+      wkts.push_back("POLYGON EMPTY");
+    } else {
+      wkts.push_back("POLYGON ((" + a + " " + c + "," + b + " " + c + "," + b + " " + d + "," + a + " " + c + "))");
+    }
+  }
+  const std::string path = dataset_of(wkts);
+  std::vector<std::string> messages[2];
+  for (int k = 0; k < 2; ++k) {
+    ReadOptions o = options_at(4, &messages[k]);
+    o.threads = k == 0 ? 1 : 4;
+    const SiteSet set = read_sites(path, o);
+    EXPECT_EQ(set.summary.invalid_polygons, 27u);
+    EXPECT_EQ(set.summary.skipped_coordinate, 13u);
+    EXPECT_EQ(set.summary.skipped_empty, 6u);
+  }
+  EXPECT_EQ(messages[0], messages[1]);
+  ASSERT_GE(messages[0].size(), 3u);
+  const std::string at = "'" + path + "', layer 'v', FID ";
+  EXPECT_NE(messages[0][0].find(at + "4: empty geometry"), std::string::npos) << messages[0][0];
+  EXPECT_NE(messages[0][1].find(at + "6: invalid polygon"), std::string::npos) << messages[0][1];
+  EXPECT_NE(messages[0][2].find(at + "8: coordinate"), std::string::npos) << messages[0][2];
+  ReadOptions strict = options_at(4, nullptr);
+  strict.strict = true;
+  strict.threads = 4;
+  try {
+    read_sites(path, strict);
+    FAIL() << "no error under -strict";
+  } catch (const ReadError& e) {
+    EXPECT_NE(std::string(e.what()).find(at + "4: empty geometry"), std::string::npos) << e.what();
+  }
+}
+
 TEST(PolygonValidityCheck, StrictFailsAndMakeValidRepairs) {
   const std::string path = dataset_of({"POINT (50 50)", "POLYGON ((0 0,10 10,10 0,0 10,0 0))"});
   ReadOptions strict = options_at(4, nullptr);

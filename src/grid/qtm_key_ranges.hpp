@@ -35,8 +35,10 @@ inline bool key_range_before(const KeyRange& a, const KeyRange& b) {
 /// The keys covered by `ranges` (sorted by key_range_before; overlaps allowed), each given to
 /// the lowest owner that holds it: sorted, disjoint ranges, neighbours of one owner merged (so a
 /// set of keys is held by one owner iff one range holds them all).
-inline std::vector<KeyRange> lowest_owner_partition_of_sorted(const std::vector<KeyRange>& ranges) {
+template <class Alloc>
+std::vector<KeyRange> lowest_owner_partition_of_sorted(const std::vector<KeyRange, Alloc>& ranges) {
   std::vector<KeyRange> out;
+  out.reserve(ranges.size());
   auto emit = [&](std::uint64_t first, std::uint64_t last, std::int32_t owner) {
     if (!out.empty() && out.back().owner == owner && out.back().last + 1 == first) {
       out.back().last = last;
@@ -44,25 +46,41 @@ inline std::vector<KeyRange> lowest_owner_partition_of_sorted(const std::vector<
       out.push_back({first, last, owner});
     }
   };
-  // The ranges open at `pos`, lowest owner on top; ranges that ended are dropped when on top.
+  // Ranges come in runs, each range of a run starting within the ones before it. A run of one
+  // (most of them: a polygon's cover is disjoint, polygons seldom overlap) is emitted as it is;
+  // a longer one is swept with the ranges open at `pos`, lowest owner on top (ranges that ended
+  // are dropped when on top).
   using Open = std::pair<std::int32_t, std::uint64_t>;  // owner, last
   std::priority_queue<Open, std::vector<Open>, std::greater<Open>> open;
-  std::size_t next = 0;
-  std::uint64_t pos = 0;
-  while (next < ranges.size() || !open.empty()) {
-    if (open.empty()) pos = std::max(pos, ranges[next].first);
-    while (next < ranges.size() && ranges[next].first <= pos) {
-      if (ranges[next].last >= pos) open.push({ranges[next].owner, ranges[next].last});
-      ++next;
+  for (std::size_t run = 0; run < ranges.size();) {
+    std::size_t run_end = run + 1;
+    for (std::uint64_t reach = ranges[run].last; run_end < ranges.size() && ranges[run_end].first <= reach; ++run_end) {
+      reach = std::max(reach, ranges[run_end].last);
     }
-    while (!open.empty() && open.top().second < pos) open.pop();
-    if (open.empty()) continue;
-    // The lowest owner holds on until it ends or a range opens (which may hold a lower one).
-    std::uint64_t end = open.top().second;
-    if (next < ranges.size() && ranges[next].first - 1 < end) end = ranges[next].first - 1;
-    emit(pos, end, open.top().first);
-    if (end == ~std::uint64_t{0}) break;
-    pos = end + 1;
+    if (run_end == run + 1) {
+      emit(ranges[run].first, ranges[run].last, ranges[run].owner);
+      run = run_end;
+      continue;
+    }
+    std::size_t next = run;
+    std::uint64_t pos = 0;
+    while (next < run_end || !open.empty()) {
+      if (open.empty()) pos = std::max(pos, ranges[next].first);
+      while (next < run_end && ranges[next].first <= pos) {
+        if (ranges[next].last >= pos) open.push({ranges[next].owner, ranges[next].last});
+        ++next;
+      }
+      while (!open.empty() && open.top().second < pos) open.pop();
+      if (open.empty()) continue;
+      // The lowest owner holds on until it ends or a range opens (which may hold a lower one).
+      std::uint64_t end = open.top().second;
+      if (next < run_end && ranges[next].first - 1 < end) end = ranges[next].first - 1;
+      emit(pos, end, open.top().first);
+      if (end == ~std::uint64_t{0}) break;
+      pos = end + 1;
+    }
+    open = {};
+    run = run_end;
   }
   return out;
 }

@@ -121,7 +121,8 @@ struct SiteGeometry {
 inline std::vector<grid::KeyRange> held_claims(const LabelInput& input) {
   const auto cells = static_cast<std::int64_t>(input.fixed_cell_count);
   const auto nodes = static_cast<std::int64_t>(input.fixed_node_count);
-  std::vector<grid::KeyRange> ranges(static_cast<std::size_t>(cells + nodes));
+  // Not zeroed: every range is written below, on all cores.
+  std::vector<grid::KeyRange, DefaultInitAllocator<grid::KeyRange>> ranges(static_cast<std::size_t>(cells + nodes));
   // On all cores where the includer is built with OpenMP (the readers and the labeller are).
 #ifdef _OPENMP
 #pragma omp parallel for schedule(static) num_threads(thread_count(0))

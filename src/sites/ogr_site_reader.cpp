@@ -10,8 +10,11 @@
 #include <ogrsf_frmts.h>
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <memory>
 #include <optional>
 #include <sstream>
@@ -150,6 +153,10 @@ std::string format_coordinate(double x, double y) {
   s.precision(15);
   s << "(" << x << ", " << y << ")";
   return s.str();
+}
+
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
 /// A feature read and its geometry taken: what the checks on all threads found of it (examine),
@@ -370,6 +377,7 @@ void append_sites(SiteGeometry& out, const std::vector<SiteGeometry>& built, con
 }  // namespace
 
 SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) {
+  const auto read_start = std::chrono::steady_clock::now();
   grid::require_level(options.level);
   GDALAllRegister();
   auto say = [&](Severity severity, const std::string& message) {
@@ -443,6 +451,9 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   SiteGeometry& geometry = out.geometry;
   geometry.level = options.level;
   std::chrono::steady_clock::duration rasterise{};  // tracing, filling and claims, within the read
+  // QTMV_READ_TRACE set: the parts' times on stderr (for tuning).
+  const bool trace = std::getenv("QTMV_READ_TRACE") != nullptr;
+  double examined_s = 0, built_s = 0, longest_job_s = 0, appended_s = 0;
   const ScopedDefaultThreads thread_limit(options.threads);  // the claims' sorts too
   const int threads = thread_count(options.threads);
   std::vector<std::unique_ptr<SiteBuilder>> builders(static_cast<std::size_t>(threads));
@@ -537,7 +548,13 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
         failure.run([&] {
           std::unique_ptr<SiteBuilder>& builder = builders[static_cast<std::size_t>(thread_index())];
           if (!builder) builder = std::make_unique<SiteBuilder>(options.level, options.edges, options.wrap);
+          const double job_start = trace ? seconds_since(start) : 0.0;
           build_site(*builder, batch[static_cast<std::size_t>(k)]);
+          if (trace) {
+            const double job = seconds_since(start) - job_start;
+#pragma omp critical(qtmv_read_trace)
+            longest_job_s = std::max(longest_job_s, job);
+          }
           short_way[k] = builder->short_way_edges();
           built[k] = builder->take_geometry();
         });
@@ -549,7 +566,10 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
       std::vector<std::int32_t> ids(batch.size());
       std::int32_t next_id = geometry.site_count;
       for (std::size_t k = 0; k < batch.size(); ++k) ids[k] = batch[k].starts_site ? next_id++ : next_id - 1;
+      const double append_start = seconds_since(start);
       append_sites(geometry, built, ids, threads);
+      built_s += append_start;
+      appended_s += seconds_since(start) - append_start;
       for (std::size_t k = 0; k < batch.size(); ++k) {
         const bool named = !batch[k].starts_site && wrapped_fid == batch[k].fid;
         if (short_way[k] > 0 && !named) {
@@ -568,12 +588,14 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
     std::size_t chunk_vertices = 0;
     auto settle_chunk = [&] {
       const auto n = static_cast<std::int64_t>(chunk.size());
+      const auto examine_start = std::chrono::steady_clock::now();
       FirstException failure;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
       for (std::int64_t k = 0; k < n; ++k) {
         failure.run([&] { examine(chunk[static_cast<std::size_t>(k)], range, validity); });
       }
       failure.rethrow();
+      examined_s += seconds_since(examine_start);
       for (PendingFeature& pending : chunk) {
         const GIntBig fid = pending.fid;
         if (pending.skip != PendingFeature::Skip::none) {
@@ -721,6 +743,13 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   const auto claims_start = std::chrono::steady_clock::now();
   const SiteCellCounts counts = resolve_claims(out.geometry, options.distance);
   rasterise += std::chrono::steady_clock::now() - claims_start;
+  if (trace) {
+    std::fprintf(stderr,
+                 "read trace: %d threads: features examined %.3f s; sites built %.3f s (longest job %.3f s), "
+                 "appended %.3f s; claims %.3f s; whole read %.3f s\n",
+                 threads, examined_s, built_s, longest_job_s, appended_s, seconds_since(claims_start),
+                 seconds_since(read_start));
+  }
   summary.rasterise_seconds = std::chrono::duration<double>(rasterise).count();
   FidList without_cell;
   for (std::size_t s = 0; s < out.table.sites.size(); ++s) {

@@ -180,6 +180,11 @@ struct ScanIntervals {
 
 }  // namespace
 
+/// A polygon of this many inside intervals or more is covered in tasks below the nodes of
+/// kSplitLevel (a continent at level 12 has thousands; an island a few).
+constexpr std::size_t kSplitIntervals = 2048;
+constexpr int kSplitLevel = 4;
+
 void PolygonFiller::cover(const std::vector<FillRing>& rings, std::vector<grid::Code>& cells,
                           std::vector<CoverNode>& nodes) const {
   const std::vector<Interval> inside = inside_intervals(rings);
@@ -231,25 +236,68 @@ void PolygonFiller::cover(const std::vector<FillRing>& rings, std::vector<grid::
     }
     return all_in ? Side::inside : none_in ? Side::outside : Side::mixed;
   };
-  // Depth first from the octants: a node wholly inside is one entry; a mixed one is split.
+  // Depth first: a node wholly inside is one entry; a mixed one is split.
+  auto cover_below = [&](const grid::Cell& top, int top_level, std::vector<grid::Code>& cells_out,
+                         std::vector<CoverNode>& nodes_out) {
+    std::vector<std::pair<grid::Cell, int>> stack{{top, top_level}};
+    while (!stack.empty()) {
+      const auto [node, l] = stack.back();
+      stack.pop_back();
+      const Side side = classify(node, l);
+      if (side == Side::outside) continue;
+      if (side == Side::inside) {
+        if (l == level_) {
+          cells_out.push_back(grid::code_of(node, level_));
+        } else {
+          nodes_out.push_back({grid::code_of(node, l), l});
+        }
+        continue;
+      }
+      grid::Cell children[4];
+      grid::children(node, children);
+      for (int c = 3; c >= 0; --c) stack.push_back({children[c], l + 1});
+    }
+  };
+  // A large polygon's mixed nodes of kSplitLevel are covered as tasks (other threads of the
+  // readers' team take them) and their results joined in the order of one depth-first pass.
+  const int split_level = inside.size() >= kSplitIntervals ? std::min(kSplitLevel, level_) : 0;
+  struct Part {
+    grid::Cell node;
+    std::vector<grid::Code> cells;
+    std::vector<CoverNode> nodes;
+  };
+  std::vector<Part> parts;
   std::vector<std::pair<grid::Cell, int>> stack;
   for (int o = grid::kOctants - 1; o >= 0; --o) stack.push_back({grid::Cell{o, 0, 0}, 0});
   while (!stack.empty()) {
     const auto [node, l] = stack.back();
     stack.pop_back();
+    if (l == split_level) {
+      parts.push_back({node, {}, {}});
+      continue;
+    }
     const Side side = classify(node, l);
     if (side == Side::outside) continue;
     if (side == Side::inside) {
-      if (l == level_) {
-        cells.push_back(grid::code_of(node, level_));
-      } else {
-        nodes.push_back({grid::code_of(node, l), l});
-      }
+      parts.push_back({node, {}, {}});
+      (l == level_ ? parts.back().cells.push_back(grid::code_of(node, level_))
+                   : parts.back().nodes.push_back({grid::code_of(node, l), l}));
       continue;
     }
     grid::Cell children[4];
     grid::children(node, children);
     for (int c = 3; c >= 0; --c) stack.push_back({children[c], l + 1});
+  }
+  for (Part& settled_or_not : parts) {
+    if (!settled_or_not.cells.empty() || !settled_or_not.nodes.empty()) continue;  // settled above
+    Part* const part = &settled_or_not;
+#pragma omp task default(shared) firstprivate(part) if (split_level > 0)
+    cover_below(part->node, split_level, part->cells, part->nodes);
+  }
+#pragma omp taskwait
+  for (const Part& part : parts) {
+    cells.insert(cells.end(), part.cells.begin(), part.cells.end());
+    nodes.insert(nodes.end(), part.nodes.begin(), part.nodes.end());
   }
 }
 

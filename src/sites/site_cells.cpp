@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <functional>
 
+#include "common/default_init_allocator.hpp"
+#include "common/openmp_threads.hpp"
 #include "common/radix_sort.hpp"
 #include "grid/qtm_key_ranges.hpp"
 
@@ -52,10 +54,16 @@ SiteCellCounts resolve_claims(SiteGeometry& g, DistanceRule rule) {
     g.site_cells.resize(kept);
   }
   // Distinct codes per site; a site cell is the site's own unless another site's interior holds it.
-  std::vector<std::pair<std::int32_t, grid::Code>> site_codes;
-  site_codes.reserve(g.site_cells.size());
-  for (const SiteCell& c : g.site_cells) site_codes.emplace_back(c.site, c.code);
-  sort_by_pair(site_codes, [](const auto& p) { return static_cast<std::uint32_t>(p.first); }, [](const auto& p) { return p.second; });
+  struct SiteCode {
+    std::int32_t site;
+    grid::Code code;
+    bool operator==(const SiteCode& o) const { return site == o.site && code == o.code; }
+  };
+  const auto n = static_cast<std::int64_t>(g.site_cells.size());
+  std::vector<SiteCode, DefaultInitAllocator<SiteCode>> site_codes(g.site_cells.size());  // filled on all cores
+#pragma omp parallel for schedule(static) num_threads(thread_count(0))
+  for (std::int64_t k = 0; k < n; ++k) site_codes[k] = {g.site_cells[k].site, g.site_cells[k].code};
+  sort_by_pair(site_codes, [](const SiteCode& c) { return static_cast<std::uint32_t>(c.site); }, [](const SiteCode& c) { return c.code; });
   site_codes.erase(std::unique(site_codes.begin(), site_codes.end()), site_codes.end());
   for (const auto& [site, code] : site_codes) {
     ++counts.site_cells[site];

@@ -1,13 +1,17 @@
 // Ranges of whole octant rows (qtm_code_ranges.hpp): the splits of levels 0-9 into every number
-// of parts up to the most allowed (all of them at the low levels), against the definition.
+// of parts up to the most allowed (all of them at the low levels), against the definition; key
+// ranges given to their lowest owner (qtm_key_ranges.hpp), against each key one by one.
 #include <gtest/gtest.h>
 
 #include <cstdint>
+#include <map>
+#include <random>
 #include <stdexcept>
 #include <vector>
 
 #include "grid/qtm.hpp"
 #include "grid/qtm_code_ranges.hpp"
+#include "grid/qtm_key_ranges.hpp"
 
 namespace qtmv::grid {
 namespace {
@@ -61,6 +65,56 @@ TEST(GridCodeRanges, SplitsOfARangeStayInIt) {
     const std::vector<CodeRange> parts = split_in_rows(half, 5, level);
     EXPECT_EQ(parts.front().first, half.first);
     EXPECT_EQ(parts.back().end, half.end);
+  }
+}
+
+}  // namespace
+}  // namespace qtmv::grid
+
+// Key ranges given to their lowest owner: against each key's lowest owner found one by one, for
+// disjoint ranges (the common case: one polygon's cover), runs of overlapping ones, and both.
+
+namespace qtmv::grid {
+namespace {
+
+TEST(KeyRanges, LowestOwnerPartitionGivesEachKeyItsLowestOwner) {
+  std::mt19937_64 rng(7);
+  for (int round = 0; round < 300; ++round) {
+    const int mode = round % 3;  // 0: disjoint, 1: overlapping, 2: mixed
+    std::vector<KeyRange> ranges;
+    std::uint64_t at = rng() % 5;
+    const int n = 1 + static_cast<int>(rng() % 40);
+    for (int k = 0; k < n; ++k) {
+      const std::uint64_t length = 1 + rng() % 6;
+      const auto owner = static_cast<std::int32_t>(rng() % 5);
+      if (mode == 0 || (mode == 2 && rng() % 2 == 0)) {
+        ranges.push_back({at, at + length - 1, owner});
+        at += length + rng() % 3;  // next to it, or a gap
+      } else {
+        const std::uint64_t first = at > 8 ? at - rng() % 8 : at;
+        ranges.push_back({first, first + length + rng() % 10, owner});
+        at = std::max(at, ranges.back().last + 1 - rng() % 3);
+      }
+    }
+    std::map<std::uint64_t, std::int32_t> lowest;
+    for (const KeyRange& r : ranges) {
+      for (std::uint64_t q = r.first; q <= r.last; ++q) {
+        auto it = lowest.find(q);
+        if (it == lowest.end() || r.owner < it->second) lowest[q] = r.owner;
+      }
+    }
+    const std::vector<KeyRange> got = lowest_owner_partition(ranges);
+    std::map<std::uint64_t, std::int32_t> given;
+    for (std::size_t k = 0; k < got.size(); ++k) {
+      ASSERT_LE(got[k].first, got[k].last);
+      if (k > 0) {
+        ASSERT_LT(got[k - 1].last, got[k].first) << "round " << round << ": not sorted and disjoint";
+        ASSERT_FALSE(got[k - 1].owner == got[k].owner && got[k - 1].last + 1 == got[k].first)
+            << "round " << round << ": neighbours of one owner not merged";
+      }
+      for (std::uint64_t q = got[k].first; q <= got[k].last; ++q) given[q] = got[k].owner;
+    }
+    ASSERT_EQ(given, lowest) << "round " << round << " (mode " << mode << ")";
   }
 }
 

@@ -252,5 +252,40 @@ TEST(PolygonCover, HoldsExactlyTheFilledCells) {
   EXPECT_LT(entries * 4, cells);
 }
 
+// A polygon of thousands of inside intervals is covered in tasks below level 4 (other threads of
+// a team take them): the same entries in the same order with one thread as with four, and
+// exactly fill()'s cells.
+TEST(PolygonCover, LargePolygonsCoveredInTasksGiveTheSameEntriesWhateverTheThreads) {
+  const PolygonFiller filler(11);
+  std::vector<FillRing> rings(2);
+  for (int k = 0; k <= 400; ++k) {  // a band from 60 S to 60 N, its sides wavy
+    const double t = k / 400.0;
+    rings[0].vertices.push_back({10.0 + 3.0 * std::sin(40 * t), -60.0 + 120.0 * t});
+  }
+  for (int k = 0; k <= 400; ++k) {
+    const double t = k / 400.0;
+    rings[0].vertices.push_back({30.0 + 2.0 * std::cos(30 * t), 60.0 - 120.0 * t});
+  }
+  rings[0].vertices.push_back(rings[0].vertices.front());
+  rings[1].vertices = {{18, -10}, {22, -10}, {22, 10}, {18, 10}, {18, -10}};  // a hole
+  std::vector<grid::Code> cells[2];
+  std::vector<PolygonFiller::CoverNode> nodes[2];
+  filler.cover(rings, cells[0], nodes[0]);
+#ifdef _OPENMP
+#pragma omp parallel num_threads(4)
+#pragma omp single
+#endif
+  filler.cover(rings, cells[1], nodes[1]);
+  EXPECT_EQ(cells[0], cells[1]);
+  ASSERT_EQ(nodes[0].size(), nodes[1].size());
+  for (std::size_t k = 0; k < nodes[0].size(); ++k) {
+    ASSERT_EQ(nodes[0][k].code, nodes[1][k].code) << k;
+    ASSERT_EQ(nodes[0][k].level, nodes[1][k].level) << k;
+  }
+  const auto [filled, covered] = fill_and_cover(filler, rings);
+  EXPECT_EQ(filled, covered);
+  EXPECT_GT(filled.size(), 500000u);
+}
+
 }  // namespace
 }  // namespace qtmv::sites

@@ -798,11 +798,11 @@ __global__ void level_min_kernel(const DevPending* pending, const std::int32_t* 
 }
 
 /// Pass 2 (levels above the labelling level): per entry the items it leaves to the node (0, 1,
-/// or a split group's children: kept_items), and the kept sites' range per node.
+/// or a loose group's refined subtree: refine_kept), and the kept sites' range per node.
 __global__ void level_keep_kernel(const DevPending* pending, const std::int32_t* owner, const unsigned long long* start,
                                   unsigned long long items, const std::int32_t* parent_lists, const Piece* pieces,
                                   const PieceGroup* runs, const Vec3* centre, const double* radius,
-                                  const double* threshold, unsigned int* keep, std::int32_t* site_min,
+                                  const double* threshold, unsigned long long* keep, std::int32_t* site_min,
                                   std::int32_t* site_max) {
   const unsigned long long t = static_cast<unsigned long long>(blockIdx.x) * blockDim.x + threadIdx.x;
   std::int32_t g = -1;
@@ -814,9 +814,12 @@ __global__ void level_keep_kernel(const DevPending* pending, const std::int32_t*
       double lb2, ub2;
       std::int32_t site;
       item_bounds(centre[4 * g + c], item, pieces, runs, &lb2, &ub2, &site);
-      const bool kept = lb2 <= threshold[4 * g + c];
-      keep[start[4 * g + c] + pos] = kept ? static_cast<unsigned int>(kept_items(runs, item, radius[4 * g + c])) : 0u;
-      if (kept) lo[c] = hi[c] = site;
+      const std::int32_t kept =
+          lb2 <= threshold[4 * g + c]
+              ? refine_kept(centre[4 * g + c], item, pieces, runs, radius[4 * g + c], threshold[4 * g + c], nullptr)
+              : 0;
+      keep[start[4 * g + c] + pos] = static_cast<unsigned long long>(kept);
+      if (kept > 0) lo[c] = hi[c] = site;
     }
   }
   for (int c = 0; c < 4; ++c) {
@@ -854,7 +857,7 @@ __global__ void level_settle_kernel(const DevPending* pending, std::int32_t n, c
 /// Per node: its kind and counts (decide_node, as build_tree; value: the uniform leaf's site).
 __global__ void level_decide_kernel(const DevPending* pending, std::int32_t n, int l, bool last, bool with_distance,
                                     bool list_level_reached, CoverView cover, const unsigned long long* start,
-                                    const unsigned int* keep_pos, const std::int32_t* site_min,
+                                    const unsigned long long* keep_pos, const std::int32_t* site_min,
                                     const std::int32_t* site_max, const unsigned long long* key, std::int32_t* kind,
                                     std::int32_t* count, std::int32_t* value, LevelSums* sums_in) {
   const std::int32_t q = blockIdx.x * blockDim.x + threadIdx.x;
@@ -918,12 +921,14 @@ __global__ void level_write_children_kernel(const DevPending* pending, std::int3
                                 static_cast<std::uint32_t>(count[q]), at.internal_entries};
 }
 
-/// Per work item, for each of its four nodes: the kept items (the item, or a split group's
-/// children) to the list leaves' lists or to the next level's parent lists.
+/// Per work item, for each of its four nodes: the kept items (the item, or a loose group's
+/// refined subtree: refine_kept) to the list leaves' lists or to the next level's parent lists.
 __global__ void level_write_lists_kernel(const DevPending* pending, const std::int32_t* owner,
                                          const unsigned long long* start, unsigned long long items,
-                                         const std::int32_t* parent_lists, const PieceGroup* runs,
-                                         const unsigned int* keep_pos, const std::int32_t* kind,
+                                         const std::int32_t* parent_lists, const Piece* pieces,
+                                         const PieceGroup* runs, const Vec3* centre, const double* radius,
+                                         const double* threshold, const unsigned long long* keep_pos,
+                                         const std::int32_t* kind,
                                          const LevelSums* offsets, unsigned long long lists_base, std::int32_t* lists,
                                          std::int32_t* next_lists) {
   const unsigned long long t = static_cast<unsigned long long>(blockIdx.x) * blockDim.x + threadIdx.x;
@@ -934,17 +939,13 @@ __global__ void level_write_lists_kernel(const DevPending* pending, const std::i
   for (int c = 0; c < 4; ++c) {
     const std::int32_t node = 4 * g + c;
     const unsigned long long e = start[node] + pos;
-    const unsigned int kept = keep_pos[e + 1] - keep_pos[e];
+    const unsigned long long kept = keep_pos[e + 1] - keep_pos[e];
     const std::int32_t k = kind[node];
     if (kept == 0 || k == kUniform) continue;
     const unsigned long long local = keep_pos[e] - keep_pos[start[node]];
     std::int32_t* out = k == kListLeaf ? lists + lists_base + offsets[node].leaf_entries + local
                                            : next_lists + offsets[node].internal_entries + local;
-    if (kept == 1) {
-      *out = id;
-    } else {
-      for (unsigned int i = 0; i < kept; ++i) out[i] = split_item(runs, item_group(id), static_cast<std::int32_t>(i));
-    }
+    refine_kept(centre[node], id, pieces, runs, radius[node], threshold[node], out);
   }
 }
 
@@ -1112,7 +1113,7 @@ DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* ru
   Buffer<double> radius, threshold;
   Buffer<unsigned long long> start_in, start, min_bits, key;
   Buffer<std::int32_t> site_min, site_max, kind, count, value;
-  Buffer<unsigned int> keep, keep_pos;
+  Buffer<unsigned long long> keep, keep_pos;  // 64 bits: a loose group may refine to many items
   Buffer<std::int32_t> owner_heads, owner;
   Buffer<LevelSums> sums_in, offsets;
   Buffer<unsigned char> temp;
@@ -1136,8 +1137,8 @@ DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* ru
   double weighted = 0;
   for (int l = 0; l <= level && n > 0; ++l) {
     const bool last = l == level;
-    // keep_pos counts up to kGroupLeafPieces items per entry in 32 bits.
-    if (n > 0x7ffffffful || entries * kGroupLeafPieces + 1 > 0xfffffffful) {
+    // Nodes are counted in 32 bits (keep_pos: 64).
+    if (n > 0x7ffffffful) {
       // std::length_error: label_cells falls back to the host build.
       throw std::length_error("the labeller's tree level " + std::to_string(l) +
                               " has too many nodes or entries to be built on the device");
@@ -1199,7 +1200,7 @@ DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* ru
       }
     }
     if (!last) {
-      QTMV_CUDA_CHECK(cudaMemset(keep.get() + entries, 0, sizeof(unsigned int)));
+      QTMV_CUDA_CHECK(cudaMemset(keep.get() + entries, 0, sizeof(unsigned long long)));
       bytes = 0;
       QTMV_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(nullptr, bytes, keep.get(), keep_pos.get(), entries + 1));
       scan_temp(bytes);
@@ -1236,8 +1237,9 @@ DeviceTree build_on_device(int device, const Piece* pieces, const PieceGroup* ru
     }
     if (!last && entries > 0) {
       level_write_lists_kernel<<<blocks_of(entries / 4), kBlock>>>(
-          pending.get(), owner.get(), start.get(), entries / 4, parent_lists.get(), runs, keep_pos.get(), kind.get(),
-          offsets.get(), list_count, lists.get(), next_lists.get());
+          pending.get(), owner.get(), start.get(), entries / 4, parent_lists.get(), pieces, runs, centre.get(),
+          radius.get(), threshold.get(), keep_pos.get(), kind.get(), offsets.get(), list_count, lists.get(),
+          next_lists.get());
       QTMV_CUDA_CHECK_LAUNCH("level_write_lists_kernel");
     }
     weighted += static_cast<double>(entries) +

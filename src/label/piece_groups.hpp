@@ -39,8 +39,8 @@ namespace qtmv::label {
 
 /// Pieces a bottom group holds at most.
 constexpr std::int32_t kGroupLeafPieces = 8;
-/// A group that a node keeps is replaced by its children when its spread exceeds this many node
-/// radii: its bounds are then too loose to settle the node.
+/// A group that a node keeps is replaced by its subtree (refine_kept) when its spread exceeds
+/// this many node radii: its bounds are then too loose to settle the node.
 constexpr double kGroupSplit = 1.0;
 /// A run is "tight" only when its slack is below this chord (about 2.9 degrees): the continuity
 /// argument above needs the chain close to its arc.
@@ -183,21 +183,56 @@ QTMV_HD inline void item_bounds(const Vec3& x, std::int32_t item, const Piece* p
   *site = g.arc.site;
 }
 
-/// Items a kept group is replaced by when it is split: two groups, or a bottom group's pieces.
-QTMV_HD inline std::int32_t split_count(const PieceGroup* groups, std::int32_t g) {
-  return groups[g].size == 1 ? groups[g].count : 2;
-}
-QTMV_HD inline std::int32_t split_item(const PieceGroup* groups, std::int32_t g, std::int32_t k) {
-  if (groups[g].size == 1) return groups[g].first + k;
-  return group_item(k == 0 ? g + 1 : g + 1 + groups[g + 1].size);
+/// Whether a node of radius `radius` (radians) that keeps `item` splits it: a group too loose
+/// for the node (its bounds could not settle it).
+QTMV_HD inline bool splits_item(const PieceGroup* groups, std::int32_t item, double radius) {
+  return is_group_item(item) && groups[item_group(item)].spread > kGroupSplit * radius;
 }
 
-/// How many items a node of radius `radius` (radians) emits for a kept item: 1, or when a group
-/// is too loose for the node, its split_count.
-QTMV_HD inline std::int32_t kept_items(const PieceGroup* groups, std::int32_t item, double radius) {
-  if (!is_group_item(item)) return 1;
-  const std::int32_t g = item_group(item);
-  return groups[g].spread > kGroupSplit * radius ? split_count(groups, g) : 1;
+/// refine_kept's stack: a preorder walk holds at most a subtree's depth + 1 groups, and the
+/// groups halve a run down to kGroupLeafPieces (2^31 pieces: 29 levels).
+constexpr int kRefineStack = 40;
+
+/// The items a node (centre x, radius `radius`) keeps for `item`, whose lower bound passed the
+/// node's threshold (a squared chord): the item itself when it is a piece or a group tight enough
+/// for the node (splits_item); else its subtree, depth first in preorder, each group split
+/// while looser than the node and dropped when its lower bound exceeds `threshold`, a bottom
+/// group's pieces each kept or dropped by its distance. A continent's run, kept near everywhere
+/// by one loose bound, so leaves the nodes far from its pieces. Writes the items to `out` when
+/// not null; returns their count (0: the item's site is not near the node after all).
+QTMV_HD inline std::int32_t refine_kept(const Vec3& x, std::int32_t item, const Piece* pieces,
+                                        const PieceGroup* groups, double radius, double threshold,
+                                        std::int32_t* out) {
+  if (!splits_item(groups, item, radius)) {
+    if (out) *out = item;
+    return 1;
+  }
+  std::int32_t count = 0;
+  std::int32_t stack[kRefineStack];
+  int depth = 0;
+  stack[depth++] = item_group(item);
+  while (depth > 0) {
+    const std::int32_t g = stack[--depth];
+    const PieceGroup& group = groups[g];
+    if (g != item_group(item)) {  // the root passed its bound already
+      const double lo = sqrt(piece_chord2(x, group.arc)) - group.reach;
+      if (lo > 0.0 && lo * lo > threshold) continue;
+    }
+    if (!splits_item(groups, group_item(g), radius)) {
+      if (out) out[count] = group_item(g);
+      ++count;
+    } else if (group.size == 1) {
+      for (std::int32_t p = group.first; p < group.first + group.count; ++p) {
+        if (piece_chord2(x, pieces[p]) > threshold) continue;
+        if (out) out[count] = p;
+        ++count;
+      }
+    } else {
+      stack[depth++] = g + 1 + groups[g + 1].size;  // second child, taken after the first's subtree
+      stack[depth++] = g + 1;
+    }
+  }
+  return count;
 }
 
 /// best_of_items' search of the subtree of group `root` for x: preorder, skipping a subtree whose

@@ -135,15 +135,14 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
           const double threshold = prune_threshold(min_ub2, radius);
           for (std::uint32_t k = 0; k < p.parent_count; ++k) {
             if (bounds[k].lb2 <= threshold) {
+              const std::size_t at = out.size();
+              out.resize(at + static_cast<std::size_t>(refine_kept(c, list[k], candidates.data(), groups, radius,
+                                                                   threshold, nullptr)));
+              if (out.size() == at) continue;  // none of a loose group's pieces is near the node
+              refine_kept(c, list[k], candidates.data(), groups, radius, threshold, out.data() + at);
               const std::int32_t site = bounds[k].site;
               if (dec.site < 0) dec.site = site;
               one_site = one_site && site == dec.site;
-              const std::int32_t items = kept_items(groups, list[k], radius);
-              if (items == 1) {
-                out.push_back(list[k]);
-              } else {
-                for (std::int32_t i = 0; i < items; ++i) out.push_back(split_item(groups, item_group(list[k]), i));
-              }
             }
           }
         }

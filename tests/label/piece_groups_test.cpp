@@ -1,5 +1,6 @@
 // The line runs' groups (src/label/piece_groups.hpp): the plan's layout, the bounds against the
-// pieces they stand for, and the branch-and-bound search against brute force.
+// pieces they stand for, a node's refinement of a loose group (refine_kept) against the pieces, and
+// the branch-and-bound search against brute force.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -194,6 +195,67 @@ TEST(PieceGroups, BoundsHoldAndBranchAndBoundIsBruteForce) {
       EXPECT_EQ(pieces[winner].site, best.site);
     }
   }
+}
+
+}  // namespace
+}  // namespace qtmv::label
+
+namespace qtmv::label {
+namespace {
+
+// refine_kept against the pieces themselves: every piece within the threshold of a node's centre
+// stays listed (itself, or inside a listed group), nothing listed is beyond it, the groups listed
+// are tight enough for the node, the items come in preorder, and counting gives what writing does.
+TEST(PieceGroups, RefineKeptKeepsEveryNearPieceAndListsNothingFar) {
+  const auto [pieces, plan, groups] = grouped(wiggly_sites(10, 12), 2);
+  std::mt19937_64 rng(99);
+  std::size_t refined = 0, dropped = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    const int l = 3 + static_cast<int>(rng() % 6);
+    const grid::Cell cell = grid::cell_of(rng() % grid::cell_count(l), l);
+    const Vec3 x = grid::cell_centre_vector(cell, l);
+    const double radius = node_radius(l, cell);
+    double nearest = 1e300;
+    for (const Piece& p : pieces) nearest = std::min(nearest, piece_chord2(x, p));
+    const double threshold = prune_threshold(nearest, radius);
+    for (const std::int32_t top : plan.top_items) {
+      double lb2, ub2;
+      std::int32_t site;
+      item_bounds(x, top, pieces.data(), groups.data(), &lb2, &ub2, &site);
+      if (lb2 > threshold) continue;
+      const std::int32_t count = refine_kept(x, top, pieces.data(), groups.data(), radius, threshold, nullptr);
+      std::vector<std::int32_t> out(static_cast<std::size_t>(count) + 1, 12345);
+      ASSERT_EQ(refine_kept(x, top, pieces.data(), groups.data(), radius, threshold, out.data()), count);
+      ASSERT_EQ(out[static_cast<std::size_t>(count)], 12345) << "written past the count";
+      out.pop_back();
+      if (is_group_item(top) && splits_item(groups.data(), top, radius)) ++refined;
+      if (count == 0) ++dropped;
+      // The pieces each listed item stands for, in order.
+      std::vector<std::int32_t> covered;
+      for (const std::int32_t item : out) {
+        if (!is_group_item(item)) {
+          EXPECT_LE(piece_chord2(x, pieces[item]), threshold);
+          covered.push_back(item);
+          continue;
+        }
+        const PieceGroup& g = groups[item_group(item)];
+        item_bounds(x, item, pieces.data(), groups.data(), &lb2, &ub2, &site);
+        EXPECT_LE(lb2, threshold);
+        if (item != top) EXPECT_FALSE(splits_item(groups.data(), item, radius));
+        for (std::int32_t p = g.first; p < g.first + g.count; ++p) covered.push_back(p);
+      }
+      EXPECT_TRUE(std::is_sorted(covered.begin(), covered.end())) << "not in preorder";
+      const std::int32_t first = is_group_item(top) ? groups[item_group(top)].first : top;
+      const std::int32_t last = is_group_item(top) ? first + groups[item_group(top)].count : top + 1;
+      for (std::int32_t p = first; p < last; ++p) {
+        if (piece_chord2(x, pieces[p]) <= threshold) {
+          EXPECT_TRUE(std::binary_search(covered.begin(), covered.end(), p)) << "piece " << p << " lost";
+        }
+      }
+    }
+  }
+  EXPECT_GT(refined, 50u);  // loose groups were refined
+  EXPECT_GT(dropped, 5u);   // and some were dropped whole
 }
 
 }  // namespace

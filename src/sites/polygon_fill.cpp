@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <exception>
 #include <utility>
 
 #include "grid/qtm_checks.hpp"
@@ -265,6 +266,7 @@ void PolygonFiller::cover(const std::vector<FillRing>& rings, std::vector<grid::
     grid::Cell node;
     std::vector<grid::Code> cells;
     std::vector<CoverNode> nodes;
+    std::exception_ptr failure;  // an exception cannot leave a task: rethrown after the wait
   };
   std::vector<Part> parts;
   std::vector<std::pair<grid::Cell, int>> stack;
@@ -273,13 +275,13 @@ void PolygonFiller::cover(const std::vector<FillRing>& rings, std::vector<grid::
     const auto [node, l] = stack.back();
     stack.pop_back();
     if (l == split_level) {
-      parts.push_back({node, {}, {}});
+      parts.push_back({node, {}, {}, nullptr});
       continue;
     }
     const Side side = classify(node, l);
     if (side == Side::outside) continue;
     if (side == Side::inside) {
-      parts.push_back({node, {}, {}});
+      parts.push_back({node, {}, {}, nullptr});
       (l == level_ ? parts.back().cells.push_back(grid::code_of(node, level_))
                    : parts.back().nodes.push_back({grid::code_of(node, l), l}));
       continue;
@@ -292,12 +294,18 @@ void PolygonFiller::cover(const std::vector<FillRing>& rings, std::vector<grid::
     if (!settled_or_not.cells.empty() || !settled_or_not.nodes.empty()) continue;  // settled above
     Part* const part = &settled_or_not;
 #pragma omp task default(shared) firstprivate(part) if (split_level > 0)
-    cover_below(part->node, split_level, part->cells, part->nodes);
+    try {
+      cover_below(part->node, split_level, part->cells, part->nodes);
+    } catch (...) {
+      part->failure = std::current_exception();
+    }
   }
 #pragma omp taskwait
-  for (const Part& part : parts) {
+  for (Part& part : parts) {
+    if (part.failure) std::rethrow_exception(part.failure);
     cells.insert(cells.end(), part.cells.begin(), part.cells.end());
     nodes.insert(nodes.end(), part.nodes.begin(), part.nodes.end());
+    part = Part{};  // its memory back before the next part's is copied
   }
 }
 

@@ -237,21 +237,22 @@ void PolygonFiller::cover(const std::vector<FillRing>& rings, std::vector<grid::
     }
     return all_in ? Side::inside : none_in ? Side::outside : Side::mixed;
   };
-  // Depth first: a node wholly inside is one entry; a mixed one is split.
-  auto cover_below = [&](const grid::Cell& top, int top_level, std::vector<grid::Code>& cells_out,
-                         std::vector<CoverNode>& nodes_out) {
+  // Depth first below `top` (of level top_level): a node wholly inside goes to on_inside(node, l),
+  // a mixed one is split, and one of level defer_level goes to on_defer(node) unclassified.
+  const auto walk = [&](const grid::Cell& top, int top_level, int defer_level, const auto& on_inside,
+                        const auto& on_defer) {
     std::vector<std::pair<grid::Cell, int>> stack{{top, top_level}};
     while (!stack.empty()) {
       const auto [node, l] = stack.back();
       stack.pop_back();
+      if (l == defer_level) {
+        on_defer(node);
+        continue;
+      }
       const Side side = classify(node, l);
       if (side == Side::outside) continue;
       if (side == Side::inside) {
-        if (l == level_) {
-          cells_out.push_back(grid::code_of(node, level_));
-        } else {
-          nodes_out.push_back({grid::code_of(node, l), l});
-        }
+        on_inside(node, l);
         continue;
       }
       grid::Cell children[4];
@@ -259,43 +260,41 @@ void PolygonFiller::cover(const std::vector<FillRing>& rings, std::vector<grid::
       for (int c = 3; c >= 0; --c) stack.push_back({children[c], l + 1});
     }
   };
-  // A large polygon's mixed nodes of kSplitLevel are covered as tasks (other threads of the
-  // readers' team take them) and their results joined in the order of one depth-first pass.
+  // A large polygon's nodes of kSplitLevel are covered as tasks (other threads of the readers'
+  // team take them) and the parts joined in the order of one depth-first pass.
   const int split_level = inside.size() >= kSplitIntervals ? std::min(kSplitLevel, level_) : 0;
   struct Part {
     grid::Cell node;
+    bool deferred;  // to be covered below node (of split_level), else node is one entry
     std::vector<grid::Code> cells;
     std::vector<CoverNode> nodes;
     std::exception_ptr failure;  // an exception cannot leave a task: rethrown after the wait
   };
+  const auto add_entry = [&](Part& part, const grid::Cell& node, int l) {
+    if (l == level_) {
+      part.cells.push_back(grid::code_of(node, level_));
+    } else {
+      part.nodes.push_back({grid::code_of(node, l), l});
+    }
+  };
   std::vector<Part> parts;
-  std::vector<std::pair<grid::Cell, int>> stack;
-  for (int o = grid::kOctants - 1; o >= 0; --o) stack.push_back({grid::Cell{o, 0, 0}, 0});
-  while (!stack.empty()) {
-    const auto [node, l] = stack.back();
-    stack.pop_back();
-    if (l == split_level) {
-      parts.push_back({node, {}, {}, nullptr});
-      continue;
-    }
-    const Side side = classify(node, l);
-    if (side == Side::outside) continue;
-    if (side == Side::inside) {
-      parts.push_back({node, {}, {}, nullptr});
-      (l == level_ ? parts.back().cells.push_back(grid::code_of(node, level_))
-                   : parts.back().nodes.push_back({grid::code_of(node, l), l}));
-      continue;
-    }
-    grid::Cell children[4];
-    grid::children(node, children);
-    for (int c = 3; c >= 0; --c) stack.push_back({children[c], l + 1});
+  for (int o = 0; o < grid::kOctants; ++o) {
+    walk(
+        grid::Cell{o, 0, 0}, 0, split_level,
+        [&](const grid::Cell& node, int l) {
+          parts.push_back({node, false, {}, {}, nullptr});
+          add_entry(parts.back(), node, l);
+        },
+        [&](const grid::Cell& node) { parts.push_back({node, true, {}, {}, nullptr}); });
   }
-  for (Part& settled_or_not : parts) {
-    if (!settled_or_not.cells.empty() || !settled_or_not.nodes.empty()) continue;  // settled above
-    Part* const part = &settled_or_not;
+  for (Part& each : parts) {
+    if (!each.deferred) continue;
+    Part* const part = &each;
 #pragma omp task default(shared) firstprivate(part) if (split_level > 0)
     try {
-      cover_below(part->node, split_level, part->cells, part->nodes);
+      walk(
+          part->node, split_level, -1, [&](const grid::Cell& node, int l) { add_entry(*part, node, l); },
+          [](const grid::Cell&) {});
     } catch (...) {
       part->failure = std::current_exception();
     }

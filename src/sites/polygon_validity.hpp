@@ -86,11 +86,6 @@ class PolygonValidityCheck {
   /// replaced by its repair. Returns true when `geometry` was replaced.
   bool settle(std::int64_t fid, std::unique_ptr<OGRGeometry>& geometry, const std::optional<PolygonProblem>& problem);
 
-  /// problem_of and settle in one.
-  bool inspect(std::int64_t fid, std::unique_ptr<OGRGeometry>& geometry) {
-    return settle(fid, geometry, problem_of(*geometry));
-  }
-
   /// The line counting the warnings left out, if any (call once, after the last feature).
   void finish();
 

@@ -43,6 +43,17 @@ inline bool is_rows(CodeRange range, int level) {
   return range.first < range.end && is_row_start(range.first, level) && is_row_start(range.end, level);
 }
 
+/// True when some of the rows of `level` under `cell` (of level cell_level <= level) hold a code
+/// of `range`: the cells under a cell fill rows [row * 2^k, (row + 1) * 2^k) of its octant, k =
+/// level - cell_level, each row partly, and those rows are one run of codes. Exact for ranges of
+/// whole rows; for other ranges it may say true for a cell none of whose own cells is in range.
+inline bool rows_meet(CodeRange range, const Cell& cell, int cell_level, int level) {
+  const int k = level - cell_level;
+  const Code octant_first = static_cast<Code>(cell.octant) * cells_per_octant(level);
+  const std::uint64_t row_first = std::uint64_t{cell.row} << k, row_end = row_first + (std::uint64_t{1} << k);
+  return octant_first + row_end * row_end > range.first && octant_first + row_first * row_first < range.end;
+}
+
 /// The most parts split_in_rows accepts at a level: a part gets at least as many cells as the
 /// longest row (2^(level+1) - 1), so that no part is empty.
 inline int most_row_parts(int level) {

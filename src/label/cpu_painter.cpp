@@ -295,13 +295,9 @@ void settle_below(const TreeView& tv, const TreeNode& list, const grid::Cell& ce
 }
 
 /// Whether the outline pass over `range` visits the leaf `cell` (of level leaf_level, in a tree of
-/// `level`): whether its rows hold codes of the range. A leaf's cells lie in its rows, between
-/// the first code of its first row and the first code of the row after its last.
+/// `level`): whether its rows hold codes of the range.
 bool leaf_visited(const grid::Cell& cell, int leaf_level, int level, grid::CodeRange range) {
-  const int k = level - leaf_level;
-  const grid::Code octant_first = static_cast<grid::Code>(cell.octant) * grid::cells_per_octant(level);
-  const std::uint64_t row_first = std::uint64_t{cell.row} << k, row_end = row_first + (std::uint64_t{1} << k);
-  return octant_first + row_end * row_end > range.first && octant_first + row_first * row_first < range.end;
+  return grid::rows_meet(range, cell, leaf_level, level);
 }
 
 /// A thread's scratch for the outline pass: the visited leaf's order and labels; for the cells

@@ -84,6 +84,8 @@ struct Tree {
   std::vector<TreeLeaf> leaves;
   std::vector<PieceGroup> groups;  ///< the line runs' groups that the lists' items refer to
   double mean_candidates = 0;  ///< candidates a cell of the level tests, on average
+  /// The codes the tree labels (build_tree's `focus`); empty (end 0): every cell of the level.
+  grid::CodeRange focus;
   TreeView view(const Piece* pieces) const {
     return {nodes.data(), lists.data(), pieces, groups.empty() ? nullptr : groups.data(), jump.data(), jump_level,
             level};
@@ -102,10 +104,16 @@ struct Tree {
 /// decide_node (tree_node_rule.hpp).
 /// `jump`: the jump table's level, full (tree_jump_level: every cell's walk, the dense paths) or
 /// outline (tree_outline_jump_level: the outline pass's few look-ups); fill_jump_table changes it.
+/// `focus` (empty, end 0: the whole level): the codes that will be labelled, a tile job's range.
+/// Only the nodes whose rows meet it (grid::rows_meet) or that lie next to such a node are built;
+/// every other node is a uniform leaf of an arbitrary site at once. The cells of the focus and
+/// their edge neighbours (for the boundary flags) then get the whole tree's labels: a cell's
+/// ancestor at each level meets the focus, and its neighbour's is that node or one across an
+/// edge of it. A tile of 1/N of the level costs about 1/N of the whole build.
 enum class JumpTable { full, outline };
 Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_distance, int threads = 0,
                 const std::function<void(double fraction)>& level_done = {}, const CoverView* cover = nullptr,
-                JumpTable jump = JumpTable::full);
+                JumpTable jump = JumpTable::full, grid::CodeRange focus = {});
 
 /// Makes `tree`'s jump table the one of `jump_level` (nothing to do when it is already).
 void fill_jump_table(Tree& tree, int jump_level, int threads = 0);

@@ -236,11 +236,13 @@ bool outline_pass_pays(const Tree& tree) {
       list_cells += std::uint64_t{1} << (2 * (tree.level - leaf.level));
     }
   }
+  // A tree built for a range (a tile job's) has list leaves only in and around it.
+  const std::uint64_t cells = tree.focus.end != 0 ? tree.focus.size() : grid::cell_count(tree.level);
   if (std::getenv("QTMV_LABEL_TRACE")) {
     std::fprintf(stderr, "trace: list-leaf cells %llu of %llu\n", static_cast<unsigned long long>(list_cells),
-                 static_cast<unsigned long long>(grid::cell_count(tree.level)));
+                 static_cast<unsigned long long>(cells));
   }
-  return list_cells * 3 <= grid::cell_count(tree.level);
+  return list_cells * 3 <= cells;
 }
 
 /// label_cells, or with `outline` label_outlines' pass (no sink then).
@@ -329,7 +331,7 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
   } else if (hier) {
     // Progress after each level of the build, so that a caller can stop a long build.
     tree = build_tree(host_candidates(), input.level, options.want_distance, threads,
-                      [&](double fraction) { progress(fraction, "prepare"); }, &cover_view, jump_table);
+                      [&](double fraction) { progress(fraction, "prepare"); }, &cover_view, jump_table, range);
     stats.tree_nodes = tree.nodes.size();
     stats.tree_list_entries = tree.lists.size();
     stats.mean_candidates = tree.mean_candidates;
@@ -380,7 +382,8 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
       leave_gpu(e, done);
     }
     if (hier && tree.nodes.empty()) {
-      tree = build_tree(host_candidates(), input.level, options.want_distance, threads, {}, &cover_view, jump_table);
+      tree = build_tree(host_candidates(), input.level, options.want_distance, threads, {}, &cover_view, jump_table,
+                        range);
     }
   }
   if (outline && hier && outline_pass_pays(tree)) {

@@ -9,6 +9,8 @@
 
 #include "common/host_info.hpp"
 #include "grid/qtm_checks.hpp"
+#include "grid/qtm_code_ranges.hpp"
+#include "grid/qtm_topology.hpp"
 #include "label/label_engine.hpp"
 #include "common/openmp_threads.hpp"
 #include "label/piece_groups.hpp"
@@ -39,7 +41,7 @@ struct Decision {
 
 Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_distance, int threads_requested,
                 const std::function<void(double fraction)>& level_done, const CoverView* cover_given,
-                JumpTable jump) {
+                JumpTable jump, grid::CodeRange focus) {
   grid::require_level(level);
   if (candidates.empty()) throw std::invalid_argument("build_tree: no candidates");
   if (candidates.size() > 0x7fffffffu) throw std::invalid_argument("build_tree: more than 2^31 candidates");
@@ -50,6 +52,19 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
   // left rather than the tree going on down (the last levels hold most of the nodes).
   const int list_level = tree_list_level(level);
   tree.nodes.resize(grid::kOctants);
+  const bool focused = focus.end != 0 && !(focus == grid::whole_level(level));
+  if (focused) tree.focus = focus;
+  // Whether a node of level l is built: its rows, or those of a node across one of its edges,
+  // meet the focus (see label_engine.hpp).
+  const auto in_focus = [&](const grid::Cell& cell, int l) {
+    if (!focused || grid::rows_meet(focus, cell, l, level)) return true;
+    grid::Cell across[3];
+    grid::neighbours(cell, l, across);
+    for (const grid::Cell& other : across) {
+      if (grid::rows_meet(focus, other, l, level)) return true;
+    }
+    return false;
+  };
 
   // QTMV_LABEL_TRACE set: each step's time and size on stderr (for tuning).
   const bool trace = std::getenv("QTMV_LABEL_TRACE") != nullptr;
@@ -108,6 +123,11 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
       RadiusStretches stretches;
       for (std::int64_t q = begin; q < end; ++q) {
         const Pending& p = pending[q];
+        if (!in_focus(p.cell, l)) {
+          decisions[q] = {kUniform, 0, out.size(), 0};
+          ++leaves;
+          continue;
+        }
         evaluations += p.parent_count;
         const Vec3 c = centres(p.cell, l);
         const std::int32_t* list = parent_lists.data() + p.parent_offset;
@@ -233,7 +253,8 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
     }
     if (level_done) level_done(static_cast<double>(l + 1) / static_cast<double>(level + 1));
   }
-  tree.mean_candidates = weighted_candidates / static_cast<double>(grid::cell_count(level));
+  tree.mean_candidates =
+      weighted_candidates / static_cast<double>(focused ? focus.size() : grid::cell_count(level));
 
   const double t_jump = now_seconds();
   fill_jump_table(tree, jump == JumpTable::full ? tree_jump_level(level) : tree_outline_jump_level(level), threads);

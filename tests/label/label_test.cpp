@@ -1032,6 +1032,46 @@ TEST(LabelOutlines, TreePassGivesTheDenseLabelsOutlines) {
   }
 }
 
+// A tree built for a range (a tile job's) gives every cell of the range the whole tree's site,
+// distance and boundary flag (its neighbours outside the range included), for ranges of whole
+// rows and ranges cut inside rows, and builds a fraction of the whole tree's nodes.
+TEST(LabelTree, FocusedTreeLabelsItsRangeAsTheWholeTree) {
+  const std::vector<SiteSet> sets = {{"points L8", random_points(8, 300, 23)},
+                                     {"arcs L8", arcs(8, 5, 20, 709)},
+                                     {"solid polygon L8", solid_polygon(8)}};
+  for (const SiteSet& set : sets) {
+    const LabelInput in = set.geometry.input();
+    const int level = set.geometry.level;
+    const std::vector<Piece> candidates = make_candidates(in, Rule::exact);
+    const FixedCover cover = make_fixed_cover(in);
+    const CoverView view = cover.view();
+    const Tree whole = build_tree(candidates, level, true, 2, {}, &view);
+    const TreeView wv = whole.view(candidates.data());
+    const grid::CodeRange all = grid::whole_level(level);
+    std::vector<grid::CodeRange> ranges;
+    for (const int k : {1, 4, 8}) ranges.push_back(grid::tile_range(level, k, 8));
+    ranges.push_back(grid::tile_range(level, 7, 13));
+    ranges.push_back({all.end / 3 + 5, 2 * (all.end / 3) + 11});  // cut inside rows
+    for (const grid::CodeRange& range : ranges) {
+      SCOPED_TRACE(set.name + ": codes " + std::to_string(range.first) + " to " + std::to_string(range.end));
+      const Tree focused = build_tree(candidates, level, true, 2, {}, &view, JumpTable::full, range);
+      EXPECT_EQ(focused.focus, range);
+      EXPECT_LT(focused.nodes.size() * 2, whole.nodes.size());
+      const TreeView fv = focused.view(candidates.data());
+      std::uint64_t mismatches = 0;
+      for (Code code = range.first; code < range.end; ++code) {
+        std::int32_t site_w, site_f;
+        float metres_w, metres_f;
+        std::uint8_t boundary_w, boundary_f;
+        tree_label_cell(wv, code, &site_w, &metres_w, &boundary_w);
+        tree_label_cell(fv, code, &site_f, &metres_f, &boundary_f);
+        mismatches += site_w != site_f || metres_w != metres_f || boundary_w != boundary_f;
+      }
+      EXPECT_EQ(mismatches, 0u);
+    }
+  }
+}
+
 // The counts and flags that outlines_of_dense derives agree with a direct count over the labels.
 TEST(LabelOutlines, DenseOutlinesCountEveryCell) {
   const SiteGeometry g = random_points(6, 50, 3);

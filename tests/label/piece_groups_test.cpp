@@ -241,7 +241,9 @@ TEST(PieceGroups, RefineKeptKeepsEveryNearPieceAndListsNothingFar) {
         const PieceGroup& g = groups[item_group(item)];
         item_bounds(x, item, pieces.data(), groups.data(), &lb2, &ub2, &site);
         EXPECT_LE(lb2, threshold);
-        if (item != top) EXPECT_FALSE(splits_item(groups.data(), item, radius));
+        if (item != top) {
+          EXPECT_FALSE(splits_item(groups.data(), item, radius));
+        }
         for (std::int32_t p = g.first; p < g.first + g.count; ++p) covered.push_back(p);
       }
       EXPECT_TRUE(std::is_sorted(covered.begin(), covered.end())) << "not in preorder";

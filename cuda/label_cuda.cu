@@ -233,8 +233,8 @@ DeviceArray<T> device_alloc(std::size_t count, std::size_t* total, FaultStep inj
 }
 
 /// A plain array holding a copy of `host`, its bytes added to *total.
-template <typename T>
-DeviceArray<T> device_copy(const std::vector<T>& host, std::size_t* total, FaultStep injected) {
+template <typename T, typename Alloc>
+DeviceArray<T> device_copy(const std::vector<T, Alloc>& host, std::size_t* total, FaultStep injected) {
   DeviceArray<T> array = device_alloc<T>(host.size(), total, injected);
   if (array) QTMV_CUDA_CHECK(cudaMemcpy(array.get(), host.data(), host.size() * sizeof(T), cudaMemcpyHostToDevice));
   return array;
@@ -1531,8 +1531,8 @@ Labeller::~Labeller() = default;
 
 TreeInfo Labeller::tree_info() const { return impl_->tree_info; }
 
-void Labeller::download_tree(std::vector<TreeNode>* nodes, std::vector<std::int32_t>* lists,
-                             std::vector<JumpEntry>* jump) const {
+void Labeller::download_tree(DefaultInitVector<TreeNode>* nodes, DefaultInitVector<std::int32_t>* lists,
+                             DefaultInitVector<JumpEntry>* jump) const {
   const Impl& m = *impl_;
   QTMV_CUDA_CHECK(cudaSetDevice(m.device));
   nodes->resize(m.tree_info.nodes);

@@ -5,6 +5,7 @@
 #include <new>
 #include <type_traits>
 #include <utility>
+#include <vector>
 
 namespace qtmv {
 
@@ -30,5 +31,9 @@ struct DefaultInitAllocator : std::allocator<T> {
     ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
   }
 };
+
+/// A vector whose resize() leaves new elements of a trivial type uninitialised (see above).
+template <class T>
+using DefaultInitVector = std::vector<T, DefaultInitAllocator<T>>;
 
 }  // namespace qtmv

@@ -88,8 +88,8 @@ class Labeller {
   /// Size of the device-built tree (zeros for the other constructor).
   TreeInfo tree_info() const;
   /// Copies the device-built tree to the host (for the tests).
-  void download_tree(std::vector<TreeNode>* nodes, std::vector<std::int32_t>* lists,
-                     std::vector<JumpEntry>* jump) const;
+  void download_tree(DefaultInitVector<TreeNode>* nodes, DefaultInitVector<std::int32_t>* lists,
+                     DefaultInitVector<JumpEntry>* jump) const;
   Labeller(const Labeller&) = delete;
   Labeller& operator=(const Labeller&) = delete;
 

@@ -24,7 +24,8 @@ Labeller::Labeller(int, const std::vector<Piece>&, int, bool, int, const CoverVi
 Labeller::Labeller(int, const LabelInput&, bool, int, const CoverView*) { throw std::runtime_error("qtmvoronoi was built without CUDA"); }
 Labeller::~Labeller() = default;
 TreeInfo Labeller::tree_info() const { return {}; }
-void Labeller::download_tree(std::vector<TreeNode>*, std::vector<std::int32_t>*, std::vector<JumpEntry>*) const {}
+void Labeller::download_tree(DefaultInitVector<TreeNode>*, DefaultInitVector<std::int32_t>*,
+                             DefaultInitVector<JumpEntry>*) const {}
 void Labeller::reserve(std::uint64_t, bool, bool) {}
 float Labeller::run(grid::Code, std::uint64_t, bool, bool) { return 0; }
 float Labeller::download(std::uint64_t, std::uint64_t, std::int32_t*, float*, std::uint8_t*) { return 0; }

@@ -79,8 +79,8 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
     t_level = now_seconds();
   }
   const PieceGroup* groups = tree.groups.empty() ? nullptr : tree.groups.data();
-  std::vector<std::int32_t> parent_lists = std::move(plan.top_items);
-  std::vector<Pending> pending;
+  DefaultInitVector<std::int32_t> parent_lists(plan.top_items.begin(), plan.top_items.end());
+  DefaultInitVector<Pending> pending;
   for (int o = 0; o < grid::kOctants; ++o) {
     pending.push_back({grid::Cell{o, 0, 0}, o, 0, static_cast<std::uint32_t>(parent_lists.size())});
   }
@@ -97,7 +97,7 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
   std::vector<std::vector<Bounds>> scratch(threads);
   for (int l = 0; l <= level && !pending.empty(); ++l) {
     const std::int64_t n = static_cast<std::int64_t>(pending.size());
-    std::vector<Decision> decisions(pending.size());
+    DefaultInitVector<Decision> decisions(pending.size());  // each written below
     const int parts = static_cast<int>(std::min<std::int64_t>(n, std::int64_t{threads} * 16));
     if (static_cast<int>(kept.size()) < parts) kept.resize(parts);
     std::vector<std::uint64_t> leaf_total(parts + 1, 0), internal_total(parts + 1, 0), internal_count(parts + 1, 0),
@@ -207,8 +207,8 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
     tree.nodes.resize(nodes_base + 4 * n_internal);
     const std::size_t leaves_base = tree.leaves.size();
     tree.leaves.resize(leaves_base + leaf_count[parts]);
-    std::vector<std::int32_t> next_lists(internal_total[parts]);
-    std::vector<Pending> next(4 * n_internal);
+    DefaultInitVector<std::int32_t> next_lists(internal_total[parts]);  // every entry written below
+    DefaultInitVector<Pending> next(4 * n_internal);
     double weighted = 0;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(threads) reduction(+ : weighted)
     for (int t = 0; t < parts; ++t) {

@@ -1224,9 +1224,9 @@ TEST(LabelDeviceTree, MatchesTheHostTree) {
               from_input ? std::make_unique<cuda::Labeller>(0, in, with_distance, 0, &view)
                          : std::make_unique<cuda::Labeller>(0, candidates, c.g.level, with_distance, 0, &view);
           const cuda::Labeller& gpu = *built;
-          std::vector<TreeNode> nodes;
-          std::vector<std::int32_t> lists;
-          std::vector<JumpEntry> jump;
+          DefaultInitVector<TreeNode> nodes;
+          DefaultInitVector<std::int32_t> lists;
+          DefaultInitVector<JumpEntry> jump;
           gpu.download_tree(&nodes, &lists, &jump);
           ASSERT_EQ(nodes.size(), host.nodes.size());
           ASSERT_EQ(lists.size(), host.lists.size());

@@ -353,9 +353,10 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
                              " allowed");
   }
   // The outline pass takes a host tile only for the CPU's dense tiles (brute force).
-  std::vector<std::int32_t> site(outline ? 0 : host_tile);
-  std::vector<float> metres(options.want_distance && !outline ? host_tile : 0);
-  std::vector<std::uint8_t> boundary(options.want_boundary && !outline ? host_tile : 0);
+  // Not zeroed (a tile is up to 2^28 cells): each tile's labellers write every cell of it.
+  DefaultInitVector<std::int32_t> site(outline ? 0 : host_tile);
+  DefaultInitVector<float> metres(options.want_distance && !outline ? host_tile : 0);
+  DefaultInitVector<std::uint8_t> boundary(options.want_boundary && !outline ? host_tile : 0);
   float* metres_ptr = metres.empty() ? nullptr : metres.data();
   std::uint8_t* boundary_ptr = boundary.empty() ? nullptr : boundary.data();
 

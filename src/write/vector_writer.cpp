@@ -18,7 +18,8 @@
 #include <ogr_spatialref.h>
 #include <ogrsf_frmts.h>
 
-#include "common/parallel_sort.hpp"
+#include "common/default_init_allocator.hpp"
+#include "common/radix_sort.hpp"
 #include "gdal/error_capture.hpp"
 #include "grid/qtm.hpp"
 #include "common/first_exception.hpp"
@@ -113,15 +114,18 @@ struct EdgeRef {
 /// Every edge between cells of different sites, once (from the cell of the lower site id: the
 /// two drawings of an edge on +-180, at +180 and -180, are one edge), sorted by pair. Such an
 /// edge has a boundary cell on each side: the outline cells hold them all.
-std::vector<EdgeRef> gather_edges(const label::Outlines& outlines) {
+DefaultInitVector<EdgeRef> gather_edges(const label::Outlines& outlines) {
   const int level = outlines.level;
   const label::OutlineCells& cells = outlines.cells;
   const auto n = static_cast<std::int64_t>(cells.size());
-  std::vector<EdgeRef> all;
+  // Each thread takes one run of cells (a static schedule), so its edges come in cell order, k
+  // after k: joined in thread order they are sorted by `edge`, and a stable radix sort by pair
+  // leaves them sorted by (key, edge).
+  std::vector<std::vector<EdgeRef>> parts(static_cast<std::size_t>(thread_count(0)));
   FirstException failure;
 #pragma omp parallel num_threads(thread_count(0))
   {
-    std::vector<EdgeRef> local;
+    std::vector<EdgeRef>& local = parts[static_cast<std::size_t>(thread_index())];
 #pragma omp for schedule(static)
     for (std::int64_t c = 0; c < n; ++c) {
       const label::OutlineCell& outline = cells[static_cast<std::size_t>(c)];
@@ -143,14 +147,23 @@ std::vector<EdgeRef> gather_edges(const label::Outlines& outlines) {
         }
       });
     }
-#pragma omp critical
-    failure.run([&] { all.insert(all.end(), local.begin(), local.end()); });
   }
   failure.rethrow();
-  parallel_sort(all.begin(), all.end(), std::less<EdgeRef>());  // each cell edge once: no ties
+  std::vector<std::size_t> at(parts.size() + 1, 0);
+  for (std::size_t t = 0; t < parts.size(); ++t) at[t + 1] = at[t] + parts[t].size();
+  DefaultInitVector<EdgeRef> all(at.back());  // every slot copied below
+#pragma omp parallel for schedule(static, 1) num_threads(thread_count(0))
+  for (std::int64_t t = 0; t < static_cast<std::int64_t>(parts.size()); ++t) {
+    std::copy(parts[static_cast<std::size_t>(t)].begin(), parts[static_cast<std::size_t>(t)].end(),
+              all.begin() + static_cast<std::ptrdiff_t>(at[static_cast<std::size_t>(t)]));
+    std::vector<EdgeRef>().swap(parts[static_cast<std::size_t>(t)]);
+  }
+  // Pairs (a, b) as a * sites + b: one key of the fewest bits.
+  const auto sites = static_cast<std::uint64_t>(std::max(1, outlines.site_count));
+  radix_sort(all, bits_for(sites * sites - 1),
+             [sites](const EdgeRef& e) { return (e.key >> 32) * sites + (e.key & 0xffffffffu); });
   return all;
 }
-
 
 struct Segment {
   LonLat from, to;
@@ -788,7 +801,7 @@ void write_voronoi_edges(Writer& w, const Input& in, double work, const std::vec
   }
 
   StepTrace trace;
-  const std::vector<EdgeRef> edges = gather_edges(in.outlines);
+  const DefaultInitVector<EdgeRef> edges = gather_edges(in.outlines);
   trace("edges gathered");
   std::vector<std::size_t> pair_start;  // where each pair's run of edges begins
   for (std::size_t k = 0; k < edges.size(); ++k) {

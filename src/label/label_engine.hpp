@@ -11,6 +11,7 @@
 
 #include "common/default_init_allocator.hpp"
 #include "grid/qtm.hpp"
+#include "grid/qtm_code_ranges.hpp"
 #include "label/label_input.hpp"
 #include "label/label_math.hpp"
 #include "label/label_tree.hpp"
@@ -94,6 +95,10 @@ struct Tree {
             level};
   }
 };
+/// The jump table's level: full (tree_jump_level: every cell's walk, the dense paths) or outline
+/// (tree_outline_jump_level: the outline pass's few look-ups); fill_jump_table changes it.
+enum class JumpTable { full, outline };
+
 /// Builds the pruned tree over `candidates` for `level`; with_distance keeps candidate lists
 /// where all candidates share one site, so that distances can be computed.
 /// `level_done` (may be empty) is called after each level of the tree with the fraction of the
@@ -105,15 +110,13 @@ struct Tree {
 /// does not lie in a node of level <= tree_list_level(level) of the cover. The device build
 /// (cuda::Labeller, given the same cover) makes the same tree node for node: both apply
 /// decide_node (tree_node_rule.hpp).
-/// `jump`: the jump table's level, full (tree_jump_level: every cell's walk, the dense paths) or
-/// outline (tree_outline_jump_level: the outline pass's few look-ups); fill_jump_table changes it.
+/// `jump`: the jump table's level (JumpTable).
 /// `focus` (empty, end 0: the whole level): the codes that will be labelled, a tile job's range.
 /// Only the nodes whose rows meet it (grid::rows_meet) or that lie next to such a node are built;
 /// every other node is a uniform leaf of an arbitrary site at once. The cells of the focus and
 /// their edge neighbours (for the boundary flags) then get the whole tree's labels: a cell's
 /// ancestor at each level meets the focus, and its neighbour's is that node or one across an
 /// edge of it. A tile of 1/N of the level costs about 1/N of the whole build.
-enum class JumpTable { full, outline };
 Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_distance, int threads = 0,
                 const std::function<void(double fraction)>& level_done = {}, const CoverView* cover = nullptr,
                 JumpTable jump = JumpTable::full, grid::CodeRange focus = {});

@@ -118,16 +118,16 @@ DefaultInitVector<EdgeRef> gather_edges(const label::Outlines& outlines) {
   const int level = outlines.level;
   const label::OutlineCells& cells = outlines.cells;
   const auto n = static_cast<std::int64_t>(cells.size());
-  // Each thread takes one run of cells (a static schedule), so its edges come in cell order, k
-  // after k: joined in thread order they are sorted by `edge`, and a stable radix sort by pair
-  // leaves them sorted by (key, edge).
+  // Thread t of the team takes the t-th run of cells, so its edges come in cell order, k after
+  // k: joined in thread order they are sorted by `edge`, and a stable radix sort by pair leaves
+  // them sorted by (key, edge).
   std::vector<std::vector<EdgeRef>> parts(static_cast<std::size_t>(thread_count(0)));
   FirstException failure;
 #pragma omp parallel num_threads(thread_count(0))
   {
-    std::vector<EdgeRef>& local = parts[static_cast<std::size_t>(thread_index())];
-#pragma omp for schedule(static)
-    for (std::int64_t c = 0; c < n; ++c) {
+    const auto team = static_cast<std::int64_t>(team_size()), t = static_cast<std::int64_t>(thread_index());
+    std::vector<EdgeRef>& local = parts[static_cast<std::size_t>(t)];
+    for (std::int64_t c = n * t / team; c < n * (t + 1) / team; ++c) {
       const label::OutlineCell& outline = cells[static_cast<std::size_t>(c)];
       if (!outline.boundary) continue;
       const Code code = outline.code;

@@ -1033,8 +1033,10 @@ TEST(LabelOutlines, TreePassGivesTheDenseLabelsOutlines) {
 }
 
 // A tree built for a range (a tile job's) gives every cell of the range the whole tree's site,
-// distance and boundary flag (its neighbours outside the range included), for ranges of whole
-// rows and ranges cut inside rows, and builds a fraction of the whole tree's nodes.
+// distance and boundary flag, and each of their edge neighbours the whole tree's site; its
+// outline pass over the range gives the whole tree's outline cells. For ranges of whole rows and
+// ranges cut inside rows, with distances (full jump table) and without (the outline pass's
+// tree), and it builds a fraction of the whole tree's nodes.
 TEST(LabelTree, FocusedTreeLabelsItsRangeAsTheWholeTree) {
   const std::vector<SiteSet> sets = {{"points L8", random_points(8, 300, 23)},
                                      {"arcs L8", arcs(8, 5, 20, 709)},
@@ -1045,29 +1047,47 @@ TEST(LabelTree, FocusedTreeLabelsItsRangeAsTheWholeTree) {
     const std::vector<Piece> candidates = make_candidates(in, Rule::exact);
     const FixedCover cover = make_fixed_cover(in);
     const CoverView view = cover.view();
-    const Tree whole = build_tree(candidates, level, true, 2, {}, &view);
-    const TreeView wv = whole.view(candidates.data());
     const grid::CodeRange all = grid::whole_level(level);
     std::vector<grid::CodeRange> ranges;
     for (const int k : {1, 4, 8}) ranges.push_back(grid::tile_range(level, k, 8));
     ranges.push_back(grid::tile_range(level, 7, 13));
     ranges.push_back({all.end / 3 + 5, 2 * (all.end / 3) + 11});  // cut inside rows
-    for (const grid::CodeRange& range : ranges) {
-      SCOPED_TRACE(set.name + ": codes " + std::to_string(range.first) + " to " + std::to_string(range.end));
-      const Tree focused = build_tree(candidates, level, true, 2, {}, &view, JumpTable::full, range);
-      EXPECT_EQ(focused.focus, range);
-      EXPECT_LT(focused.nodes.size() * 2, whole.nodes.size());
-      const TreeView fv = focused.view(candidates.data());
-      std::uint64_t mismatches = 0;
-      for (Code code = range.first; code < range.end; ++code) {
-        std::int32_t site_w, site_f;
-        float metres_w, metres_f;
-        std::uint8_t boundary_w, boundary_f;
-        tree_label_cell(wv, code, &site_w, &metres_w, &boundary_w);
-        tree_label_cell(fv, code, &site_f, &metres_f, &boundary_f);
-        mismatches += site_w != site_f || metres_w != metres_f || boundary_w != boundary_f;
+    for (const bool with_distance : {true, false}) {
+      const JumpTable jump = with_distance ? JumpTable::full : JumpTable::outline;
+      const Tree whole = build_tree(candidates, level, with_distance, 2, {}, &view, jump);
+      const TreeView wv = whole.view(candidates.data());
+      for (const grid::CodeRange& range : ranges) {
+        SCOPED_TRACE(set.name + (with_distance ? " with" : " without") + " distances: codes " +
+                     std::to_string(range.first) + " to " + std::to_string(range.end));
+        const Tree focused = build_tree(candidates, level, with_distance, 2, {}, &view, jump, range);
+        EXPECT_EQ(focused.focus, range);
+        EXPECT_LT(focused.nodes.size() * 2, whole.nodes.size());
+        const TreeView fv = focused.view(candidates.data());
+        std::uint64_t mismatches = 0, neighbour_mismatches = 0;
+        for (Code code = range.first; code < range.end; ++code) {
+          std::int32_t site_w, site_f;
+          float metres_w = 0, metres_f = 0;
+          std::uint8_t boundary_w, boundary_f;
+          tree_label_cell(wv, code, &site_w, with_distance ? &metres_w : nullptr, &boundary_w);
+          tree_label_cell(fv, code, &site_f, with_distance ? &metres_f : nullptr, &boundary_f);
+          mismatches += site_w != site_f || metres_w != metres_f || boundary_w != boundary_f;
+          grid::Cell nb[3];
+          grid::neighbours(grid::cell_of(code, level), level, nb);
+          for (const grid::Cell& n : nb) neighbour_mismatches += tree_label(wv, n) != tree_label(fv, n);
+        }
+        EXPECT_EQ(mismatches, 0u);
+        EXPECT_EQ(neighbour_mismatches, 0u);
+        if (with_distance) continue;
+        const OutlineCells want = cpu_tree_outlines(whole, wv, 2, range, {});
+        const OutlineCells got = cpu_tree_outlines(focused, fv, 2, range, {});
+        ASSERT_EQ(got.size(), want.size());
+        std::size_t outline_mismatches = 0;
+        for (std::size_t k = 0; k < want.size(); ++k) {
+          outline_mismatches += got[k].code != want[k].code || got[k].site != want[k].site ||
+                                got[k].boundary != want[k].boundary;
+        }
+        EXPECT_EQ(outline_mismatches, 0u);
       }
-      EXPECT_EQ(mismatches, 0u);
     }
   }
 }

@@ -860,34 +860,43 @@ TEST_P(LabelDevice, OutlinesOfRangesJoinIntoTheWhole) {
                                      {"polygons", polygons(6)},
                                      {"solid polygon", solid_polygon(7)},
                                      {"wiggly lines", test::wiggly_sites(6, 716)}};
+  // On a GPU the tree is built on the device, or given by the host: then a range's tree is the
+  // host's, built for the range only (build_tree's focus).
+  const std::vector<bool> tree_places = GetParam() == std::string("cpu") ? std::vector<bool>{true}
+                                                                         : std::vector<bool>{true, false};
   for (const SiteSet& set : sets) {
     const int level = set.geometry.level;
     for (const Algorithm algorithm : {Algorithm::hier, Algorithm::brute}) {
-      for (const Rule rule : {Rule::exact, Rule::cell}) {
-        LabelOptions options;
-        options.device = GetParam();
-        options.algorithm = algorithm;
-        options.rule = rule;
-        Outlines whole;
-        label_outlines(set.geometry.input(), options, &whole);
-        for (const int parts : {2, 5, 13}) {
-          SCOPED_TRACE(set.name + (algorithm == Algorithm::hier ? " hier" : " brute") +
-                       (rule == Rule::exact ? " exact " : " cell ") + std::to_string(parts) + " parts on " + GetParam());
-          options.memory_limit_bytes = parts == 5 ? 25 * 8000 : 0;  // device tiles inside the ranges
-          Outlines joined;
-          joined.cells_per_site.assign(whole.cells_per_site.size(), 0);
-          for (int k = 1; k <= parts; ++k) {
-            options.range = grid::tile_range(level, k, parts);
-            Outlines part;
-            label_outlines(set.geometry.input(), options, &part);
-            ASSERT_EQ(part.range, options.range);
-            ASSERT_NO_THROW(check_outlines(part));
-            joined.cells.insert(joined.cells.end(), part.cells.begin(), part.cells.end());
-            for (std::size_t s = 0; s < part.cells_per_site.size(); ++s) joined.cells_per_site[s] += part.cells_per_site[s];
+      for (const bool tree_on_device : tree_places) {
+        if (!tree_on_device && algorithm != Algorithm::hier) continue;
+        for (const Rule rule : {Rule::exact, Rule::cell}) {
+          LabelOptions options;
+          options.device = GetParam();
+          options.tree_on_device = tree_on_device;
+          options.algorithm = algorithm;
+          options.rule = rule;
+          Outlines whole;
+          label_outlines(set.geometry.input(), options, &whole);
+          for (const int parts : {2, 5, 13}) {
+            SCOPED_TRACE(set.name + (algorithm == Algorithm::hier ? " hier" : " brute") +
+                         (tree_on_device ? "" : " (the host's tree)") + (rule == Rule::exact ? " exact " : " cell ") +
+                         std::to_string(parts) + " parts on " + GetParam());
+            options.memory_limit_bytes = parts == 5 ? 25 * 8000 : 0;  // device tiles inside the ranges
+            Outlines joined;
+            joined.cells_per_site.assign(whole.cells_per_site.size(), 0);
+            for (int k = 1; k <= parts; ++k) {
+              options.range = grid::tile_range(level, k, parts);
+              Outlines part;
+              label_outlines(set.geometry.input(), options, &part);
+              ASSERT_EQ(part.range, options.range);
+              ASSERT_NO_THROW(check_outlines(part));
+              joined.cells.insert(joined.cells.end(), part.cells.begin(), part.cells.end());
+              for (std::size_t s = 0; s < part.cells_per_site.size(); ++s) joined.cells_per_site[s] += part.cells_per_site[s];
+            }
+            options.range = {};
+            EXPECT_EQ(outline_mismatches(joined, whole), 0u);
+            EXPECT_EQ(joined.cells_per_site, whole.cells_per_site);
           }
-          options.range = {};
-          EXPECT_EQ(outline_mismatches(joined, whole), 0u);
-          EXPECT_EQ(joined.cells_per_site, whole.cells_per_site);
         }
       }
     }

@@ -90,6 +90,8 @@ struct Tree {
   double mean_candidates = 0;  ///< candidates a cell of the level tests, on average
   /// The codes the tree labels (build_tree's `focus`); empty (end 0): every cell of the level.
   grid::CodeRange focus;
+  /// How many cells the tree labels: its focus's, or the level's.
+  std::uint64_t labelled_cells() const { return focus.end != 0 ? focus.size() : grid::cell_count(level); }
   TreeView view(const Piece* pieces) const {
     return {nodes.data(), lists.data(), pieces, groups.empty() ? nullptr : groups.data(), jump.data(), jump_level,
             level};

@@ -237,7 +237,7 @@ bool outline_pass_pays(const Tree& tree) {
     }
   }
   // A tree built for a range (a tile job's) has list leaves only in and around it.
-  const std::uint64_t cells = tree.focus.end != 0 ? tree.focus.size() : grid::cell_count(tree.level);
+  const std::uint64_t cells = tree.labelled_cells();
   if (std::getenv("QTMV_LABEL_TRACE")) {
     std::fprintf(stderr, "trace: list-leaf cells %llu of %llu\n", static_cast<unsigned long long>(list_cells),
                  static_cast<unsigned long long>(cells));

@@ -253,8 +253,7 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
     }
     if (level_done) level_done(static_cast<double>(l + 1) / static_cast<double>(level + 1));
   }
-  tree.mean_candidates =
-      weighted_candidates / static_cast<double>(focused ? focus.size() : grid::cell_count(level));
+  tree.mean_candidates = weighted_candidates / static_cast<double>(tree.labelled_cells());
 
   const double t_jump = now_seconds();
   fill_jump_table(tree, jump == JumpTable::full ? tree_jump_level(level) : tree_outline_jump_level(level), threads);

@@ -838,12 +838,11 @@ TEST_P(LabelDevice, OutlinesAreThoseOfTheDenseLabels) {
 }
 
 /// Outline cells that differ between two products (code, site or flag), or the size difference.
-std::size_t outline_mismatches(const Outlines& got, const Outlines& want) {
-  if (got.cells.size() != want.cells.size()) return std::max(got.cells.size(), want.cells.size());
+std::size_t outline_mismatches(const OutlineCells& got, const OutlineCells& want) {
+  if (got.size() != want.size()) return std::max(got.size(), want.size());
   std::size_t mismatches = 0;
-  for (std::size_t k = 0; k < want.cells.size(); ++k) {
-    mismatches += got.cells[k].code != want.cells[k].code || got.cells[k].site != want.cells[k].site ||
-                  got.cells[k].boundary != want.cells[k].boundary;
+  for (std::size_t k = 0; k < want.size(); ++k) {
+    mismatches += got[k].code != want[k].code || got[k].site != want[k].site || got[k].boundary != want[k].boundary;
   }
   return mismatches;
 }
@@ -894,7 +893,7 @@ TEST_P(LabelDevice, OutlinesOfRangesJoinIntoTheWhole) {
               for (std::size_t s = 0; s < part.cells_per_site.size(); ++s) joined.cells_per_site[s] += part.cells_per_site[s];
             }
             options.range = {};
-            EXPECT_EQ(outline_mismatches(joined, whole), 0u);
+            EXPECT_EQ(outline_mismatches(joined.cells, whole.cells), 0u);
             EXPECT_EQ(joined.cells_per_site, whole.cells_per_site);
           }
         }
@@ -927,7 +926,7 @@ TEST_P(LabelDevice, SeveralDevicesGiveOneDevicesOutlines) {
       options.progress = {};
       EXPECT_NO_THROW(check_outlines(several));
       EXPECT_EQ(several.range, one.range);
-      EXPECT_EQ(outline_mismatches(several, one), 0u);
+      EXPECT_EQ(outline_mismatches(several.cells, one.cells), 0u);
       EXPECT_EQ(several.cells_per_site, one.cells_per_site);
       EXPECT_NE(stats.device.find(", "), std::string::npos) << stats.device;  // every device named
     }
@@ -1029,13 +1028,7 @@ TEST(LabelOutlines, TreePassGivesTheDenseLabelsOutlines) {
       }
       for (const OutlineCells* cells : {&got, &joined}) {
         ASSERT_EQ(cells->size(), want.cells.size());
-        std::size_t mismatches = 0;
-        for (std::size_t k = 0; k < want.cells.size(); ++k) {
-          const OutlineCell& a = (*cells)[k];
-          const OutlineCell& b = want.cells[k];
-          mismatches += a.code != b.code || a.site != b.site || a.boundary != b.boundary;
-        }
-        EXPECT_EQ(mismatches, 0u);
+        EXPECT_EQ(outline_mismatches(*cells, want.cells), 0u);
       }
     }
   }
@@ -1090,12 +1083,7 @@ TEST(LabelTree, FocusedTreeLabelsItsRangeAsTheWholeTree) {
         const OutlineCells want = cpu_tree_outlines(whole, wv, 2, range, {});
         const OutlineCells got = cpu_tree_outlines(focused, fv, 2, range, {});
         ASSERT_EQ(got.size(), want.size());
-        std::size_t outline_mismatches = 0;
-        for (std::size_t k = 0; k < want.size(); ++k) {
-          outline_mismatches += got[k].code != want[k].code || got[k].site != want[k].site ||
-                                got[k].boundary != want[k].boundary;
-        }
-        EXPECT_EQ(outline_mismatches, 0u);
+        EXPECT_EQ(outline_mismatches(got, want), 0u);
       }
     }
   }

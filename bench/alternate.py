@@ -5,7 +5,7 @@
 
 Each COMMAND is split as a shell would split it; its last argument is its output, removed (and the
 disk synced) before each timed run, outside the timing. The commands run in turn, REPEAT rounds,
-with QTMV_WRITE_TRACE=1. Each run's line: exit status, wall time (process start to exit), peak
+with QTMV_TRACE=write. Each run's line: exit status, wall time (process start to exit), peak
 resident memory, qtmvoronoi's stage summary and the write trace's steps (seconds); then the median
 wall time and the largest peak of each label.
 """
@@ -30,7 +30,7 @@ def main():
             if os.path.exists(argv[-1]):
                 os.remove(argv[-1])
             os.sync()
-            env = dict(os.environ, QTMV_WRITE_TRACE="1")
+            env = dict(os.environ, QTMV_TRACE="write")
             start = time.monotonic()
             child = subprocess.Popen(argv, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, env=env, text=True)
             err = child.stderr.read()

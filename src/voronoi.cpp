@@ -5,8 +5,12 @@
 #include <sstream>
 #include <string>
 
+#include <cpl_conv.h>
+
+#include "common/config_option.hpp"
 #include "common/host_info.hpp"
 #include "common/openmp_threads.hpp"
+#include "common/trace.hpp"
 #include "label/device_startup.hpp"
 #include "pipeline/run_plan.hpp"
 #include "pipeline/staged_output.hpp"
@@ -42,6 +46,10 @@ std::string VoronoiSummary::line() const {
 VoronoiSummary run_voronoi(const std::string& source, const std::string& destination, const VoronoiOptions& options) {
   const double t_start = now_seconds();
   const ScopedDefaultThreads thread_limit(options.threads);  // every stage's sorts and loops too
+  // The run switches (QTMV_TRACE, QTMV_FAULT_*) are GDAL configuration options (--config or the
+  // environment), and the trace channel's lines are the run's messages.
+  set_config_lookup(&CPLGetConfigOption);
+  const ScopedTraceSink trace_sink(options.messages);
   const bool tile_job = options.tile_count > 0;
   // The GPUs are counted and their contexts made (tenths of a second a process: much of a small
   // run, and of every tile job) while the run is planned and its sites read; a merge makes none.

@@ -9,7 +9,8 @@
 
 namespace qtmv {
 
-enum class Severity { info, warning };
+/// debug: the trace channel's lines (common/trace.hpp), only when QTMV_TRACE asks for them.
+enum class Severity { info, warning, debug };
 
 /// Receives one-line messages for the user (informative lines, warnings, summaries).
 using MessageSink = std::function<void(Severity severity, const std::string& message)>;

@@ -18,6 +18,7 @@
 
 #include "common/device_spec.hpp"
 #include "common/host_info.hpp"
+#include "common/trace.hpp"
 #include "grid/qtm_checks.hpp"
 #include "label/cpu_painter.hpp"
 #include "label/fixed_cover.hpp"
@@ -168,7 +169,7 @@ void label_on_gpu(cuda::Labeller& gpu, int device, int level, grid::CodeRange ra
                              " of outputs on the GPU; not even a tile of 4096 cells fits in the " +
                              format_gib(double(device_limit)) + " available");
   }
-  const bool trace = std::getenv("QTMV_LABEL_TRACE") != nullptr;
+  const bool trace = trace_enabled(TraceStage::label);
   const double reserve_start = now_seconds();
   for (;;) {
     try {
@@ -188,7 +189,7 @@ void label_on_gpu(cuda::Labeller& gpu, int device, int level, grid::CodeRange ra
   }
   stats.device_bytes = gpu.device_bytes();
   if (trace) {
-    std::fprintf(stderr, "trace: device buffers of %llu cells: %.3f s\n", static_cast<unsigned long long>(device_tile),
+    trace_printf(TraceStage::label, "device buffers of %llu cells: %.3f s", static_cast<unsigned long long>(device_tile),
                  now_seconds() - reserve_start);
   }
   for (std::uint64_t first = done; first < range.end; first += device_tile) {
@@ -206,7 +207,7 @@ void label_on_gpu(cuda::Labeller& gpu, int device, int level, grid::CodeRange ra
         outline->reserve(outline->size() + static_cast<std::size_t>(rate * 1.1 * static_cast<double>(range.end - done)));
       }
       if (trace) {
-        std::fprintf(stderr, "trace: tile of %llu cells: run %.3f s, outline selection %.3f s (%zu outline cells so far)\n",
+        trace_printf(TraceStage::label, "tile of %llu cells: run %.3f s, outline selection %.3f s (%zu outline cells so far)",
                      static_cast<unsigned long long>(count), run_end - tile_start, now_seconds() - run_end, outline->size());
       }
     }
@@ -238,10 +239,8 @@ bool outline_pass_pays(const Tree& tree) {
   }
   // A tree built for a range (a tile job's) has list leaves only in and around it.
   const std::uint64_t cells = tree.labelled_cells();
-  if (std::getenv("QTMV_LABEL_TRACE")) {
-    std::fprintf(stderr, "trace: list-leaf cells %llu of %llu\n", static_cast<unsigned long long>(list_cells),
-                 static_cast<unsigned long long>(cells));
-  }
+  trace_printf(TraceStage::label, "list-leaf cells %llu of %llu", static_cast<unsigned long long>(list_cells),
+               static_cast<unsigned long long>(cells));
   return list_cells * 3 <= cells;
 }
 
@@ -371,11 +370,8 @@ LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
       const HostTile host{host_tile, site.data(), metres_ptr, boundary_ptr};
       const double gpu_start = now_seconds();
       label_on_gpu(*gpu_built, device.index, input.level, range, options, need, host, sink, stats, done, outline);
-      if (std::getenv("QTMV_LABEL_TRACE")) {
-        std::fprintf(stderr, "trace: %s: %zu tiles, kernels %.3f s, outline selection and copies %.3f s, wall %.3f s\n",
-                     stats.device.c_str(), stats.tiles, stats.label_seconds, stats.copy_seconds,
-                     now_seconds() - gpu_start);
-      }
+      trace_printf(TraceStage::label, "%s: %zu tiles, kernels %.3f s, outline selection and copies %.3f s, wall %.3f s",
+                   stats.device.c_str(), stats.tiles, stats.label_seconds, stats.copy_seconds, now_seconds() - gpu_start);
       gpu_built.reset();
       cuda::release_cached_memory(device.index);
       return stats;

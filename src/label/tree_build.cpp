@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "common/host_info.hpp"
+#include "common/trace.hpp"
 #include "grid/qtm_checks.hpp"
 #include "grid/qtm_code_ranges.hpp"
 #include "grid/qtm_topology.hpp"
@@ -66,15 +67,15 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
     return false;
   };
 
-  // QTMV_LABEL_TRACE set: each step's time and size on stderr (for tuning).
-  const bool trace = std::getenv("QTMV_LABEL_TRACE") != nullptr;
+  // QTMV_TRACE=label: each step's time and size (common/trace.hpp).
+  const bool trace = trace_enabled(TraceStage::label);
   const CoverView cover = cover_given ? *cover_given : CoverView{nullptr, nullptr, nullptr, nullptr, 0, level, false};
   double t_level = now_seconds();
   // Line runs become groups; the octants start with the runs' top items.
   GroupPlan plan = plan_groups(candidates, threads);
   tree.groups = make_groups(candidates, plan.spans, threads);
   if (trace) {
-    std::fprintf(stderr, "trace: host groups %9.3f ms  %zu groups, %zu runs\n", (now_seconds() - t_level) * 1e3,
+    trace_printf(TraceStage::label, "host groups %9.3f ms  %zu groups, %zu runs", (now_seconds() - t_level) * 1e3,
                  tree.groups.size(), plan.top_items.size());
     t_level = now_seconds();
   }
@@ -246,7 +247,7 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
     parent_lists.swap(next_lists);
     pending.swap(next);
     if (trace) {
-      std::fprintf(stderr, "trace: host level %2d %9.3f ms  nodes %lld entries %llu\n", l,
+      trace_printf(TraceStage::label, "host level %2d %9.3f ms  nodes %lld entries %llu", l,
                    (now_seconds() - t_level) * 1e3, static_cast<long long>(n),
                    static_cast<unsigned long long>(evaluations));
       t_level = now_seconds();
@@ -258,7 +259,7 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
   const double t_jump = now_seconds();
   fill_jump_table(tree, jump == JumpTable::full ? tree_jump_level(level) : tree_outline_jump_level(level), threads);
   if (trace) {
-    std::fprintf(stderr, "trace: host jump table %9.3f ms  %zu entries of level %d\n", (now_seconds() - t_jump) * 1e3,
+    trace_printf(TraceStage::label, "host jump table %9.3f ms  %zu entries of level %d", (now_seconds() - t_jump) * 1e3,
                  tree.jump.size(), tree.jump_level);
   }
   return tree;

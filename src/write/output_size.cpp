@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <system_error>
 
+#include "common/config_option.hpp"
 #include "grid/qtm.hpp"
 #include "write/raster_writer.hpp"
 
@@ -81,8 +82,8 @@ void check_disk_space(const std::string& destination, const OutputSize& size, co
   std::error_code ec;
   if (!fs::is_directory(directory, ec)) return;
   GIntBig free_bytes = VSIGetDiskFreeSpace(directory.c_str());
-  if (const char* fault = CPLGetConfigOption("QTMV_FAULT_DISK_FREE_BYTES", nullptr)) {
-    free_bytes = static_cast<GIntBig>(std::strtoll(fault, nullptr, 10));
+  if (const std::string fault = fault_switch("QTMV_FAULT_DISK_FREE_BYTES"); !fault.empty()) {
+    free_bytes = static_cast<GIntBig>(std::strtoll(fault.c_str(), nullptr, 10));
   }
   if (free_bytes < 0 || size.bytes <= static_cast<std::uint64_t>(free_bytes)) return;
   throw WriteError("'" + destination + "': the " + kind + " takes about " + format_bytes(double(size.bytes)) +

@@ -23,6 +23,7 @@
 #include "gdal/error_capture.hpp"
 #include "common/host_info.hpp"
 #include "common/openmp_threads.hpp"
+#include "common/trace.hpp"
 #include "common/parallel_sort.hpp"
 #include "grid/qtm.hpp"
 
@@ -600,8 +601,7 @@ RasterWritten write_raster(const std::string& path, const CellLabelSource& label
     buffer.bytes.resize(strip * size.width * bands * type_bytes);
     const double write_share = can_create ? 1.0 : 0.5;
     if (options.progress && !options.progress(0.0, kStage)) throw Interrupted();
-    // QTMV_WRITE_TRACE set: the strips' totals on stderr (labels and pixels, GDAL's writes).
-    const bool trace = std::getenv("QTMV_WRITE_TRACE") != nullptr;
+    // QTMV_TRACE=write: the strips' totals (labels and pixels, GDAL's writes).
     double fill_seconds = 0, io_seconds = 0;
     int strips = 0;
     for (int y0 = 0; y0 < size.height; y0 += strip_rows) {
@@ -648,10 +648,8 @@ RasterWritten write_raster(const std::string& path, const CellLabelSource& label
     }
     written.site_seen.resize(seen.size());
     for (std::size_t k = 0; k < seen.size(); ++k) written.site_seen[k] = seen[k].load(std::memory_order_relaxed);
-    if (trace) {
-      std::fprintf(stderr, "trace: raster %d strips of %d rows: labels and pixels %.3f s, GDAL writes %.3f s\n", strips,
-                   strip_rows, fill_seconds, io_seconds);
-    }
+    trace_printf(TraceStage::write, "raster %d strips of %d rows: labels and pixels %.3f s, GDAL writes %.3f s", strips,
+                 strip_rows, fill_seconds, io_seconds);
 
     // --- close (GDAL 3.6's GDALClose returns nothing: the error state tells) --------------------
     if (can_create) {

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "../test_temp_dir.hpp"
+#include "common/config_option.hpp"
 
 namespace qtmv::write {
 namespace {
@@ -72,6 +73,7 @@ TEST(OutputSize, RefusedWhenLargerThanTheFreeSpaceUnlessToldNot) {
   const std::string dir = qtmv::test::process_temp_dir();
   const std::string dst = dir + "/out.tif";
   const OutputSize size{2000, "10 x 10 pixels, 3 bands of Float64", "a lower -level"};
+  qtmv::set_config_lookup(&CPLGetConfigOption);  // the fault switch as a GDAL configuration option, as in the tool
   {
     CPLConfigOptionSetter disk("QTMV_FAULT_DISK_FREE_BYTES", "1000", false);
     try {

@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <mutex>
 #include <sstream>
 
 #include "qtmv_version.hpp"
@@ -372,7 +373,10 @@ int qtmvoronoi_main(int argc, char** argv) {
     deferred.clear();
   };
   VoronoiOptions& run = options.run;
+  // Trace lines may come from a labeller's worker thread: one line, or one bar update, at a time.
+  std::mutex terminal;
   run.messages = [&](Severity severity, const std::string& message) {
+    const std::lock_guard<std::mutex> lock(terminal);
     if (severity == Severity::info) {
       if (options.quiet) return;
       if (show_progress) {
@@ -380,11 +384,13 @@ int qtmvoronoi_main(int argc, char** argv) {
         return;
       }
     }
+    // Warnings, and the trace channel's lines (asked for by QTMV_TRACE, so printed under -q too), break the bar's line.
     bar.break_line();
     std::fprintf(stderr, "qtmvoronoi: %s%s\n", severity == Severity::warning ? "warning: " : "", message.c_str());
   };
   run.progress = [&](double fraction, const char*) {
     if (g_signal != 0) return false;
+    const std::lock_guard<std::mutex> lock(terminal);
     if (show_progress) bar.update(fraction);
     return true;
   };

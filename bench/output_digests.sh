@@ -31,28 +31,29 @@ run() {  # run NAME OUTPUT ARGS...: one run; its outputs digested
   fi
   if [ -d "$out" ]; then digest "$name" $(find "$out" -type f | sort); else digest "$name" "$out"; fi
 }
-centres=$data/country_centres.csv
+# country_centres.csv is lon,lat,name: GDAL's CSV driver reads the points with these open options.
+centres=(-oo X_POSSIBLE_NAMES=lon -oo Y_POSSIBLE_NAMES=lat -s_srs EPSG:4326 "$data/country_centres.csv")
 countries=$data/world_atlas_countries_110m.gpkg
-run centres-L9 c9.gpkg -level 9 "$centres"
-run centres-L12-all-layers c12.gpkg -level 12 -layers regions,boundary_cells,voronoi_edges,cells "$centres"
-run centres-L12-threads1 c12t1.gpkg -level 12 -threads 1 "$centres"
-run centres-L11-cell-rule c11cell.gpkg -level 11 -distance cell "$centres"
-run centres-L10-vertices-all c10all.gpkg -level 10 -vertices all "$centres"
-run centres-L10-brute c10brute.gpkg -level 10 -algorithm brute "$centres"
-run centres-L8-shapefile c8shp -level 8 -of "ESRI Shapefile" "$centres"
-run centres-L8-csv c8.csv -level 8 -layers regions "$centres"
-run centres-L8-geojson c8.geojson -level 8 -layers regions "$centres"
+run centres-L9 c9.gpkg -level 9 "${centres[@]}"
+run centres-L12-all-layers c12.gpkg -level 12 -layers regions,boundary_cells,voronoi_edges,cells "${centres[@]}"
+run centres-L12-threads1 c12t1.gpkg -level 12 -threads 1 "${centres[@]}"
+run centres-L11-cell-rule c11cell.gpkg -level 11 -distance cell "${centres[@]}"
+run centres-L10-vertices-all c10all.gpkg -level 10 -vertices all "${centres[@]}"
+run centres-L10-brute c10brute.gpkg -level 10 -algorithm brute "${centres[@]}"
+run centres-L8-shapefile c8shp -level 8 -of "ESRI Shapefile" "${centres[@]}"
+run centres-L8-csv c8.csv -level 8 -layers regions "${centres[@]}"
+run centres-L8-geojson c8.geojson -level 8 -layers regions "${centres[@]}"
 run countries-L8 n8.gpkg -level 8 "$countries"
 run countries-L10 n10.gpkg -level 10 -layers regions,voronoi_edges "$countries"
 run countries-L9-cell-rule n9cell.gpkg -level 9 -distance cell "$countries"
 run countries-L9-geodesic-edges n9geo.gpkg -level 9 -edges geodesic "$countries"
-run centres-L9-raster-qtm c9.tif -level 9 -raster qtm "$centres"
-run centres-L8-raster-lonlat c8ll.tif -level 8 -raster lonlat -tr 0.5 0.5 "$centres"
+run centres-L9-raster-qtm c9.tif -level 9 -raster qtm "${centres[@]}"
+run centres-L8-raster-lonlat c8ll.tif -level 8 -raster lonlat -tr 0.5 0.5 "${centres[@]}"
 run countries-L9-raster-lonlat n9ll.tif -level 9 -raster lonlat -ts 720 360 -ot Float64 "$countries"
 run countries-L8-raster-qtm-int n8.tif -level 8 -raster qtm -ot Int32 "$countries"
 # Tile jobs and their merge.
 mkdir -p "$work/tiles"
-for k in 1 2 3; do "$tool" -q -device "$device" -level 11 -tile $k/3 "$centres" "$work/tiles/$k.qtmt"; done
+for k in 1 2 3; do "$tool" -q -device "$device" -level 11 -tile $k/3 "${centres[@]}" "$work/tiles/$k.qtmt"; done
 digest tiles $(ls "$work"/tiles/*.qtmt)
-run centres-L11-merge merged.gpkg -level 11 -merge "$work/tiles" "$centres"
+run centres-L11-merge merged.gpkg -level 11 -merge "$work/tiles" "${centres[@]}"
 echo "# $n runs" >&2

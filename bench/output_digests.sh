@@ -36,7 +36,7 @@ run() {  # run NAME OUTPUT ARGS...: one run; its outputs digested
 centres=(-oo X_POSSIBLE_NAMES=lon -oo Y_POSSIBLE_NAMES=lat -s_srs EPSG:4326 "$data/country_centres.csv")
 countries=$data/world_atlas_countries_110m.gpkg
 run centres-L9 c9.gpkg -level 9 "${centres[@]}"
-run centres-L12-all-layers c12.gpkg -level 12 -layers regions,boundary_cells,voronoi_edges,cells "${centres[@]}"
+run centres-L7-all-layers c7.gpkg -level 7 -layers regions,boundary_cells,voronoi_edges,cells "${centres[@]}"
 run centres-L12-threads1 c12t1.gpkg -level 12 -threads 1 "${centres[@]}"
 run centres-L11-cell-rule c11cell.gpkg -level 11 -distance cell "${centres[@]}"
 run centres-L10-vertices-all c10all.gpkg -level 10 -vertices all "${centres[@]}"

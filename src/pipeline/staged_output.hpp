@@ -42,118 +42,31 @@ class RenameInMessages {
   std::string from_, to_;
 };
 
+/// The destination written all or nothing. The writer makes the dataset in a temporary directory
+/// beside the destination; commit() moves it into place, each file with a rename that never
+/// replaces a file that appeared meanwhile (another run writing the same destination), the named
+/// file last. With -overwrite, the old dataset's files (those GDAL lists for it, and its
+/// sidecars: .aux.xml, -wal, -shm, ...) go aside first and are removed only once the new one is in
+/// place; a failure puts everything back. A destination that is an existing directory of
+/// per-layer files (Shapefile, CSV) keeps every file but the layers written and their sidecars.
 class StagedOutput {
  public:
-  StagedOutput(std::string destination, bool overwrite) : destination_(std::move(destination)) {
-    if (starts_with(destination_, "/vsi")) {
-      // No rename in most virtual file systems: written directly.
-      direct_ = true;
-      write_path_ = destination_;
-      VSIStatBufL stat;
-      exists_ = !starts_with(destination_, "/vsistdout") && VSIStatL(destination_.c_str(), &stat) == 0;
-      if (exists_ && !overwrite) throw VoronoiError("'" + destination_ + "' exists: use -overwrite to replace it");
-      return;
-    }
-    const fs::path dest(destination_);
-    if (dest.filename().empty()) throw VoronoiError("'" + destination_ + "' names no file");
-    dir_ = dest.parent_path().empty() ? fs::path(".") : dest.parent_path();
-    std::error_code ec;
-    if (fs::exists(fs::symlink_status(dest, ec)) && !overwrite) {
-      throw VoronoiError("'" + destination_ + "' exists: use -overwrite to replace it");
-    }
-    if (!fs::is_directory(dir_, ec)) {
-      throw VoronoiError("cannot write '" + destination_ + "': no directory '" + dir_.string() + "'");
-    }
-    std::string pattern = (dir_ / ("." + dest.filename().string() + ".tmpXXXXXX")).string();
-    if (!mkdtemp(pattern.data())) {
-      throw VoronoiError("cannot write '" + destination_ + "': cannot create a file in '" + dir_.string() +
-                         "': " + std::strerror(errno));
-    }
-    temp_dir_ = pattern;
-    write_path_ = (temp_dir_ / dest.filename()).string();
-  }
-
+  StagedOutput(std::string destination, bool overwrite);
   StagedOutput(const StagedOutput&) = delete;
   StagedOutput& operator=(const StagedOutput&) = delete;
-
-  ~StagedOutput() {
-    std::error_code ec;
-    if (!temp_dir_.empty()) fs::remove_all(temp_dir_, ec);
-    // A direct write that failed leaves what the driver made: remove it (best effort).
-    if (direct_ && !committed_ && began_ && !starts_with(destination_, "/vsistdout")) {
-      VSIUnlink(destination_.c_str());
-    }
-  }
+  ~StagedOutput();
 
   /// The path the writer is to create; for a direct write, clears the way with -overwrite.
-  const std::string& begin() {
-    if (direct_ && exists_) {
-      if (GDALDriverH driver = GDALIdentifyDriver(destination_.c_str(), nullptr)) {
-        GDALDeleteDataset(driver, destination_.c_str());
-      } else {
-        VSIUnlink(destination_.c_str());
-      }
-    }
-    began_ = true;
-    return write_path_;
-  }
+  const std::string& begin();
   const std::string& write_path() const { return write_path_; }
 
-  /// Renames what the writer made into place.
-  void commit() {
-    if (direct_) {
-      committed_ = true;
-      return;
-    }
-    const fs::path main_name = fs::path(destination_).filename();
-    std::vector<fs::path> entries;
-    std::error_code ec;
-    for (const fs::directory_entry& entry : fs::directory_iterator(temp_dir_, ec)) entries.push_back(entry.path());
-    if (ec) throw VoronoiError("cannot write '" + destination_ + "': " + ec.message());
-    if (std::find_if(entries.begin(), entries.end(), [&](const fs::path& p) { return p.filename() == main_name; }) ==
-        entries.end()) {
-      throw VoronoiError("cannot write '" + destination_ + "': the driver made no file of that name");
-    }
-    // Only the destination and its sidecars (same stem: out.shx, out.png.aux.xml) move; anything
-    // else the driver made (a layer per file) would land on files nobody asked to replace.
-    const std::string stem = main_name.stem().string() + ".";
-    std::string strays;
-    for (const fs::path& p : entries) {
-      const std::string name = p.filename().string();
-      if (p.filename() != main_name && name.rfind(stem, 0) != 0) strays += (strays.empty() ? "" : ", ") + name;
-    }
-    if (!strays.empty()) {
-      throw VoronoiError("cannot write '" + destination_ + "': the driver made other files beside it (" + strays +
-                         "); a single-file format holds one layer: use -layers with one layer, or a directory");
-    }
-    // Sidecars first, the named file last: it appears only when all is in place.
-    std::stable_partition(entries.begin(), entries.end(), [&](const fs::path& p) { return p.filename() != main_name; });
-    for (const fs::path& from : entries) {
-      const fs::path to = dir_ / from.filename();
-      if (fs::is_directory(from) && fs::exists(to)) {
-        // A dataset that is a directory (-overwrite): the old one goes aside, then away.
-        const fs::path old = temp_dir_ / (".old." + from.filename().string());
-        fs::rename(to, old, ec);
-        if (!ec) {
-          fs::rename(from, to, ec);
-          // The temporary directory is removed on the way out: bring the old dataset back first.
-          std::error_code ignored;
-          if (ec) fs::rename(old, to, ignored);
-        }
-      } else {
-        fs::rename(from, to, ec);
-      }
-      if (ec) {
-        throw VoronoiError("cannot write '" + destination_ + "': renaming into '" + to.string() + "': " + ec.message());
-      }
-    }
-    committed_ = true;
-  }
+  /// Moves what the writer made into place (see the class).
+  void commit();
 
  private:
   std::string destination_, write_path_;
   fs::path dir_, temp_dir_;
-  bool direct_ = false, exists_ = false, began_ = false, committed_ = false;
+  bool overwrite_ = false, direct_ = false, exists_ = false, began_ = false, committed_ = false;
 };
 
 }  // namespace qtmv::pipeline

@@ -1007,6 +1007,56 @@ TEST(CatalogueOutput, OverwriteOntoADirectoryLeavesIt) {
   EXPECT_TRUE(hidden_entries(dir).empty());
 }
 
+TEST(CatalogueOutput, OverwriteOfADirectoryOfLayersKeepsTheUsersOtherFiles) {
+  // ogr2ogr -overwrite into a directory replaces the layers it writes and nothing else.
+  const std::string dir = test_dir();
+  const std::string dst = dir + "/proj";
+  fs::create_directory(dst);
+  write_text(dst + "/notes.txt", "my notes");
+  write_text(dst + "/survey.geojson", R"({"type":"FeatureCollection","features":[]})");
+  write_text(dst + "/regions.csv", "old");
+  const Result r = run_small({"-q", "-of", "CSV", "-overwrite", "-layers", "regions", "-l", "countries_110m",
+                              kCountries, dst});
+  expect_success(r, dst);
+  EXPECT_EQ(qtmv::test::read_file(dst + "/notes.txt"), "my notes");
+  EXPECT_EQ(qtmv::test::read_file(dst + "/survey.geojson"), R"({"type":"FeatureCollection","features":[]})");
+  EXPECT_TRUE(contains(qtmv::test::read_file(dst + "/regions.csv"), "site_fid"));
+  EXPECT_TRUE(hidden_entries(dst).empty());
+}
+
+TEST(CatalogueOutput, OverwriteOfAGeoPackageHeldOpenInWalModeGivesAWholeNewFile) {
+  // QGIS holds a GeoPackage open in WAL mode: its -wal and -shm must not stay beside the new file.
+  const std::string dir = test_dir();
+  const std::string dst = dir + "/out.gpkg";
+  expect_success(run_small({"-q", "-layers", "regions", "-l", "countries_110m", kCountries, dst}), dst);
+  if (GDALGetDriverCount() == 0) GDALAllRegister();
+  CPLSetConfigOption("OGR_SQLITE_JOURNAL", "WAL");
+  GDALDataset* holder = GDALDataset::Open(dst.c_str(), GDAL_OF_VECTOR | GDAL_OF_UPDATE);
+  CPLSetConfigOption("OGR_SQLITE_JOURNAL", nullptr);
+  ASSERT_TRUE(holder);
+  holder->ExecuteSQL("UPDATE regions SET cells = cells + 1", nullptr, nullptr);  // pages in the -wal
+  ASSERT_TRUE(fs::exists(dst + "-wal"));
+  const Result r = run_small({"-q", "-overwrite", "-level", "5", "-layers", "regions", "-l", "countries_110m",
+                              kCountries, dst});
+  expect_success(r, dst);
+  EXPECT_FALSE(fs::exists(dst + "-wal"));
+  EXPECT_FALSE(fs::exists(dst + "-shm"));
+  const auto check = [&] {
+    const auto ds = qtmv::test::open_dataset(dst, GDAL_OF_VECTOR);
+    ASSERT_TRUE(ds);
+    OGRLayer* result = ds->ExecuteSQL("PRAGMA integrity_check", nullptr, nullptr);
+    ASSERT_TRUE(result);
+    const std::unique_ptr<OGRFeature> row(result->GetNextFeature());
+    ASSERT_TRUE(row);
+    EXPECT_STREQ(row->GetFieldAsString(0), "ok");
+    ds->ReleaseResultSet(result);
+    EXPECT_EQ(ds->GetLayerByName("regions")->GetFeatureCount(), 177);
+  };
+  check();
+  GDALClose(holder);  // the other program closes its old file: the new one is untouched
+  check();
+}
+
 TEST(CatalogueOutput, AttributeTypeTheFormatCannotHoldBecomesText) {
   const std::string dir = test_dir();
   // List fields: GeoJSON has them, shapefiles do not. As ogr2ogr does, they are written as

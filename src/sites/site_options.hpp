@@ -71,6 +71,12 @@ class ReadError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// `text` with GDAL's messages (ErrorCapture::take), when there are some: "text (GDAL: ...)".
+inline std::string with_gdal_message(std::string text, const std::string& gdal) {
+  if (!gdal.empty()) text += " (GDAL: " + gdal + ")";
+  return text;
+}
+
 EdgeShape parse_edge_shape(const std::string& text);    ///< "lonlat" | "geodesic"; throws ReadError
 WrapMode parse_wrap_mode(const std::string& text);      ///< "auto" | "none"; throws ReadError
 DistanceRule parse_distance_rule(const std::string& text);  ///< "exact" | "cell"; throws ReadError

@@ -5,6 +5,7 @@
 #include <gdal_priv.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <stdexcept>
 
@@ -22,6 +23,13 @@
 namespace qtmv::pipeline {
 
 namespace {
+
+bool ends_with_ignoring_case(const std::string& text, const std::string& suffix) {
+  return text.size() >= suffix.size() &&
+         std::equal(suffix.rbegin(), suffix.rend(), text.rbegin(), [](char a, char b) {
+           return std::tolower(static_cast<unsigned char>(a)) == std::tolower(static_cast<unsigned char>(b));
+         });
+}
 
 // The labeller hands its outputs over in tiles and checks for an interrupt between them; on the
 // CPU, tiles of 64 MiB (about 7 million cells) keep that check under a second.
@@ -188,6 +196,10 @@ RunPlan plan_run(const std::string& destination, const VoronoiOptions& options) 
     if (options.vector.all_ring_vertices) {
       throw VoronoiError("-vertices is for the regions of vector output; " + plan.format.driver + " output is a raster");
     }
+    if (options.algorithm == label::Algorithm::brute) {
+      throw VoronoiError("-algorithm brute is for vector output; " + plan.format.driver +
+                         " output is a raster, labelled strip by strip from the pruned tree (the same labels)");
+    }
     try {
       write::raster_size(plan.level, plan.raster);  // -tr, -ts and -raster checked as the writer will
       write::check_raster_data_type(plan.raster.data_type);
@@ -231,6 +243,11 @@ RunPlan plan_tile_job(const std::string& destination, const VoronoiOptions& opti
   RunPlan plan = plan_level(options);
   if (!options.merge.empty()) throw VoronoiError("-tile and -merge: a run labels one tile, or merges all of them");
   if (destination.empty()) throw VoronoiError("-tile: no file named for the tile product");
+  if (!ends_with_ignoring_case(destination, kTileProductExtension)) {
+    // part1.gpkg would be a tile product under a GeoPackage's name: GIS software cannot read it.
+    throw VoronoiError("-tile: '" + destination + "': a tile job writes a tile product, which only -merge reads: " +
+                       "name it with " + kTileProductExtension + ", and give the output's name to the -merge run");
+  }
   plan.tile_index = options.tile_index;
   plan.tile_count = options.tile_count;
   plan_labeller(plan, options, false);

@@ -4,6 +4,8 @@
 #include <cpl_string.h>
 #include <cpl_vsi.h>
 
+#include <sys/stat.h>
+
 #include <algorithm>
 #include <cstring>
 #include <functional>
@@ -244,12 +246,25 @@ class TileReader {
 
 }  // namespace
 
+namespace {
+
+/// Refuses a tile product that is not a regular file: a FIFO would block the merge for ever.
+void check_regular_file(const std::string& path, const VSIStatBufL& stat) {
+  if (VSI_ISREG(stat.st_mode)) return;
+  throw VoronoiError("-merge: '" + path + "': not a regular file (" +
+                     (S_ISFIFO(stat.st_mode) ? "a FIFO" : S_ISSOCK(stat.st_mode) ? "a socket" : "a device") +
+                     "); a tile product is a file that a -tile run wrote");
+}
+
+}  // namespace
+
 std::vector<std::string> tile_product_files(const std::vector<std::string>& paths) {
   std::vector<std::string> files;
   for (const std::string& path : paths) {
     VSIStatBufL stat;
     if (VSIStatL(path.c_str(), &stat) != 0) throw VoronoiError("-merge: '" + path + "': no such file or directory");
     if (!VSI_ISDIR(stat.st_mode)) {
+      check_regular_file(path, stat);
       files.push_back(path);
       continue;
     }
@@ -265,6 +280,10 @@ std::vector<std::string> tile_product_files(const std::vector<std::string>& path
     CSLDestroy(names);
     if (found.empty()) throw VoronoiError("-merge: '" + path + "': a directory without " + kTileProductExtension + " files");
     std::sort(found.begin(), found.end());
+    for (const std::string& file : found) {
+      if (VSIStatL(file.c_str(), &stat) != 0) throw VoronoiError("-merge: '" + file + "': no such file");
+      check_regular_file(file, stat);
+    }
     files.insert(files.end(), found.begin(), found.end());
   }
   return files;

@@ -1057,6 +1057,38 @@ TEST(CatalogueOutput, OverwriteOfAGeoPackageHeldOpenInWalModeGivesAWholeNewFile)
   check();
 }
 
+TEST(CatalogueOutput, FifoAmongTheTileProductsIsRefusedInsteadOfBlocking) {
+  const std::string dir = test_dir();
+  const std::string tiles = dir + "/tiles";
+  fs::create_directory(tiles);
+  const Result tile = run(concat(concat({"-q", "-level", "5", "-device", "cpu", "-tile", "1/2"}, kCsvOptions),
+                                 {kCentres, tiles + "/1.qtmt"}));
+  ASSERT_EQ(tile.status, 0) << tile.err;
+  ASSERT_EQ(mkfifo((tiles + "/2.qtmt").c_str(), 0600), 0);
+  const std::string dst = dir + "/merged.gpkg";
+  expect_failure(run(concat(concat({"-level", "5", "-merge", tiles}, kCsvOptions), {kCentres, dst}), {}, 20), 1,
+                 {"-merge: '" + tiles + "/2.qtmt': not a regular file (a FIFO)"}, dst);
+}
+
+TEST(CatalogueOutput, TileJobUnderAnotherFormatsNameIsRefused) {
+  // A tile product named part1.gpkg would look like a GeoPackage that GIS software cannot open.
+  const std::string dir = test_dir();
+  const std::string dst = dir + "/part1.gpkg";
+  expect_failure(run(concat(concat({"-level", "5", "-device", "cpu", "-tile", "1/8"}, kCsvOptions), {kCentres, dst})),
+                 1, {"-tile: '" + dst + "': a tile job writes a tile product, which only -merge reads: name it with .qtmt"},
+                 dst);
+}
+
+TEST(CatalogueOptions, BruteForceForARasterIsRefusedNotIgnored) {
+  const std::string dir = test_dir();
+  const std::string dst = dir + "/out.tif";
+  expect_failure(run_small({"-algorithm", "brute", "-l", "countries_110m", kCountries, dst}), 1,
+                 {"-algorithm brute is for vector output; GTiff output is a raster"}, dst);
+  // Its vector output honours it: the same regions as the tree's.
+  EXPECT_EQ(regions_of(kCountries, dir + "/brute.gpkg", {"-l", "countries_110m", "-algorithm", "brute"}).size(),
+            regions_of(kCountries, dir + "/hier.gpkg", {"-l", "countries_110m", "-algorithm", "hier"}).size());
+}
+
 TEST(CatalogueOutput, AttributeTypeTheFormatCannotHoldBecomesText) {
   const std::string dir = test_dir();
   // List fields: GeoJSON has them, shapefiles do not. As ogr2ogr does, they are written as

@@ -175,7 +175,11 @@ StagedOutput::StagedOutput(std::string destination, bool overwrite)
   if (!fs::is_directory(dir_, ec)) {
     throw VoronoiError("cannot write '" + destination_ + "': no directory '" + dir_.string() + "'");
   }
-  std::string pattern = (dir_ / ("." + dest.filename().string() + ".tmpXXXXXX")).string();
+  // No dot of the name in the staging directory's: GDAL's /vsizip/ takes a path holding
+  // ".xlsx/" or ".kmz/" for an archive, and the XLSX and KMZ writers then fail.
+  std::string stem = dest.filename().string();
+  std::replace(stem.begin(), stem.end(), '.', '_');
+  std::string pattern = (dir_ / ("." + stem + ".tmpXXXXXX")).string();
   if (!mkdtemp(pattern.data())) {
     throw VoronoiError("cannot write '" + destination_ + "': cannot create a file in '" + dir_.string() +
                        "': " + std::strerror(errno));

@@ -1089,6 +1089,19 @@ TEST(CatalogueOptions, BruteForceForARasterIsRefusedNotIgnored) {
             regions_of(kCountries, dir + "/hier.gpkg", {"-l", "countries_110m", "-algorithm", "hier"}).size());
 }
 
+TEST(CatalogueOutput, ZipBasedFormatsAreWritten) {
+  // GDAL's /vsizip/ took the staging directory ".areas.xlsx.tmpXXXXXX" for the archive.
+  const std::string dir = test_dir();
+  const std::string xlsx = dir + "/areas.xlsx";
+  expect_success(run_small({"-q", "-of", "XLSX", "-layers", "regions", "-l", "countries_110m", kCountries, xlsx}), xlsx);
+  const auto ds = qtmv::test::open_dataset(xlsx, GDAL_OF_VECTOR);
+  ASSERT_TRUE(ds);
+  EXPECT_EQ(ds->GetLayerByName("regions")->GetFeatureCount(), 177);
+  const std::string kmz = dir + "/x.kmz";
+  expect_success(run_small({"-q", "-of", "KMLSUPEROVERLAY", "-l", "countries_110m", kCountries, kmz}), kmz);
+  EXPECT_TRUE(qtmv::test::open_dataset(kmz, GDAL_OF_RASTER));
+}
+
 TEST(CatalogueOutput, AttributeTypeTheFormatCannotHoldBecomesText) {
   const std::string dir = test_dir();
   // List fields: GeoJSON has them, shapefiles do not. As ogr2ogr does, they are written as

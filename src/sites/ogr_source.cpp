@@ -65,6 +65,13 @@ void find_layers(OgrSource& source, const ReadOptions& options, gdal::ErrorCaptu
         for (int k = 0; k < dataset->GetLayerCount(); ++k) names += std::string(k ? ", " : "") + dataset->GetLayer(k)->GetName();
         throw ReadError("'" + dataset_name + "' has no layer '" + name + "'; its layers: " + (names.empty() ? "(none)" : names));
       }
+      // Names differ, layers may not: a GeoPackage's are case-insensitive (-l towns -l TOWNS).
+      for (std::size_t k = 0; k < layers.size(); ++k) {
+        if (layers[k].layer == layer) {
+          throw ReadError("'" + dataset_name + "': -l '" + options.layers[k] + "' and -l '" + name +
+                          "' name the same layer '" + layer->GetName() + "': name it once");
+        }
+      }
       layers.push_back({layer, layer->GetName()});
     }
   } else {

@@ -271,6 +271,15 @@ TEST(CatalogueFiles, MissingLayerListsTheLayers) {
                  {"'" + src + "' has no layer 'towns'; its layers: cities"}, dir + "/out.gpkg");
 }
 
+TEST(CatalogueFiles, OneLayerNamedTwiceInAnotherCaseIsRefused) {
+  // GeoPackage layer names are case-insensitive: both -l found the same layer (twice the rows).
+  const std::string dir = test_dir();
+  expect_failure(run_small({"-l", "countries_110m", "-l", "COUNTRIES_110M", kCountries, dir + "/out.gpkg"}), 1,
+                 {"'" + kCountries + "': -l 'countries_110m' and -l 'COUNTRIES_110M' name the same layer "
+                  "'countries_110m': name it once"},
+                 dir + "/out.gpkg");
+}
+
 TEST(CatalogueFiles, CorruptGeometryBlobSkipsThatFeatureByFid) {
   const std::string dir = test_dir();
   const std::string src = make_dataset(dir + "/blob.gpkg", "GPKG", "pts", "EPSG:4326",

@@ -14,9 +14,10 @@
 #include "grid/qtm_code_ranges.hpp"
 #include "label/label_input.hpp"
 #include "label/label_math.hpp"
+#include "label/label_options.hpp"
 #include "label/label_tree.hpp"
+#include "label/outline_cells.hpp"
 #include "label/tree_node_rule.hpp"
-#include "label/labeller.hpp"
 
 namespace qtmv::label {
 

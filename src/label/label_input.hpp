@@ -10,22 +10,11 @@
 #include "common/radix_sort.hpp"
 #include "grid/qtm.hpp"
 #include "grid/qtm_key_ranges.hpp"
+#include "label/label_options.hpp"
 
 namespace qtmv::label {
 
 using grid::Vec3;
-
-/// The level a run labels when none is given: the seed paper's finest (2 million cells of about
-/// 20 km).
-constexpr int kDefaultLevel = 9;
-
-/// The distance rule, from reading to labelling:
-///   exact: distance from a cell's centre to the sites' geometry (points, and the short arcs
-///          lines and rings are cut into); a site cell two sites pass through is kept by both,
-///          and the distance decides;
-///   cell:  the seed paper's rule: distance between cell centres, a site being the cells it
-///          passes through; a cell two sites pass through goes to the lower site id.
-enum class Rule { exact, cell };
 
 /// Pieces per shortest cell edge: lines and rings are cut into great-circle arcs no longer than
 /// a quarter of the level's shortest cell edge (the readers' path tracer and synthetic sites

@@ -1,10 +1,12 @@
+#include "pipeline/output_format.hpp"
+
 #include <gdal_priv.h>
 
 #include <cctype>
 #include <sstream>
 #include <string>
 
-#include "voronoi.hpp"
+#include "pipeline/voronoi_error.hpp"
 
 namespace qtmv {
 

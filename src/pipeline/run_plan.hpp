@@ -7,8 +7,10 @@
 #include <string>
 #include <vector>
 
-#include "label/labeller.hpp"
-#include "voronoi.hpp"
+#include "label/label_options.hpp"
+#include "pipeline/output_format.hpp"
+#include "pipeline/voronoi_error.hpp"
+#include "pipeline/voronoi_options.hpp"
 #include "write/cell_labels.hpp"
 
 namespace qtmv::pipeline {

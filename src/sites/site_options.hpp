@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "common/run_context.hpp"
-#include "label/label_input.hpp"
+#include "label/label_options.hpp"
 
 namespace qtmv::sites {
 
@@ -24,7 +24,7 @@ enum class WrapMode {
   none,       ///< coordinates are flat lon/lat
 };
 
-/// The distance rule (label_input.hpp): one enum from reading to labelling.
+/// The distance rule (label_options.hpp): one enum from reading to labelling.
 using DistanceRule = label::Rule;
 
 // The run's plumbing (common/run_context.hpp): a progress callback returning false stops the

@@ -26,6 +26,7 @@
 #include "qtmvoronoi_test_support.hpp"
 #include "grid/qtm.hpp"
 #include "label/labeller.hpp"
+#include "pipeline/output_format.hpp"
 #include "qtmv_version.hpp"
 #include "qtmvoronoi_core.hpp"
 #include "sites/ogr_site_reader.hpp"

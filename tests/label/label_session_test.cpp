@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "label/label_tree.hpp"
 #include "label/synthetic_sites.hpp"
 
 namespace qtmv::label {

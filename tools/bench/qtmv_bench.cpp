@@ -335,6 +335,136 @@ std::vector<std::int32_t> reference(const std::vector<label::Piece>& candidates,
   return sites;
 }
 
+/// The repetitions' times (ms), for their medians.
+struct Timings {
+  std::vector<double> prepare, labelling, copying;
+};
+
+// Each timer below runs a.repeat times, adds the times to `t`, fills the row's device, tree and
+// memory fields, and puts the last run's labels of the sample `codes` into `got`.
+
+// The vector writers' products, on the CPU or a GPU, as the tool asks for them.
+void time_outlines(const Args& a, const label::LabelInput& input, const label::LabelOptions& options,
+                   const std::vector<grid::Code>& codes, Row& row, Timings& t, std::vector<std::int32_t>& got) {
+  row.algorithm += "-outlines";
+  for (int r = 0; r < a.repeat; ++r) {
+    label::Outlines outlines;
+    const label::LabelStats stats = label::label_outlines(input, options, &outlines);
+    t.prepare.push_back(stats.prepare_seconds * 1e3);
+    t.labelling.push_back(stats.label_seconds * 1e3);
+    t.copying.push_back(stats.copy_seconds * 1e3);
+    row.device = stats.device;
+    row.mean_candidates = stats.mean_candidates;
+    row.tree_nodes = stats.tree_nodes;
+    if (r + 1 == a.repeat) {
+      for (std::size_t k = 0; k < codes.size(); ++k) got[k] = label::site_of(outlines.cells, codes[k]);
+    }
+  }
+  row.threads = thread_count(a.threads);
+}
+
+// The whole labeller as a caller sees it, tile by tile; the sample is gathered in the sink.
+void time_label_cells(const Args& a, const label::LabelInput& input, const label::LabelOptions& options, int level,
+                      const std::vector<grid::Code>& codes, Row& row, Timings& t, std::vector<std::int32_t>& got) {
+  for (int r = 0; r < a.repeat; ++r) {
+    std::size_t next = 0;
+    const label::LabelStats stats = label::label_cells(input, options, [&](const label::LabelTile& tile) {
+      while (next < codes.size() && codes[next] < tile.first + tile.count) {
+        got[next] = tile.site[codes[next] - tile.first];
+        ++next;
+      }
+    });
+    t.prepare.push_back(stats.prepare_seconds * 1e3);
+    t.labelling.push_back(stats.label_seconds * 1e3);
+    row.device = stats.device;
+    row.mean_candidates = stats.mean_candidates;
+    row.tree_nodes = stats.tree_nodes;
+  }
+#ifdef _OPENMP
+  row.threads = a.threads > 0 ? a.threads : omp_get_max_threads();
+#else
+  row.threads = 1;
+#endif
+  const label::MemoryEstimate need = label::estimate_output_memory(level, options);
+  row.memory_bytes = need.output_bytes + row.tree_nodes * sizeof(label::TreeNode);
+}
+
+// The GPU directly, so that the labels can stay on the device between repetitions.
+void time_gpu(const Args& a, const label::LabelInput& input, const label::LabelOptions& options, int level, int device,
+              const std::vector<grid::Code>& codes, Row& row, Timings& t, std::vector<std::int32_t>& got) {
+  if (label::cuda_device_count() <= device) throw std::runtime_error("no CUDA device " + std::to_string(device));
+  const label::cuda::DeviceInfo info = label::cuda::device_info(device);
+  row.device = "cuda:" + std::to_string(device) + " " + info.name;
+  std::vector<label::Piece> candidates;
+  label::Tree tree;
+  const bool hier = a.algorithm == Algorithm::hier;
+  const bool device_tree = hier && !a.host_tree;
+  if (hier && a.host_tree) row.algorithm = "hier-host-tree";
+  std::unique_ptr<label::cuda::Labeller> built;
+  for (int r = 0; r < a.repeat; ++r) {
+    built.reset();
+    const double t0 = now_seconds();
+    if (device_tree && a.rule == Rule::exact) {
+      // As label_cells does: the input to the GPU, the fixed cells ordered, the candidates and
+      // the tree made there (the constructor synchronises).
+      built = std::make_unique<label::cuda::Labeller>(device, input, a.distance, a.threads);
+      t.prepare.push_back((now_seconds() - t0) * 1e3);
+      continue;
+    }
+    candidates = label::make_candidates(input, a.rule, a.threads);
+    if (device_tree) {
+      built = std::make_unique<label::cuda::Labeller>(device, candidates, level, a.distance, a.threads);
+    } else if (hier) {
+      tree = label::build_tree(candidates, level, a.distance, a.threads);
+    }
+    t.prepare.push_back((now_seconds() - t0) * 1e3);
+  }
+  if (device_tree) {
+    row.mean_candidates = built->tree_info().mean_candidates;
+    row.tree_nodes = built->tree_info().nodes;
+  } else {
+    row.mean_candidates = hier ? tree.mean_candidates : double(candidates.size());
+    row.tree_nodes = tree.nodes.size();
+    built = std::make_unique<label::cuda::Labeller>(device, candidates, hier ? &tree : nullptr, level);
+  }
+  label::cuda::Labeller& gpu = *built;
+  const label::MemoryEstimate need = label::estimate_output_memory(level, options);
+  const std::uint64_t tile =
+      std::min<std::uint64_t>(row.cells, static_cast<std::uint64_t>(label::cuda::device_info(device).free_bytes * 0.85) /
+                                             need.bytes_per_cell);
+  gpu.reserve(tile, a.distance, a.boundary);
+  row.memory_bytes = gpu.device_bytes();
+  std::vector<std::int32_t> host(std::min<std::uint64_t>(tile, std::uint64_t{1} << 28));
+  // One untimed warm-up run, then the timed ones; the last one also brings the sample home.
+  gpu.run(0, std::min<std::uint64_t>(tile, row.cells), a.distance, a.boundary);
+  for (int r = 0; r < a.repeat; ++r) {
+    double ms = 0, copy_ms = 0;
+    std::size_t next = 0;
+    for (std::uint64_t first = 0; first < row.cells; first += tile) {
+      const std::uint64_t count = std::min(tile, row.cells - first);
+      ms += gpu.run(first, count, a.distance, a.boundary);
+      if (r + 1 == a.repeat) {
+        for (std::uint64_t offset = 0; offset < count; offset += host.size()) {
+          const std::uint64_t part = std::min<std::uint64_t>(host.size(), count - offset);
+          // All outputs come home, as a caller would take them; the sample reads the labels.
+          std::vector<float> metres(a.distance ? part : 0);
+          std::vector<std::uint8_t> flags(a.boundary ? part : 0);
+          copy_ms += gpu.download(offset, part, host.data(), a.distance ? metres.data() : nullptr,
+                                  a.boundary ? flags.data() : nullptr);
+          const grid::Code base = first + offset;
+          while (next < codes.size() && codes[next] < base + part) {
+            got[next] = host[codes[next] - base];
+            ++next;
+          }
+        }
+      }
+    }
+    t.labelling.push_back(ms);
+    if (r + 1 == a.repeat) t.copying.push_back(copy_ms);
+  }
+  row.threads = 0;
+}
+
 Row run_one(const Args& a, const std::string& spec, int level) {
   const label::SiteGeometry g = make_sites(spec, level, a.seed);
   const label::LabelInput input = g.input();
@@ -358,129 +488,21 @@ Row run_one(const Args& a, const std::string& spec, int level) {
   row.repeat = a.repeat;
   const std::vector<grid::Code> codes = sample_codes(row.cells, a.check, a.seed + level);
   std::vector<std::int32_t> got(codes.size());
-  std::vector<double> prepare, labelling, copying;
+  Timings t;
 
   const DeviceSpec device_spec = parse_device_spec(a.device);
   const bool cuda = device_spec.kind == DeviceSpec::Kind::cuda ||
                     (device_spec.kind == DeviceSpec::Kind::automatic && label::cuda_device_count() > 0);
   if (a.outlines) {
-    // The vector writers' products, on the CPU or a GPU, as the tool asks for them.
-    row.algorithm += "-outlines";
-    for (int r = 0; r < a.repeat; ++r) {
-      label::Outlines outlines;
-      const label::LabelStats stats = label::label_outlines(input, options, &outlines);
-      prepare.push_back(stats.prepare_seconds * 1e3);
-      labelling.push_back(stats.label_seconds * 1e3);
-      copying.push_back(stats.copy_seconds * 1e3);
-      row.device = stats.device;
-      row.mean_candidates = stats.mean_candidates;
-      row.tree_nodes = stats.tree_nodes;
-      if (r + 1 == a.repeat) {
-        for (std::size_t k = 0; k < codes.size(); ++k) got[k] = label::site_of(outlines.cells, codes[k]);
-      }
-    }
-    row.threads = thread_count(a.threads);
+    time_outlines(a, input, options, codes, row, t, got);
   } else if (!cuda) {
-    // The whole labeller as a caller sees it, tile by tile; the sample is gathered in the sink.
-    for (int r = 0; r < a.repeat; ++r) {
-      std::size_t next = 0;
-      const label::LabelStats stats = label::label_cells(input, options, [&](const label::LabelTile& tile) {
-        while (next < codes.size() && codes[next] < tile.first + tile.count) {
-          got[next] = tile.site[codes[next] - tile.first];
-          ++next;
-        }
-      });
-      prepare.push_back(stats.prepare_seconds * 1e3);
-      labelling.push_back(stats.label_seconds * 1e3);
-      row.device = stats.device;
-      row.mean_candidates = stats.mean_candidates;
-      row.tree_nodes = stats.tree_nodes;
-    }
-#ifdef _OPENMP
-    row.threads = a.threads > 0 ? a.threads : omp_get_max_threads();
-#else
-    row.threads = 1;
-#endif
-    const label::MemoryEstimate need = label::estimate_output_memory(level, options);
-    row.memory_bytes = need.output_bytes + row.tree_nodes * sizeof(label::TreeNode);
+    time_label_cells(a, input, options, level, codes, row, t, got);
   } else {
-    // The GPU directly, so that the labels can stay on the device between repetitions.
-    const int device = device_spec.index;
-    if (label::cuda_device_count() <= device) throw std::runtime_error("no CUDA device " + std::to_string(device));
-    const label::cuda::DeviceInfo info = label::cuda::device_info(device);
-    row.device = "cuda:" + std::to_string(device) + " " + info.name;
-    std::vector<label::Piece> candidates;
-    label::Tree tree;
-    const bool hier = a.algorithm == Algorithm::hier;
-    const bool device_tree = hier && !a.host_tree;
-    if (hier && a.host_tree) row.algorithm = "hier-host-tree";
-    std::unique_ptr<label::cuda::Labeller> built;
-    for (int r = 0; r < a.repeat; ++r) {
-      built.reset();
-      const double t0 = now_seconds();
-      if (device_tree && a.rule == Rule::exact) {
-        // As label_cells does: the input to the GPU, the fixed cells ordered, the candidates and
-        // the tree made there (the constructor synchronises).
-        built = std::make_unique<label::cuda::Labeller>(device, input, a.distance, a.threads);
-        prepare.push_back((now_seconds() - t0) * 1e3);
-        continue;
-      }
-      candidates = label::make_candidates(input, a.rule, a.threads);
-      if (device_tree) {
-        built = std::make_unique<label::cuda::Labeller>(device, candidates, level, a.distance, a.threads);
-      } else if (hier) {
-        tree = label::build_tree(candidates, level, a.distance, a.threads);
-      }
-      prepare.push_back((now_seconds() - t0) * 1e3);
-    }
-    if (device_tree) {
-      row.mean_candidates = built->tree_info().mean_candidates;
-      row.tree_nodes = built->tree_info().nodes;
-    } else {
-      row.mean_candidates = hier ? tree.mean_candidates : double(candidates.size());
-      row.tree_nodes = tree.nodes.size();
-      built = std::make_unique<label::cuda::Labeller>(device, candidates, hier ? &tree : nullptr, level);
-    }
-    label::cuda::Labeller& gpu = *built;
-    const label::MemoryEstimate need = label::estimate_output_memory(level, options);
-    const std::uint64_t tile =
-        std::min<std::uint64_t>(row.cells, static_cast<std::uint64_t>(label::cuda::device_info(device).free_bytes * 0.85) /
-                                               need.bytes_per_cell);
-    gpu.reserve(tile, a.distance, a.boundary);
-    row.memory_bytes = gpu.device_bytes();
-    std::vector<std::int32_t> host(std::min<std::uint64_t>(tile, std::uint64_t{1} << 28));
-    // One untimed warm-up run, then the timed ones; the last one also brings the sample home.
-    gpu.run(0, std::min<std::uint64_t>(tile, row.cells), a.distance, a.boundary);
-    for (int r = 0; r < a.repeat; ++r) {
-      double ms = 0, copy_ms = 0;
-      std::size_t next = 0;
-      for (std::uint64_t first = 0; first < row.cells; first += tile) {
-        const std::uint64_t count = std::min(tile, row.cells - first);
-        ms += gpu.run(first, count, a.distance, a.boundary);
-        if (r + 1 == a.repeat) {
-          for (std::uint64_t offset = 0; offset < count; offset += host.size()) {
-            const std::uint64_t part = std::min<std::uint64_t>(host.size(), count - offset);
-            // All outputs come home, as a caller would take them; the sample reads the labels.
-            std::vector<float> metres(a.distance ? part : 0);
-            std::vector<std::uint8_t> flags(a.boundary ? part : 0);
-            copy_ms += gpu.download(offset, part, host.data(), a.distance ? metres.data() : nullptr,
-                                    a.boundary ? flags.data() : nullptr);
-            const grid::Code base = first + offset;
-            while (next < codes.size() && codes[next] < base + part) {
-              got[next] = host[codes[next] - base];
-              ++next;
-            }
-          }
-        }
-      }
-      labelling.push_back(ms);
-      if (r + 1 == a.repeat) copying.push_back(copy_ms);
-    }
-    row.threads = 0;
+    time_gpu(a, input, options, level, device_spec.index, codes, row, t, got);
   }
-  row.prepare_ms = median(prepare);
-  row.label_ms = median(labelling);
-  row.copy_ms = median(copying);
+  row.prepare_ms = median(t.prepare);
+  row.label_ms = median(t.labelling);
+  row.copy_ms = median(t.copying);
 
   const std::vector<std::int32_t> want = reference(label::make_candidates(input, a.rule), level, codes);
   row.checked = codes.size();

@@ -101,6 +101,229 @@ std::vector<std::string> split_list(const std::string& text) {
   return items;
 }
 
+// Options that shape a dataset: a tile job, which writes a tile product, refuses them.
+bool shapes_output(const std::string& name) {
+  return name == "-of" || name == "-f" || name == "-lco" || name == "-dsco" || name == "-co" || name == "-ot" ||
+         name == "-layers" || name == "-raster" || name == "-tr" || name == "-ts" || name == "-vertices";
+}
+
+// One option on the command line, as written (arg) and as named (option_name), and its values.
+struct OptionAt {
+  const std::string& arg;
+  const std::string& name;
+  const std::vector<std::string>& args;
+  std::size_t& i;  // the option's index; value() moves it on to each value taken
+  const std::string& value() const {
+    if (i + 1 >= args.size()) throw UsageError("option '" + arg + "' needs a value");
+    return args[++i];
+  }
+};
+
+// What the checks after the options need to know of them.
+struct ParseState {
+  bool tr = false, ts = false, raster_named = false;
+  std::string output_option;  // the first option that shapes a dataset (a tile job writes none)
+};
+
+// One parser per option group, each true when the option is one of its group's.
+
+// The reader's options: what to read and how.
+bool parse_reader_option(const OptionAt& at, sites::SourceOptions& read) {
+  const std::string& name = at.name;
+  if (name == "-l") {
+    const std::string& layer = at.value();
+    if (std::find(read.layers.begin(), read.layers.end(), layer) != read.layers.end()) {
+      throw UsageError("-l: layer '" + layer + "' named twice");
+    }
+    read.layers.push_back(layer);
+  } else if (name == "-where") {
+    read.where = at.value();
+  } else if (name == "-sql") {
+    read.sql = sql_text(at.value());
+  } else if (name == "-dialect") {
+    read.dialect = at.value();
+  } else if (name == "-s_srs") {
+    read.source_srs = at.value();
+  } else if (name == "-edges" || name == "-wrap") {
+    const std::string& v = at.value();
+    try {
+      if (name == "-edges") read.edges = sites::parse_edge_shape(v);
+      if (name == "-wrap") read.wrap = sites::parse_wrap_mode(v);
+    } catch (const std::exception& e) {
+      throw UsageError(e.what());
+    }
+  } else if (name == "-strict") {
+    read.strict = true;
+  } else if (name == "-makevalid") {
+    read.make_valid = true;
+  } else if (name == "-oo") {
+    read.open_options.push_back(name_value(at.arg, at.value()));
+  } else {
+    return false;
+  }
+  return true;
+}
+
+// The labeller's options: level, distance rule, device, algorithm, threads.
+bool parse_labeller_option(const OptionAt& at, VoronoiOptions& run) {
+  const std::string& name = at.name;
+  if (name == "-level") {
+    run.level = parse_int(at.arg, at.value(), 0, 24, "a level from 0 to 24");
+  } else if (name == "-distance") {
+    const std::string& v = at.value();
+    try {
+      run.rule = sites::parse_distance_rule(v);
+    } catch (const std::exception& e) {
+      throw UsageError(e.what());
+    }
+  } else if (name == "-device") {
+    const std::string v = lower(at.value());
+    try {
+      parse_device_spec(v);
+    } catch (const std::invalid_argument&) {
+      throw UsageError("-device: '" + v + "' is not one of " + device_spec_forms());
+    }
+    run.device = v;
+  } else if (name == "-algorithm") {
+    const std::string v = lower(at.value());
+    if (v == "auto") {
+      run.algorithm = label::Algorithm::automatic;
+    } else if (v == "hier") {
+      run.algorithm = label::Algorithm::hier;
+    } else if (v == "brute") {
+      run.algorithm = label::Algorithm::brute;
+    } else {
+      throw UsageError("-algorithm: '" + v + "' is not one of auto, hier, brute");
+    }
+  } else if (name == "-threads") {
+    run.threads = parse_int(at.arg, at.value(), 1, 4096, "a number of threads");
+  } else {
+    return false;
+  }
+  return true;
+}
+
+// The vector writer's options, and the output's driver.
+bool parse_vector_option(const OptionAt& at, VoronoiOptions& run) {
+  const std::string& name = at.name;
+  if (name == "-of" || name == "-f") {
+    run.format = at.value();
+  } else if (name == "-lco") {
+    run.vector.layer_options.push_back(name_value(at.arg, at.value()));
+  } else if (name == "-dsco") {
+    run.vector.dataset_options.push_back(name_value(at.arg, at.value()));
+  } else if (name == "-layers") {
+    run.vector.layers = split_list(at.value());
+    if (const std::string problem = write::check_layer_names(run.vector.layers); !problem.empty()) {
+      throw UsageError("-layers: " + problem);
+    }
+    for (std::size_t k = 0; k < run.vector.layers.size(); ++k) {
+      const std::string& layer = run.vector.layers[k];
+      if (std::find(run.vector.layers.begin(), run.vector.layers.begin() + k, layer) != run.vector.layers.begin() + k) {
+        throw UsageError("-layers: '" + layer + "' named twice");
+      }
+    }
+    if (run.kind == OutputKind::raster) throw UsageError("-layers is for vector output, -raster for raster output");
+    run.kind = OutputKind::vector;
+  } else if (name == "-vertices") {
+    const std::string v = lower(at.value());
+    if (v != "corners" && v != "all") throw UsageError("-vertices: '" + v + "' is not one of corners, all");
+    run.vector.all_ring_vertices = v == "all";
+  } else {
+    return false;
+  }
+  return true;
+}
+
+// The raster writer's options.
+bool parse_raster_option(const OptionAt& at, VoronoiOptions& run, ParseState& state) {
+  const std::string& name = at.name;
+  if (name == "-co") {
+    run.raster.creation_options.push_back(name_value(at.arg, at.value()));
+  } else if (name == "-ot") {
+    run.raster.data_type = at.value();
+    try {
+      write::check_raster_data_type(run.raster.data_type);
+    } catch (const std::exception& e) {
+      throw UsageError(e.what());
+    }
+  } else if (name == "-raster") {
+    const std::string v = lower(at.value());
+    if (v == "qtm") {
+      run.raster.layout = write::RasterOptions::Layout::qtm;
+    } else if (v == "lonlat") {
+      run.raster.layout = write::RasterOptions::Layout::lonlat;
+    } else {
+      throw UsageError("-raster: '" + v + "' is not one of qtm, lonlat");
+    }
+    state.raster_named = true;
+    if (run.kind == OutputKind::vector) throw UsageError("-layers is for vector output, -raster for raster output");
+    run.kind = OutputKind::raster;
+  } else if (name == "-tr") {
+    run.raster.x_resolution = parse_positive(at.arg, at.value());
+    run.raster.y_resolution = parse_positive(at.arg, at.value());
+    state.tr = true;
+  } else if (name == "-ts") {
+    run.raster.width = parse_int(at.arg, at.value(), 1, 2147483647, "a positive number of pixels");
+    run.raster.height = parse_int(at.arg, at.value(), 1, 2147483647, "a positive number of pixels");
+    state.ts = true;
+  } else {
+    return false;
+  }
+  return true;
+}
+
+// The run's options: tile jobs and merges, the destination, and the tool's own output.
+bool parse_run_option(const OptionAt& at, Options& o) {
+  const std::string& name = at.name;
+  VoronoiOptions& run = o.run;
+  if (name == "-tile") {
+    const std::string& v = at.value();
+    const std::size_t slash = v.find('/');
+    if (slash == std::string::npos) throw UsageError("-tile: '" + v + "' is not K/N (tile K of N, from 1)");
+    run.tile_count = parse_int(at.arg, v.substr(slash + 1), 1, 2147483647, "K/N with N a positive number of tiles");
+    run.tile_index = parse_int(at.arg, v.substr(0, slash), 1, run.tile_count, "K/N with K from 1 to N");
+  } else if (name == "-merge") {
+    run.merge.push_back(at.value());
+  } else if (name == "-overwrite") {
+    run.overwrite = true;
+  } else if (name == "-q" || name == "-quiet") {
+    o.quiet = true;
+  } else if (name == "-progress") {
+    o.progress = true;
+  } else {
+    return false;
+  }
+  return true;
+}
+
+// The checks of options given together, once all are read; a pixel size implies -raster lonlat.
+void check_option_combinations(VoronoiOptions& run, const ParseState& state) {
+  if (state.tr && state.ts) throw UsageError("-tr and -ts exclude each other");
+  if (run.tile_count > 0 && !run.merge.empty()) {
+    throw UsageError("-tile and -merge exclude each other: tile jobs come first, then one merge of their products");
+  }
+  if (run.tile_count > 0 && !state.output_option.empty()) {
+    throw UsageError("-tile writes a tile product, not a dataset: give " + state.output_option + " to the -merge run");
+  }
+  // Which of the two a batch job meant is a guess: refuse the pair.
+  if (!run.read.sql.empty() && !run.read.where.empty()) {
+    throw UsageError("-sql and -where exclude each other: put the condition in the -sql statement");
+  }
+  if (!run.read.sql.empty() && !run.read.layers.empty()) {
+    throw UsageError("-sql and -l exclude each other: the -sql statement names its tables");
+  }
+  if (state.tr || state.ts) {
+    // A pixel size only makes sense for the lon/lat grid, so it implies it.
+    if (state.raster_named && run.raster.layout == write::RasterOptions::Layout::qtm) {
+      throw UsageError("-tr and -ts are for -raster lonlat: the QTM-coded raster's size follows the level");
+    }
+    if (run.kind == OutputKind::vector) throw UsageError("-tr and -ts are for raster output, not with -layers");
+    run.raster.layout = write::RasterOptions::Layout::lonlat;
+    run.kind = OutputKind::raster;
+  }
+}
+
 extern "C" void on_signal(int signal_number) { g_signal = signal_number; }
 
 }  // namespace
@@ -119,10 +342,9 @@ Options parse_command_line(const std::vector<std::string>& args) {
       return o;
     }
   }
-  VoronoiOptions& run = o.run;
   std::vector<std::string> positional;
-  bool options_ended = false, tr = false, ts = false, raster_named = false;
-  std::string output_option;  // the first option that shapes a dataset (a tile job writes none)
+  bool options_ended = false;
+  ParseState state;
   for (std::size_t i = 0; i < args.size(); ++i) {
     const std::string& arg = args[i];
     if (options_ended || !looks_like_option(arg)) {
@@ -134,160 +356,14 @@ Options parse_command_line(const std::vector<std::string>& args) {
       continue;
     }
     const std::string name = option_name(arg);
-    auto value = [&]() -> const std::string& {
-      if (i + 1 >= args.size()) throw UsageError("option '" + arg + "' needs a value");
-      return args[++i];
-    };
-    const bool shapes_output = name == "-of" || name == "-f" || name == "-lco" || name == "-dsco" || name == "-co" ||
-                               name == "-ot" || name == "-layers" || name == "-raster" || name == "-tr" || name == "-ts" ||
-                               name == "-vertices";
-    if (shapes_output && output_option.empty()) output_option = arg;
-    // Reader, labeller and writer options.
-    if (name == "-level") {
-      run.level = parse_int(arg, value(), 0, 24, "a level from 0 to 24");
-    } else if (name == "-l") {
-      const std::string& layer = value();
-      if (std::find(run.read.layers.begin(), run.read.layers.end(), layer) != run.read.layers.end()) {
-        throw UsageError("-l: layer '" + layer + "' named twice");
-      }
-      run.read.layers.push_back(layer);
-    } else if (name == "-where") {
-      run.read.where = value();
-    } else if (name == "-sql") {
-      run.read.sql = sql_text(value());
-    } else if (name == "-dialect") {
-      run.read.dialect = value();
-    } else if (name == "-s_srs") {
-      run.read.source_srs = value();
-    } else if (name == "-edges" || name == "-wrap" || name == "-distance") {
-      const std::string& v = value();
-      try {
-        if (name == "-edges") run.read.edges = sites::parse_edge_shape(v);
-        if (name == "-wrap") run.read.wrap = sites::parse_wrap_mode(v);
-        if (name == "-distance") run.rule = sites::parse_distance_rule(v);
-      } catch (const std::exception& e) {
-        throw UsageError(e.what());
-      }
-    } else if (name == "-strict") {
-      run.read.strict = true;
-    } else if (name == "-makevalid") {
-      run.read.make_valid = true;
-    } else if (name == "-oo") {
-      run.read.open_options.push_back(name_value(arg, value()));
-    } else if (name == "-device") {
-      const std::string v = lower(value());
-      try {
-        parse_device_spec(v);
-      } catch (const std::invalid_argument&) {
-        throw UsageError("-device: '" + v + "' is not one of " + device_spec_forms());
-      }
-      run.device = v;
-    } else if (name == "-algorithm") {
-      const std::string v = lower(value());
-      if (v == "auto") {
-        run.algorithm = label::Algorithm::automatic;
-      } else if (v == "hier") {
-        run.algorithm = label::Algorithm::hier;
-      } else if (v == "brute") {
-        run.algorithm = label::Algorithm::brute;
-      } else {
-        throw UsageError("-algorithm: '" + v + "' is not one of auto, hier, brute");
-      }
-    } else if (name == "-threads") {
-      run.threads = parse_int(arg, value(), 1, 4096, "a number of threads");
-    } else if (name == "-of" || name == "-f") {
-      run.format = value();
-    } else if (name == "-lco") {
-      run.vector.layer_options.push_back(name_value(arg, value()));
-    } else if (name == "-dsco") {
-      run.vector.dataset_options.push_back(name_value(arg, value()));
-    } else if (name == "-co") {
-      run.raster.creation_options.push_back(name_value(arg, value()));
-    } else if (name == "-ot") {
-      run.raster.data_type = value();
-      try {
-        write::check_raster_data_type(run.raster.data_type);
-      } catch (const std::exception& e) {
-        throw UsageError(e.what());
-      }
-    } else if (name == "-tile") {
-      const std::string& v = value();
-      const std::size_t slash = v.find('/');
-      if (slash == std::string::npos) throw UsageError("-tile: '" + v + "' is not K/N (tile K of N, from 1)");
-      run.tile_count = parse_int(arg, v.substr(slash + 1), 1, 2147483647, "K/N with N a positive number of tiles");
-      run.tile_index = parse_int(arg, v.substr(0, slash), 1, run.tile_count, "K/N with K from 1 to N");
-    } else if (name == "-merge") {
-      run.merge.push_back(value());
-    } else if (name == "-overwrite") {
-      run.overwrite = true;
-    } else if (name == "-q" || name == "-quiet") {
-      o.quiet = true;
-    } else if (name == "-progress") {
-      o.progress = true;
-    } else if (name == "-layers") {
-      run.vector.layers = split_list(value());
-      if (const std::string problem = write::check_layer_names(run.vector.layers); !problem.empty()) {
-        throw UsageError("-layers: " + problem);
-      }
-      for (std::size_t k = 0; k < run.vector.layers.size(); ++k) {
-        const std::string& layer = run.vector.layers[k];
-        if (std::find(run.vector.layers.begin(), run.vector.layers.begin() + k, layer) != run.vector.layers.begin() + k) {
-          throw UsageError("-layers: '" + layer + "' named twice");
-        }
-      }
-      if (run.kind == OutputKind::raster) throw UsageError("-layers is for vector output, -raster for raster output");
-      run.kind = OutputKind::vector;
-    } else if (name == "-vertices") {
-      const std::string v = lower(value());
-      if (v != "corners" && v != "all") throw UsageError("-vertices: '" + v + "' is not one of corners, all");
-      run.vector.all_ring_vertices = v == "all";
-    } else if (name == "-raster") {
-      const std::string v = lower(value());
-      if (v == "qtm") {
-        run.raster.layout = write::RasterOptions::Layout::qtm;
-      } else if (v == "lonlat") {
-        run.raster.layout = write::RasterOptions::Layout::lonlat;
-      } else {
-        throw UsageError("-raster: '" + v + "' is not one of qtm, lonlat");
-      }
-      raster_named = true;
-      if (run.kind == OutputKind::vector) throw UsageError("-layers is for vector output, -raster for raster output");
-      run.kind = OutputKind::raster;
-    } else if (name == "-tr") {
-      run.raster.x_resolution = parse_positive(arg, value());
-      run.raster.y_resolution = parse_positive(arg, value());
-      tr = true;
-    } else if (name == "-ts") {
-      run.raster.width = parse_int(arg, value(), 1, 2147483647, "a positive number of pixels");
-      run.raster.height = parse_int(arg, value(), 1, 2147483647, "a positive number of pixels");
-      ts = true;
-    } else {
+    if (shapes_output(name) && state.output_option.empty()) state.output_option = arg;
+    const OptionAt at{arg, name, args, i};
+    if (!parse_reader_option(at, o.run.read) && !parse_labeller_option(at, o.run) && !parse_vector_option(at, o.run) &&
+        !parse_raster_option(at, o.run, state) && !parse_run_option(at, o)) {
       throw UsageError("unknown option '" + arg + "'");
     }
   }
-  if (tr && ts) throw UsageError("-tr and -ts exclude each other");
-  if (run.tile_count > 0 && !run.merge.empty()) {
-    throw UsageError("-tile and -merge exclude each other: tile jobs come first, then one merge of their products");
-  }
-  if (run.tile_count > 0 && !output_option.empty()) {
-    throw UsageError("-tile writes a tile product, not a dataset: give " + output_option + " to the -merge run");
-  }
-  // Which of the two a batch job meant is a guess: refuse the pair.
-  if (!run.read.sql.empty() && !run.read.where.empty()) {
-    throw UsageError("-sql and -where exclude each other: put the condition in the -sql statement");
-  }
-  if (!run.read.sql.empty() && !run.read.layers.empty()) {
-    throw UsageError("-sql and -l exclude each other: the -sql statement names its tables");
-  }
-  if (tr || ts) {
-    // A pixel size only makes sense for the lon/lat grid, so it implies it.
-    if (raster_named && run.raster.layout == write::RasterOptions::Layout::qtm) {
-      throw UsageError("-tr and -ts are for -raster lonlat: the QTM-coded raster's size follows the level");
-    }
-    if (run.kind == OutputKind::vector) throw UsageError("-tr and -ts are for raster output, not with -layers");
-    run.raster.layout = write::RasterOptions::Layout::lonlat;
-    run.kind = OutputKind::raster;
-  }
+  check_option_combinations(o.run, state);
   if (positional.size() < 2) {
     throw UsageError(positional.empty() ? "SRC_DATASOURCE and DST_DATASOURCE are missing" : "DST_DATASOURCE is missing");
   }

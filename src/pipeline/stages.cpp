@@ -1,10 +1,13 @@
 #include "pipeline/stages.hpp"
 
 #include <cpl_conv.h>
+#include <ogr_core.h>
 
 #include <algorithm>
 #include <memory>
 #include <new>
+#include <string>
+#include <vector>
 
 #include "common/host_info.hpp"
 #include "pipeline/staged_output.hpp"
@@ -61,6 +64,30 @@ std::uint64_t mark_sites_without_cell(const std::vector<std::uint64_t>& count, c
   return missing.count();
 }
 
+/// A raster's FID band names each site by its FID: refuses sites that share one (a -sql UNION of
+/// two layers) or have none, which the band could not tell apart.
+void check_raster_fids(const sites::SiteTable& table) {
+  std::vector<std::int64_t> fids;
+  fids.reserve(table.sites.size());
+  for (const sites::SiteRecord& site : table.sites) fids.push_back(site.fid);
+  std::sort(fids.begin(), fids.end());
+  const std::string where = table.source_count() > 0 ? "'" + table.dataset() + "', layer '" + table.layer() + "': " : "";
+  if (!fids.empty() && fids.front() == OGRNullFID) {
+    throw VoronoiError(where + "sites without a FID: a raster's FID band cannot name them; write vector output, " +
+                       "whose rows keep every site");
+  }
+  std::vector<std::int64_t> shared;
+  for (std::size_t k = 1; k < fids.size(); ++k) {
+    if (fids[k] == fids[k - 1] && (shared.empty() || shared.back() != fids[k])) shared.push_back(fids[k]);
+  }
+  if (shared.empty()) return;
+  std::string listed;
+  for (std::size_t k = 0; k < std::min<std::size_t>(shared.size(), 10); ++k) listed += (k ? ", " : "") + std::to_string(shared[k]);
+  if (shared.size() > 10) listed += ", ... (" + std::to_string(shared.size()) + " in all)";
+  throw VoronoiError(where + "several sites share FID " + listed + ": a raster's FID band could not tell them apart; " +
+                     "write vector output (its rows keep every site), or give the sites unique FIDs");
+}
+
 }  // namespace
 
 sites::SiteSet read_stage(const std::string& source, const VoronoiOptions& options, const RunPlan& plan,
@@ -94,6 +121,7 @@ LabelledLevel label_stage(sites::SiteSet& sites, const VoronoiOptions& options, 
   label_options.messages = options.messages;
   LabelledLevel out;
   label::LabelStats stats;
+  if (plan.format.raster) check_raster_fids(sites.table);
   as_stage(progress, "labelling failed: ", [&] {
     if (plan.format.raster) {
       // A raster's labels come strip by strip from the session as it is written (which sites

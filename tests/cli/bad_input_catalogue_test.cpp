@@ -1088,6 +1088,29 @@ TEST(CatalogueOutput, TileJobUnderAnotherFormatsNameIsRefused) {
                  dst);
 }
 
+TEST(CatalogueOptions, SitesSharingAFidAreRefusedForARaster) {
+  // A -sql UNION of two layers gives sites FIDs 1, 2, 1, 2: the FID band could not tell them apart.
+  const std::string dir = test_dir();
+  const std::string src = make_dataset(dir + "/places.gpkg", "GPKG", "towns", "EPSG:4326",
+                                       points({"POINT (10 10)", "POINT (20 20)"}));
+  {
+    const auto ds = qtmv::test::open_dataset(src, GDAL_OF_VECTOR | GDAL_OF_UPDATE);
+    ASSERT_TRUE(ds);
+    OGRLayer* villages = ds->CreateLayer("villages", ds->GetLayerByName("towns")->GetSpatialRef(), wkbPoint, nullptr);
+    for (const double x : {-30.0, -40.0}) {
+      OGRFeature feature(villages->GetLayerDefn());
+      OGRPoint point(x, 5);
+      feature.SetGeometry(&point);
+      ASSERT_EQ(villages->CreateFeature(&feature), OGRERR_NONE);
+    }
+  }
+  const std::string dst = dir + "/out.tif";
+  expect_failure(run_small({"-sql", "SELECT fid, geom FROM towns UNION ALL SELECT fid, geom FROM villages", src, dst}),
+                 1, {"several sites share FID 1, 2: a raster's FID band could not tell them apart"}, dst);
+  // Vector output keeps all four.
+  EXPECT_EQ(regions_of(src, dir + "/out.gpkg", {"-sql", "SELECT fid, geom FROM towns UNION ALL SELECT fid, geom FROM villages"}).size(), 4u);
+}
+
 TEST(CatalogueOptions, BruteForceForARasterIsRefusedNotIgnored) {
   const std::string dir = test_dir();
   const std::string dst = dir + "/out.tif";

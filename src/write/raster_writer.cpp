@@ -453,6 +453,253 @@ RasterWritten write_raster(const std::string& path, const CellLabels& labels, co
   return write_raster(path, DenseLabelSource(labels), table, options);
 }
 
+namespace {
+
+/// What write_raster settles before it creates anything: the grid, the band type, the driver and
+/// its creation options; and GDAL's errors meanwhile.
+struct RasterJob {
+  const std::string& path;
+  const RasterOptions& options;
+  gdal::ErrorCapture& errors;
+  int level;
+  RasterSize size;
+  int bands;
+  GDALDataType type;
+  int type_bytes;
+  double nodata;
+  std::uint64_t strip_budget;
+  GDALDriverH driver;
+  bool can_create;  ///< the driver creates the file (else a staging dataset is copied to it)
+  CPLStringList co;
+
+  /// A failure of GDAL's, with its message.
+  WriteError gdal_error(const std::string& what) const {
+    const std::string gdal = errors.take();
+    return WriteError(path + ": " + what + ": " + (gdal.empty() ? "no message from GDAL" : gdal));
+  }
+};
+
+std::string band_label(int b) { return "band " + std::to_string(b + 1) + " (" + kBandNames[b] + ")"; }
+
+/// options.driver, if it writes rasters of `type`.
+GDALDriverH raster_driver(const std::string& path, const RasterOptions& options, GDALDataType type) {
+  const std::string& name = options.driver;
+  GDALDriverH driver = GDALGetDriverByName(name.c_str());
+  if (driver == nullptr) throw WriteError(path + ": unknown raster driver '" + name + "' (see --formats)");
+  if (GDALGetMetadataItem(driver, GDAL_DCAP_RASTER, nullptr) == nullptr) {
+    throw WriteError(path + ": driver " + name + " does not write rasters");
+  }
+  const bool can_create = GDALGetMetadataItem(driver, GDAL_DCAP_CREATE, nullptr) != nullptr;
+  const bool can_copy = GDALGetMetadataItem(driver, GDAL_DCAP_CREATECOPY, nullptr) != nullptr;
+  if (!can_create && !can_copy) throw WriteError(path + ": driver " + name + " cannot create files");
+  const char* types = GDALGetMetadataItem(driver, GDAL_DMD_CREATIONDATATYPES, nullptr);
+  if (!has_token(types, GDALGetDataTypeName(type))) {
+    throw WriteError(path + ": driver " + name + " cannot hold " + GDALGetDataTypeName(type) + " bands (it creates " +
+                     types + ")" + (options.data_type.empty() ? "; -ot names another type, if the values fit it" : "") +
+                     "; use GTiff or another format");
+  }
+  return driver;
+}
+
+/// The creation options: the caller's, and GeoTIFF's defaults where the caller sets none.
+CPLStringList creation_options(const RasterOptions& options) {
+  CPLStringList co;
+  for (const auto& option : options.creation_options) co.AddString(option.c_str());
+  if (EQUAL(options.driver.c_str(), "GTiff")) {
+    // Measured at level 11 (135 000 sites, 2 cores): DEFLATE at its default ZLEVEL 6, pixel
+    // interleaved, single-threaded took 28 s; ZLEVEL=1, band interleaved, compressing on all
+    // cores 5 s, and the file is 5% smaller (each band compresses on its own).
+    if (co.FetchNameValue("TILED") == nullptr) co.SetNameValue("TILED", "YES");
+    if (co.FetchNameValue("COMPRESS") == nullptr) {
+      co.SetNameValue("COMPRESS", "DEFLATE");
+      if (co.FetchNameValue("ZLEVEL") == nullptr) co.SetNameValue("ZLEVEL", "1");
+    }
+    if (co.FetchNameValue("BIGTIFF") == nullptr) co.SetNameValue("BIGTIFF", "IF_SAFER");
+    if (co.FetchNameValue("INTERLEAVE") == nullptr) co.SetNameValue("INTERLEAVE", "BAND");
+    if (co.FetchNameValue("NUM_THREADS") == nullptr) co.SetNameValue("NUM_THREADS", "ALL_CPUS");
+  }
+  return co;
+}
+
+/// Creates the dataset written strip by strip (out.dataset): the destination, or a staging copy.
+void create_dataset(const RasterJob& job, Output& out) {
+  const RasterSize& size = job.size;
+  const std::uint64_t total_bytes =
+      static_cast<std::uint64_t>(size.width) * static_cast<std::uint64_t>(size.height) * job.bands * job.type_bytes;
+  VSIStatBufL stat;
+  out.existed = VSIStatL(job.path.c_str(), &stat) == 0;
+  if (job.can_create) {
+    out.created = !out.existed;  // what a failed Create leaves behind is ours, an older file is not
+    out.dataset = GDALCreate(job.driver, job.path.c_str(), size.width, size.height, job.bands, job.type, job.co.List());
+    if (out.dataset != nullptr) out.created = true;
+    if (out.dataset == nullptr || job.errors.failed()) throw job.gdal_error("cannot create " + job.options.driver + " raster");
+  } else if (total_bytes <= job.strip_budget || is_vsi(job.path)) {
+    out.dataset = GDALCreate(GDALGetDriverByName("MEM"), "", size.width, size.height, job.bands, job.type, nullptr);
+    if (out.dataset == nullptr || job.errors.failed()) throw job.gdal_error("cannot create the in-memory staging raster");
+  } else {
+    // Too large for memory: a compressed GeoTIFF beside the destination.
+    out.staging_path = job.path + ".staging.tif";
+    const char* staging_co[] = {"TILED=YES", "COMPRESS=DEFLATE", "BIGTIFF=YES", nullptr};
+    out.dataset = GDALCreate(GDALGetDriverByName("GTiff"), out.staging_path.c_str(), size.width, size.height, job.bands,
+                             job.type, const_cast<char**>(staging_co));
+    if (out.dataset == nullptr || job.errors.failed()) throw job.gdal_error("cannot create staging raster " + out.staging_path);
+  }
+}
+
+/// The dataset's description: metadata, band names, nodata, georeferencing.
+void describe_dataset(const RasterJob& job, GDALDatasetH ds) {
+  const bool qtm = job.options.layout == RasterOptions::Layout::qtm;
+  auto check = [&](CPLErr err, const std::string& what) {
+    if (err != CE_None || job.errors.failed()) throw job.gdal_error(what);
+  };
+  check(GDALSetMetadataItem(ds, "QTM_LEVEL", std::to_string(job.level).c_str(), nullptr), "setting metadata QTM_LEVEL");
+  check(GDALSetMetadataItem(ds, "QTM_LAYOUT", qtm ? "octant_row_col" : "lonlat", nullptr),
+        "setting metadata QTM_LAYOUT");
+  if (qtm) {
+    // Not georeferenced: say so, and how a pixel maps to a cell.
+    check(GDALSetMetadataItem(ds, "QTM_GEOREFERENCED", "NO", nullptr), "setting metadata QTM_GEOREFERENCED");
+    check(GDALSetMetadataItem(ds, "QTM_PIXEL",
+                              "column j, row octant * 2^QTM_LEVEL + i for cell (octant, i, j); nodata where j > 2i",
+                              nullptr),
+          "setting metadata QTM_PIXEL");
+  } else {
+    double transform[6] = {-180.0, job.size.x_resolution, 0.0, 90.0, 0.0, -job.size.y_resolution};
+    check(GDALSetGeoTransform(ds, transform), "setting the geotransform");
+    OGRSpatialReferenceH srs = OSRNewSpatialReference(nullptr);
+    OSRSetAxisMappingStrategy(srs, OAMS_TRADITIONAL_GIS_ORDER);
+    const OGRErr imported = OSRImportFromEPSG(srs, 4326);
+    const CPLErr set = imported == OGRERR_NONE ? GDALSetSpatialRef(ds, srs) : CE_Failure;
+    OSRDestroySpatialReference(srs);
+    check(set, "setting the SRS EPSG:4326");
+  }
+  for (int b = 0; b < job.bands; ++b) {
+    GDALRasterBandH band = GDALGetRasterBand(ds, b + 1);
+    GDALSetDescription(band, kBandNames[b]);
+    if (job.errors.failed()) throw job.gdal_error(band_label(b) + ": setting the description");
+    check(GDALSetRasterNoDataValue(band, job.nodata), band_label(b) + ": setting nodata");
+    if (b == 2) check(GDALSetRasterUnitType(band, "m"), band_label(b) + ": setting the unit");
+  }
+}
+
+/// Writes the pixels into `ds`, strip by strip; returns, per site id, 1 when some pixel holds it.
+std::vector<std::uint8_t> write_strips(const RasterJob& job, GDALDatasetH ds, const CellLabelSource& labels,
+                                       const std::vector<std::int64_t>& fid_of) {
+  const RasterSize& size = job.size;
+  const int bands = job.bands, type_bytes = job.type_bytes;
+  const GDALDataType type = job.type;
+  const RasterOptions& options = job.options;
+  // Strips of whole rows of blocks where the budget allows (each block written once, then
+  // flushed from GDAL's cache); else at least one row, and the blocks flushed when their row
+  // of blocks is complete.
+  int block_w = 0, block_h = 0;
+  GDALGetBlockSize(GDALGetRasterBand(ds, 1), &block_w, &block_h);
+  block_h = std::max(1, block_h);
+  const std::uint64_t row_bytes = static_cast<std::uint64_t>(size.width) * strip_bytes_per_pixel(options.layout, bands, type_bytes);
+  std::uint64_t strip = std::max<std::uint64_t>(1, job.strip_budget / row_bytes);
+  if (strip >= static_cast<std::uint64_t>(block_h)) {
+    strip = strip / block_h * block_h;
+  } else {
+    while (block_h % strip != 0) --strip;  // strips that end where rows of blocks end
+  }
+  strip = std::min<std::uint64_t>(strip, static_cast<std::uint64_t>(size.height));
+  const int strip_rows = static_cast<int>(strip);
+
+  std::vector<std::atomic<std::uint8_t>> seen(fid_of.size());
+  for (auto& flag : seen) flag.store(0, std::memory_order_relaxed);
+  Filler filler{job.level, options.layout, size, bands, type, job.nodata, labels, fid_of, seen, thread_count(0), {}, {-1}, {-1}, 0};
+  StripBuffer buffer{type, {}};
+  buffer.bytes.resize(strip * size.width * bands * type_bytes);
+  const double write_share = job.can_create ? 1.0 : 0.5;
+  if (options.progress && !options.progress(0.0, kStage)) throw Interrupted();
+  // QTMV_TRACE=write: the strips' totals (labels and pixels, GDAL's writes).
+  double fill_seconds = 0, io_seconds = 0;
+  int strips = 0;
+  for (int y0 = 0; y0 < size.height; y0 += strip_rows) {
+    const int rows = std::min(strip_rows, size.height - y0);
+    double t = now_seconds();
+    buffer.fill(filler, y0, rows);
+    fill_seconds += now_seconds() - t;
+    t = now_seconds();
+    ++strips;
+    if (filler.bad_site >= 0) {
+      throw WriteError(job.path + ": band 1 (site_fid): site id " + std::to_string(filler.bad_site.load()) +
+                       " is not in the site table (" + std::to_string(fid_of.size()) + " sites)");
+    }
+    if (filler.bad_distance >= 0) {
+      char metres[64];
+      std::snprintf(metres, sizeof metres, "%.1f", static_cast<double>(filler.bad_distance_value));
+      throw WriteError(job.path + ": band 3 (distance_m): cell " + std::to_string(filler.bad_distance.load()) +
+                       " is " + metres + " m from its site, outside " + GDALGetDataTypeName(type) + " (" +
+                       range_text(type) + "; distances are rounded to whole metres): choose a wider -ot, e.g. " +
+                       "UInt32, Int32 or Float32");
+    }
+    const std::size_t band_space = static_cast<std::size_t>(size.width) * rows;
+    for (int b = 0; b < bands; ++b) {
+      void* data = buffer.bytes.data() + b * band_space * type_bytes;
+      const CPLErr err =
+          GDALRasterIO(GDALGetRasterBand(ds, b + 1), GF_Write, 0, y0, size.width, rows, data, size.width, rows, type, 0, 0);
+      if (err != CE_None || job.errors.failed()) {
+        throw job.gdal_error(band_label(b) + ": writing rows " + std::to_string(y0) + "-" + std::to_string(y0 + rows - 1));
+      }
+    }
+    // A complete row of blocks leaves GDAL's cache now: its memory follows the strip.
+    if ((y0 + rows) % block_h == 0 || y0 + rows == size.height) {
+      for (int b = 0; b < bands; ++b) {
+        const CPLErr err = GDALFlushRasterCache(GDALGetRasterBand(ds, b + 1));
+        if (err != CE_None || job.errors.failed()) {
+          throw job.gdal_error(band_label(b) + ": writing rows up to " + std::to_string(y0 + rows - 1));
+        }
+      }
+    }
+    io_seconds += now_seconds() - t;
+    if (options.progress && !options.progress(write_share * (y0 + rows) / size.height, kStage)) {
+      throw Interrupted();
+    }
+  }
+  std::vector<std::uint8_t> site_seen(seen.size());
+  for (std::size_t k = 0; k < seen.size(); ++k) site_seen[k] = seen[k].load(std::memory_order_relaxed);
+  trace_printf(TraceStage::write, "raster %d strips of %d rows: labels and pixels %.3f s, GDAL writes %.3f s", strips,
+               strip_rows, fill_seconds, io_seconds);
+  return site_seen;
+}
+
+/// Closes the dataset written (out.dataset), or copies the staging dataset to the destination and
+/// removes it (GDAL 3.6's GDALClose returns nothing: the error state tells).
+void close_dataset(const RasterJob& job, Output& out) {
+  const std::string& name = job.options.driver;
+  GDALDatasetH ds = out.dataset;
+  if (job.can_create) {
+    GDALFlushCache(ds);
+    out.dataset = nullptr;
+    GDALClose(ds);
+    if (job.errors.failed()) throw job.gdal_error("closing the " + name + " raster");
+  } else {
+    GDALFlushCache(ds);
+    if (job.errors.failed()) throw job.gdal_error("writing the staging raster");
+    CopyProgress ctx{&job.options.progress};
+    out.created = !out.existed;
+    GDALDatasetH copy = GDALCreateCopy(job.driver, job.path.c_str(), ds, FALSE, job.co.List(), copy_progress, &ctx);
+    if (copy != nullptr) out.created = true;
+    if (ctx.interrupted) {
+      if (copy != nullptr) GDALClose(copy);
+      throw Interrupted();
+    }
+    if (copy == nullptr || job.errors.failed()) {
+      if (copy != nullptr) GDALClose(copy);
+      throw job.gdal_error("copying to " + name);
+    }
+    GDALClose(copy);
+    if (job.errors.failed()) throw job.gdal_error("closing the " + name + " raster");
+    out.dataset = nullptr;
+    GDALClose(ds);
+    if (!out.staging_path.empty()) VSIUnlink(out.staging_path.c_str());
+    out.staging_path.clear();
+    job.errors.take();  // the staging copy's own messages do not concern the destination
+  }
+}
+
+}  // namespace
+
 RasterWritten write_raster(const std::string& path, const CellLabelSource& labels, const sites::SiteTable& table,
                            const RasterOptions& options) {
   const int level = labels.level();
@@ -478,208 +725,20 @@ RasterWritten write_raster(const std::string& path, const CellLabelSource& label
 
   if (GDALGetDriverCount() == 0) GDALAllRegister();
   gdal::ErrorCapture errors(gdal::ErrorCapture::Warnings::pass_on);
-  const std::string& name = options.driver;
-  GDALDriverH driver = GDALGetDriverByName(name.c_str());
-  if (driver == nullptr) throw WriteError(path + ": unknown raster driver '" + name + "' (see --formats)");
-  if (GDALGetMetadataItem(driver, GDAL_DCAP_RASTER, nullptr) == nullptr) {
-    throw WriteError(path + ": driver " + name + " does not write rasters");
-  }
+  GDALDriverH driver = raster_driver(path, options, type);
   const bool can_create = GDALGetMetadataItem(driver, GDAL_DCAP_CREATE, nullptr) != nullptr;
-  const bool can_copy = GDALGetMetadataItem(driver, GDAL_DCAP_CREATECOPY, nullptr) != nullptr;
-  if (!can_create && !can_copy) throw WriteError(path + ": driver " + name + " cannot create files");
-  const char* types = GDALGetMetadataItem(driver, GDAL_DMD_CREATIONDATATYPES, nullptr);
-  if (!has_token(types, GDALGetDataTypeName(type))) {
-    throw WriteError(path + ": driver " + name + " cannot hold " + GDALGetDataTypeName(type) + " bands (it creates " +
-                     types + ")" + (options.data_type.empty() ? "; -ot names another type, if the values fit it" : "") +
-                     "; use GTiff or another format");
-  }
-
-  CPLStringList co;
-  for (const auto& option : options.creation_options) co.AddString(option.c_str());
-  if (EQUAL(name.c_str(), "GTiff")) {
-    // Measured at level 11 (135 000 sites, 2 cores): DEFLATE at its default ZLEVEL 6, pixel
-    // interleaved, single-threaded took 28 s; ZLEVEL=1, band interleaved, compressing on all
-    // cores 5 s, and the file is 5% smaller (each band compresses on its own).
-    if (co.FetchNameValue("TILED") == nullptr) co.SetNameValue("TILED", "YES");
-    if (co.FetchNameValue("COMPRESS") == nullptr) {
-      co.SetNameValue("COMPRESS", "DEFLATE");
-      if (co.FetchNameValue("ZLEVEL") == nullptr) co.SetNameValue("ZLEVEL", "1");
-    }
-    if (co.FetchNameValue("BIGTIFF") == nullptr) co.SetNameValue("BIGTIFF", "IF_SAFER");
-    if (co.FetchNameValue("INTERLEAVE") == nullptr) co.SetNameValue("INTERLEAVE", "BAND");
-    if (co.FetchNameValue("NUM_THREADS") == nullptr) co.SetNameValue("NUM_THREADS", "ALL_CPUS");
-  }
-
-  const auto gdal_error = [&](const std::string& what) {
-    const std::string gdal = errors.take();
-    return WriteError(path + ": " + what + ": " + (gdal.empty() ? "no message from GDAL" : gdal));
-  };
-  const auto band_label = [](int b) { return "band " + std::to_string(b + 1) + " (" + kBandNames[b] + ")"; };
+  const RasterJob job{path, options, errors, level, size, bands, type, type_bytes, nodata, strip_budget, driver, can_create,
+                      creation_options(options)};
 
   RasterWritten written;
   Output out;
   out.driver = driver;
   out.path = path;
   try {
-    // --- the dataset written strip by strip: the destination, or a staging copy ---------------
-    const std::uint64_t total_bytes =
-        static_cast<std::uint64_t>(size.width) * static_cast<std::uint64_t>(size.height) * bands * type_bytes;
-    VSIStatBufL stat;
-    out.existed = VSIStatL(path.c_str(), &stat) == 0;
-    if (can_create) {
-      out.created = !out.existed;  // what a failed Create leaves behind is ours, an older file is not
-      out.dataset = GDALCreate(driver, path.c_str(), size.width, size.height, bands, type, co.List());
-      if (out.dataset != nullptr) out.created = true;
-      if (out.dataset == nullptr || errors.failed()) throw gdal_error("cannot create " + name + " raster");
-    } else if (total_bytes <= strip_budget || is_vsi(path)) {
-      out.dataset = GDALCreate(GDALGetDriverByName("MEM"), "", size.width, size.height, bands, type, nullptr);
-      if (out.dataset == nullptr || errors.failed()) throw gdal_error("cannot create the in-memory staging raster");
-    } else {
-      // Too large for memory: a compressed GeoTIFF beside the destination.
-      out.staging_path = path + ".staging.tif";
-      const char* staging_co[] = {"TILED=YES", "COMPRESS=DEFLATE", "BIGTIFF=YES", nullptr};
-      out.dataset = GDALCreate(GDALGetDriverByName("GTiff"), out.staging_path.c_str(), size.width, size.height, bands,
-                               type, const_cast<char**>(staging_co));
-      if (out.dataset == nullptr || errors.failed()) throw gdal_error("cannot create staging raster " + out.staging_path);
-    }
-    GDALDatasetH ds = out.dataset;
-
-    // --- description: metadata, band names, nodata, georeferencing -----------------------------
-    const bool qtm = options.layout == RasterOptions::Layout::qtm;
-    auto check = [&](CPLErr err, const std::string& what) {
-      if (err != CE_None || errors.failed()) throw gdal_error(what);
-    };
-    check(GDALSetMetadataItem(ds, "QTM_LEVEL", std::to_string(level).c_str(), nullptr), "setting metadata QTM_LEVEL");
-    check(GDALSetMetadataItem(ds, "QTM_LAYOUT", qtm ? "octant_row_col" : "lonlat", nullptr),
-          "setting metadata QTM_LAYOUT");
-    if (qtm) {
-      // Not georeferenced: say so, and how a pixel maps to a cell.
-      check(GDALSetMetadataItem(ds, "QTM_GEOREFERENCED", "NO", nullptr), "setting metadata QTM_GEOREFERENCED");
-      check(GDALSetMetadataItem(ds, "QTM_PIXEL",
-                                "column j, row octant * 2^QTM_LEVEL + i for cell (octant, i, j); nodata where j > 2i",
-                                nullptr),
-            "setting metadata QTM_PIXEL");
-    } else {
-      double transform[6] = {-180.0, size.x_resolution, 0.0, 90.0, 0.0, -size.y_resolution};
-      check(GDALSetGeoTransform(ds, transform), "setting the geotransform");
-      OGRSpatialReferenceH srs = OSRNewSpatialReference(nullptr);
-      OSRSetAxisMappingStrategy(srs, OAMS_TRADITIONAL_GIS_ORDER);
-      const OGRErr imported = OSRImportFromEPSG(srs, 4326);
-      const CPLErr set = imported == OGRERR_NONE ? GDALSetSpatialRef(ds, srs) : CE_Failure;
-      OSRDestroySpatialReference(srs);
-      check(set, "setting the SRS EPSG:4326");
-    }
-    for (int b = 0; b < bands; ++b) {
-      GDALRasterBandH band = GDALGetRasterBand(ds, b + 1);
-      GDALSetDescription(band, kBandNames[b]);
-      if (errors.failed()) throw gdal_error(band_label(b) + ": setting the description");
-      check(GDALSetRasterNoDataValue(band, nodata), band_label(b) + ": setting nodata");
-      if (b == 2) check(GDALSetRasterUnitType(band, "m"), band_label(b) + ": setting the unit");
-    }
-
-    // --- the pixels, strip by strip ---------------------------------------------------------------
-    // Strips of whole rows of blocks where the budget allows (each block written once, then
-    // flushed from GDAL's cache); else at least one row, and the blocks flushed when their row
-    // of blocks is complete.
-    int block_w = 0, block_h = 0;
-    GDALGetBlockSize(GDALGetRasterBand(ds, 1), &block_w, &block_h);
-    block_h = std::max(1, block_h);
-    const std::uint64_t row_bytes = static_cast<std::uint64_t>(size.width) * strip_bytes_per_pixel(options.layout, bands, type_bytes);
-    std::uint64_t strip = std::max<std::uint64_t>(1, strip_budget / row_bytes);
-    if (strip >= static_cast<std::uint64_t>(block_h)) {
-      strip = strip / block_h * block_h;
-    } else {
-      while (block_h % strip != 0) --strip;  // strips that end where rows of blocks end
-    }
-    strip = std::min<std::uint64_t>(strip, static_cast<std::uint64_t>(size.height));
-    const int strip_rows = static_cast<int>(strip);
-
-    std::vector<std::atomic<std::uint8_t>> seen(fid_of.size());
-    for (auto& flag : seen) flag.store(0, std::memory_order_relaxed);
-    Filler filler{level, options.layout, size, bands, type, nodata, labels, fid_of, seen, thread_count(0), {}, {-1}, {-1}, 0};
-    StripBuffer buffer{type, {}};
-    buffer.bytes.resize(strip * size.width * bands * type_bytes);
-    const double write_share = can_create ? 1.0 : 0.5;
-    if (options.progress && !options.progress(0.0, kStage)) throw Interrupted();
-    // QTMV_TRACE=write: the strips' totals (labels and pixels, GDAL's writes).
-    double fill_seconds = 0, io_seconds = 0;
-    int strips = 0;
-    for (int y0 = 0; y0 < size.height; y0 += strip_rows) {
-      const int rows = std::min(strip_rows, size.height - y0);
-      double t = now_seconds();
-      buffer.fill(filler, y0, rows);
-      fill_seconds += now_seconds() - t;
-      t = now_seconds();
-      ++strips;
-      if (filler.bad_site >= 0) {
-        throw WriteError(path + ": band 1 (site_fid): site id " + std::to_string(filler.bad_site.load()) +
-                         " is not in the site table (" + std::to_string(fid_of.size()) + " sites)");
-      }
-      if (filler.bad_distance >= 0) {
-        char metres[64];
-        std::snprintf(metres, sizeof metres, "%.1f", static_cast<double>(filler.bad_distance_value));
-        throw WriteError(path + ": band 3 (distance_m): cell " + std::to_string(filler.bad_distance.load()) +
-                         " is " + metres + " m from its site, outside " + GDALGetDataTypeName(type) + " (" +
-                         range_text(type) + "; distances are rounded to whole metres): choose a wider -ot, e.g. " +
-                         "UInt32, Int32 or Float32");
-      }
-      const std::size_t band_space = static_cast<std::size_t>(size.width) * rows;
-      for (int b = 0; b < bands; ++b) {
-        void* data = buffer.bytes.data() + b * band_space * type_bytes;
-        const CPLErr err =
-            GDALRasterIO(GDALGetRasterBand(ds, b + 1), GF_Write, 0, y0, size.width, rows, data, size.width, rows, type, 0, 0);
-        if (err != CE_None || errors.failed()) {
-          throw gdal_error(band_label(b) + ": writing rows " + std::to_string(y0) + "-" + std::to_string(y0 + rows - 1));
-        }
-      }
-      // A complete row of blocks leaves GDAL's cache now: its memory follows the strip.
-      if ((y0 + rows) % block_h == 0 || y0 + rows == size.height) {
-        for (int b = 0; b < bands; ++b) {
-          const CPLErr err = GDALFlushRasterCache(GDALGetRasterBand(ds, b + 1));
-          if (err != CE_None || errors.failed()) {
-            throw gdal_error(band_label(b) + ": writing rows up to " + std::to_string(y0 + rows - 1));
-          }
-        }
-      }
-      io_seconds += now_seconds() - t;
-      if (options.progress && !options.progress(write_share * (y0 + rows) / size.height, kStage)) {
-        throw Interrupted();
-      }
-    }
-    written.site_seen.resize(seen.size());
-    for (std::size_t k = 0; k < seen.size(); ++k) written.site_seen[k] = seen[k].load(std::memory_order_relaxed);
-    trace_printf(TraceStage::write, "raster %d strips of %d rows: labels and pixels %.3f s, GDAL writes %.3f s", strips,
-                 strip_rows, fill_seconds, io_seconds);
-
-    // --- close (GDAL 3.6's GDALClose returns nothing: the error state tells) --------------------
-    if (can_create) {
-      GDALFlushCache(ds);
-      out.dataset = nullptr;
-      GDALClose(ds);
-      if (errors.failed()) throw gdal_error("closing the " + name + " raster");
-    } else {
-      GDALFlushCache(ds);
-      if (errors.failed()) throw gdal_error("writing the staging raster");
-      CopyProgress ctx{&options.progress};
-      out.created = !out.existed;
-      GDALDatasetH copy = GDALCreateCopy(driver, path.c_str(), ds, FALSE, co.List(), copy_progress, &ctx);
-      if (copy != nullptr) out.created = true;
-      if (ctx.interrupted) {
-        if (copy != nullptr) GDALClose(copy);
-        throw Interrupted();
-      }
-      if (copy == nullptr || errors.failed()) {
-        if (copy != nullptr) GDALClose(copy);
-        throw gdal_error("copying to " + name);
-      }
-      GDALClose(copy);
-      if (errors.failed()) throw gdal_error("closing the " + name + " raster");
-      out.dataset = nullptr;
-      GDALClose(ds);
-      if (!out.staging_path.empty()) VSIUnlink(out.staging_path.c_str());
-      out.staging_path.clear();
-      errors.take();  // the staging copy's own messages do not concern the destination
-    }
+    create_dataset(job, out);
+    describe_dataset(job, out.dataset);
+    written.site_seen = write_strips(job, out.dataset, labels, fid_of);
+    close_dataset(job, out);
   } catch (...) {
     out.remove_all();
     errors.take();  // what the clean-up said would only confuse

@@ -1,0 +1,59 @@
+// The cells layer (vector_writer.hpp): every cell of the level as a Polygon, from the cells'
+// labels tile by tile.
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <ogrsf_frmts.h>
+
+#include "write/vector_layer_writers.hpp"
+
+namespace qtmv::write {
+
+using grid::Code;
+
+void write_cells(VectorDatasetWriter& w, const LayerInput& in, double work) {
+  const int level = in.outlines.level;
+  OGRLayer* layer = w.begin_layer("cells", wkbPolygon, work, /*per_cell=*/true);
+  OGRFieldDefn code_field("code", OFTInteger64);
+  OGRFieldDefn fid_field("site_fid", OFTInteger64);
+  OGRFieldDefn distance_field("distance_m", OFTReal);
+  OGRFieldDefn boundary_field("boundary", OFTInteger);
+  boundary_field.SetSubType(OFSTBoolean);
+  std::vector<int> fields{w.add_field(code_field), w.add_field(fid_field), w.add_field(distance_field),
+                          w.add_field(boundary_field)};
+  if (in.composite()) {
+    OGRFieldDefn layer_field("site_layer", OFTString);
+    fields.push_back(w.add_field(layer_field));
+  }
+  w.begin_features();
+  CellRows rows(w, layer, fields);
+  const Code cells = grid::cell_count(level);
+  Code next = 0;
+  in.cell_tiles([&](const CellTile& tile) {
+    if (tile.first != next) throw std::logic_error("write_vector: the cells layer's tiles are not in code order");
+    for (std::uint64_t k = 0; k < tile.count; ++k) {
+      const Code code = tile.first + k;
+      const std::int32_t site = tile.site[k];
+      if (site < 0 || site >= in.site_count) {
+        throw std::invalid_argument("write_vector: label " + std::to_string(site) + " of cell " + std::to_string(code) +
+                                    " is not a site id (0 to " + std::to_string(in.site_count - 1) + ")");
+      }
+      const RowValue values[] = {
+          RowValue::of(static_cast<std::int64_t>(code)),
+          fid_value(in.table.sites[static_cast<std::size_t>(site)].fid),
+          tile.distance_m ? RowValue::of(static_cast<double>(tile.distance_m[k])) : RowValue{},
+          RowValue::of(std::int64_t{tile.boundary[k] != 0 ? 1 : 0}),
+          in.composite() ? in.layer_of(static_cast<std::size_t>(site)) : RowValue{}};
+      rows.add(code, level, values);
+      if ((code + 1) % kProgressEvery == 0) w.layer_progress(static_cast<double>(code + 1), static_cast<double>(cells));
+    }
+    next = tile.first + tile.count;
+  });
+  if (next != cells) throw std::logic_error("write_vector: the cells layer's tiles end before the last cell");
+  rows.finish();
+  w.end_layer();
+}
+
+}  // namespace qtmv::write

@@ -1,0 +1,279 @@
+// The regions layer (vector_writer.hpp): one MultiPolygon per site, traced and measured a block
+// at a time on all cores while the block before is written.
+#include <algorithm>
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <cpl_string.h>
+#include <ogrsf_frmts.h>
+
+#include "common/first_exception.hpp"
+#include "common/openmp_threads.hpp"
+#include "common/trace.hpp"
+#include "write/region_tracer.hpp"
+#include "write/vector_layer_writers.hpp"
+#include "write/work_ahead.hpp"
+
+namespace qtmv::write {
+
+namespace {
+
+constexpr std::size_t kRegionBlock = 2048;  // regions traced at once
+
+OGRLinearRing* make_ring(const LonLat* points, std::size_t n) {
+  auto* ring = new OGRLinearRing;
+  ring->setNumPoints(static_cast<int>(n + 1), FALSE);
+  for (std::size_t k = 0; k < n; ++k) ring->setPoint(static_cast<int>(k), points[k].lon, points[k].lat);
+  ring->setPoint(static_cast<int>(n), points[0].lon, points[0].lat);
+  return ring;
+}
+
+OGRMultiPolygon* make_multipolygon(const Region& region) {
+  auto* multi = new OGRMultiPolygon;
+  for (const RegionPolygon& part : region) {
+    auto* polygon = new OGRPolygon;
+    polygon->addRingDirectly(make_ring(part.shell.data(), part.shell.size()));
+    for (const auto& hole : part.holes) polygon->addRingDirectly(make_ring(hole.data(), hole.size()));
+    multi->addGeometryDirectly(polygon);
+  }
+  return multi;
+}
+
+/// A region as the GeoPackage blob of its MultiPolygon (what make_multipolygon gives OGR).
+void region_geometry(const Region& region, GpkgGeometry& out) {
+  out.begin(GpkgGeometry::kMultiPolygon, static_cast<std::uint32_t>(region.size()));
+  for (const RegionPolygon& part : region) {
+    out.polygon(static_cast<std::uint32_t>(1 + part.holes.size()));
+    out.ring(part.shell.data(), part.shell.size());
+    for (const auto& hole : part.holes) out.ring(hole.data(), hole.size());
+  }
+  out.end();
+}
+
+/// A name for one of our fields that no source field has (compared without case).
+std::string unique_field_name(const std::string& name, const OGRFeatureDefn* source) {
+  const auto taken = [&](const std::string& candidate) { return source && source->GetFieldIndex(candidate.c_str()) >= 0; };
+  if (!taken(name)) return name;
+  std::string candidate = "qtmv_" + name;
+  for (int k = 2; taken(candidate); ++k) candidate = "qtmv_" + name + "_" + std::to_string(k);
+  return candidate;
+}
+
+/// Whether the sources' values can go into direct GeoPackage rows exactly as OGR would write
+/// them: every field of `fields` (the union) Integer, Integer64, Real or String without a subtype
+/// (OGR clamps Boolean and Int16 values, rounds Float32 ones) or a default value (which an unset
+/// field would take), of the same type in every layer that has it (`source_index[k][u]`: layer
+/// k's field for union field u, or -1), and every string valid UTF-8 within its field's width
+/// (GDAL warns and mends such values).
+bool plain_source_values(const LayerInput& in, const OGRFeatureDefn& fields, const std::vector<std::vector<int>>& source_index) {
+  for (int u = 0; u < fields.GetFieldCount(); ++u) {
+    const OGRFieldDefn* f = fields.GetFieldDefn(u);
+    const OGRFieldType type = f->GetType();
+    if ((type != OFTInteger && type != OFTInteger64 && type != OFTReal && type != OFTString) ||
+        f->GetSubType() != OFSTNone || f->GetDefault() != nullptr) {
+      return false;
+    }
+    for (std::size_t k = 0; k < in.table.source_count(); ++k) {
+      const int sf = source_index[k][static_cast<std::size_t>(u)];
+      if (sf < 0) continue;
+      const OGRFieldDefn* own = in.table.definition(k)->GetFieldDefn(sf);
+      if (own->GetType() != type || own->GetSubType() != OFSTNone) return false;
+    }
+  }
+  for (const sites::SiteRecord& site : in.table.sites) {
+    if (!site.attributes) continue;
+    for (int u = 0; u < fields.GetFieldCount(); ++u) {
+      const OGRFieldDefn* f = fields.GetFieldDefn(u);
+      const int sf = source_index[site.layer][static_cast<std::size_t>(u)];
+      if (f->GetType() != OFTString || sf < 0 || !site.attributes->IsFieldSetAndNotNull(sf)) continue;
+      const char* text = site.attributes->GetRawFieldRef(sf)->String;
+      if (!CPLIsUTF8(text, -1) || (f->GetWidth() > 0 && CPLStrlenUTF8(text) > f->GetWidth())) return false;
+    }
+  }
+  return true;
+}
+
+/// Field `sf` of a site's source feature as a row value (plain_source_values' types only).
+RowValue source_value(const OGRFeature* feature, int sf) {
+  if (sf < 0 || !feature || !feature->IsFieldSetAndNotNull(sf)) return {};
+  switch (feature->GetFieldDefnRef(sf)->GetType()) {
+    case OFTInteger:
+    case OFTInteger64: return RowValue::of(static_cast<std::int64_t>(feature->GetFieldAsInteger64(sf)));
+    case OFTReal: return RowValue::of(feature->GetFieldAsDouble(sf));
+    default: return {RowValue::Kind::text, 0, 0, feature->GetRawFieldRef(sf)->String};
+  }
+}
+
+/// A block of regions traced ahead of writing: their rings for OGR features, or their GeoPackage
+/// blobs for direct rows.
+struct TracedRegions {
+  std::vector<Region> regions;
+  std::vector<GpkgGeometry> geometries;
+};
+
+/// The regions layer's fields as made: the source's, then ours.
+struct RegionFields {
+  // The source's fields first, as ogr2ogr would copy them; of several source layers (composite
+  // sites), the union of their fields by name (a name's first layer gives its type), and then
+  // site_layer, the layer of each site.
+  OGRFeatureDefn union_fields{"fields"};
+  // Per source layer: its fields' places in the union (one empty map for a table without a
+  // source), and the other way round: the layer's field for each union field (or -1).
+  std::vector<std::vector<int>> field_maps, source_index;
+  std::vector<int> written;  // the layer's field for each union field
+  int layer_index = -1, fid_index = -1, cells_index = -1, area_index = -1;  // ours (site_layer: composite only)
+};
+
+/// Adds the fields to the regions layer just begun in `w`.
+void add_region_fields(VectorDatasetWriter& w, const LayerInput& in, RegionFields& out) {
+  OGRFeatureDefn& fields = out.union_fields;
+  std::vector<std::vector<int>>& field_maps = out.field_maps;
+  std::vector<std::vector<int>>& source_index = out.source_index;
+  std::vector<int>& written = out.written;
+  const std::size_t source_layers = std::max<std::size_t>(1, in.table.source_count());
+  field_maps.resize(source_layers);
+  source_index.resize(source_layers);
+  for (std::size_t k = 0; k < in.table.source_count(); ++k) {
+    const OGRFeatureDefn* source = in.table.definition(k);
+    for (int f = 0; source && f < source->GetFieldCount(); ++f) {
+      int u = fields.GetFieldIndex(source->GetFieldDefn(f)->GetNameRef());
+      if (u < 0) {
+        fields.AddFieldDefn(source->GetFieldDefn(f));
+        u = fields.GetFieldCount() - 1;
+      }
+      field_maps[k].push_back(u);
+    }
+  }
+  for (std::size_t k = 0; k < source_layers; ++k) {
+    source_index[k].assign(static_cast<std::size_t>(fields.GetFieldCount()), -1);
+    for (std::size_t f = 0; f < field_maps[k].size(); ++f) source_index[k][static_cast<std::size_t>(field_maps[k][f])] = static_cast<int>(f);
+  }
+  written.resize(static_cast<std::size_t>(fields.GetFieldCount()));
+  for (int u = 0; u < fields.GetFieldCount(); ++u) {
+    OGRFieldDefn copy(fields.GetFieldDefn(u));
+    written[static_cast<std::size_t>(u)] = w.add_field(copy);
+  }
+  for (auto& map : field_maps) {
+    for (int& u : map) u = written[static_cast<std::size_t>(u)];
+  }
+  if (in.composite()) {
+    OGRFieldDefn layer_field(unique_field_name("site_layer", &fields).c_str(), OFTString);
+    out.layer_index = w.add_field(layer_field);
+  }
+  const OGRFeatureDefn* source = &fields;
+  OGRFieldDefn fid_field(unique_field_name("site_fid", source).c_str(), OFTInteger64);
+  OGRFieldDefn cells_field(unique_field_name("cells", source).c_str(), OFTInteger64);
+  OGRFieldDefn area_field(unique_field_name("area_m2", source).c_str(), OFTReal);
+  area_field.SetWidth(24);  // up to 5.1e14 with decimals to spare where widths count (shapefiles)
+  area_field.SetPrecision(3);
+  out.fid_index = w.add_field(fid_field);
+  out.cells_index = w.add_field(cells_field);
+  out.area_index = w.add_field(area_field);
+}
+
+}  // namespace
+
+void write_regions(VectorDatasetWriter& w, const LayerInput& in, double work, std::vector<PairLength>* pair_lengths) {
+  OGRLayer* layer = w.begin_layer("regions", wkbMultiPolygon, work);
+
+  RegionFields fields;
+  add_region_fields(w, in, fields);
+
+  StepTrace trace(TraceStage::write);
+  const RingVertices vertices = in.all_ring_vertices ? RingVertices::all : RingVertices::corners;
+  // The areas are summed in the tracer's pass over the outline cells, edge by edge.
+  std::string device_problem;
+  RegionAreaSums area_sums(in.site_count, pair_lengths != nullptr, in.geodesic_device, &device_problem);
+  if (!device_problem.empty()) {
+    qtmv::tell(in.messages, qtmv::Severity::warning,
+         "the regions' geodesics are solved on the CPU instead of cuda:" + std::to_string(in.geodesic_device) + " (" +
+             device_problem + ")");
+  }
+  bool gathered = false;  // RegionTracer's steps, in order: gather (and measure), bucket
+  const auto tracer_step = [&](double f) {
+    trace(gathered ? "regions' edges bucketed" : "regions' edges gathered, measured");
+    gathered = true;
+    w.layer_progress(0.4 * f, 1.0);
+  };
+  const RegionTracer tracer(in.outlines, vertices, tracer_step, &area_sums);
+  const std::vector<double> areas = area_sums.areas(in.outlines.cells_per_site);
+  if (pair_lengths) *pair_lengths = area_sums.pair_lengths();
+  trace("regions' areas");
+
+  w.begin_features();
+  // Direct GeoPackage rows: the union's fields, then site_layer, site_fid, cells, area_m2.
+  std::vector<int> row_fields = fields.written;
+  if (fields.layer_index >= 0) row_fields.push_back(fields.layer_index);
+  row_fields.insert(row_fields.end(), {fields.fid_index, fields.cells_index, fields.area_index});
+  const std::unique_ptr<GpkgRows> direct =
+      plain_source_values(in, fields.union_fields, fields.source_index) ? w.direct_rows(row_fields) : nullptr;
+
+  // Blocks of regions traced (and made blobs of, for direct rows) on all cores on a helper thread
+  // while this one writes the block before: two blocks held, not every region's rings.
+  double link_seconds = 0;  // on the helper thread (for the trace)
+  const auto link = [&](std::size_t first, std::size_t last) {
+    const auto start = std::chrono::steady_clock::now();
+    TracedRegions block;
+    block.regions.resize(last - first);
+    if (direct) block.geometries.resize(last - first);
+    FirstException failure;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(thread_count(0))
+    for (std::int64_t s = static_cast<std::int64_t>(first); s < static_cast<std::int64_t>(last); ++s) {
+      failure.run([&] {
+        Region& region = block.regions[static_cast<std::size_t>(s) - first];
+        region = tracer.trace(static_cast<std::int32_t>(s));
+        if (direct) {
+          region_geometry(region, block.geometries[static_cast<std::size_t>(s) - first]);
+          region = {};
+        }
+      });
+    }
+    failure.rethrow();
+    link_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return block;
+  };
+  // A row's values in the order of row_fields: the source's (direct rows only; OGR copies them
+  // itself), then ours.
+  std::vector<RowValue> values(row_fields.size());
+  const auto write = [&](std::size_t first, std::size_t last, const TracedRegions& block) {
+    for (std::size_t s = first; s < last; ++s) {
+      const sites::SiteRecord& site = in.table.sites[s];
+      std::size_t v = fields.written.size();
+      if (fields.layer_index >= 0) values[v++] = in.layer_of(s);
+      values[v++] = fid_value(site.fid);
+      values[v++] = RowValue::of(static_cast<std::int64_t>(in.outlines.cells_per_site[s]));
+      values[v++] = RowValue::of(areas[s]);
+      if (direct) {
+        const std::vector<int>& index = fields.source_index[site.layer];
+        for (std::size_t u = 0; u < fields.written.size(); ++u) values[u] = source_value(site.attributes.get(), index[u]);
+        w.write(*direct, block.geometries[s - first], values.data());
+        continue;
+      }
+      FeaturePtr feature(OGRFeature::CreateFeature(layer->GetLayerDefn()));
+      const std::vector<int>& field_map = fields.field_maps[site.layer];
+      if (site.attributes && !field_map.empty()) {
+        if (feature->SetFieldsFrom(site.attributes.get(), field_map.data(), TRUE) != OGRERR_NONE) {
+          w.fail("cannot copy the attributes of site " + std::to_string(s));
+        }
+      }
+      for (std::size_t k = fields.written.size(); k < row_fields.size(); ++k) set_value(*feature, row_fields[k], values[k]);
+      feature->SetGeometryDirectly(make_multipolygon(block.regions[s - first]));  // empty for a site without cells
+      w.write(*feature);
+    }
+    w.layer_progress(0.4 + 0.6 * static_cast<double>(last) / static_cast<double>(in.site_count), 1.0);
+  };
+  work_ahead(static_cast<std::size_t>(in.site_count), kRegionBlock, link, write);
+  trace("regions traced and written");
+  trace.note("of which tracing", link_seconds);
+  if (direct) {
+    w.guard([&] { direct->finish(); });
+    trace("regions' R-tree filled");
+  }
+  w.end_layer();
+  trace("regions layer ended");
+}
+
+}  // namespace qtmv::write

@@ -1,0 +1,141 @@
+// The vector dataset being written (vector_writer.hpp): its layers, fields, transactions,
+// progress and errors, shared by the layer writers; and the rows of a per-cell layer.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <cpl_string.h>
+#include <gdal_priv.h>
+#include <ogr_spatialref.h>
+#include <ogrsf_frmts.h>
+
+#include "gdal/error_capture.hpp"
+#include "grid/qtm.hpp"
+#include "sites/site_table.hpp"
+#include "write/cell_labels.hpp"
+#include "write/gpkg_rows.hpp"
+
+namespace qtmv::write {
+
+constexpr std::uint64_t kProgressEvery = 1024;  // features between progress calls
+
+struct DatasetCloser {
+  void operator()(GDALDataset* dataset) const { GDALClose(dataset); }
+};
+using DatasetPtr = std::unique_ptr<GDALDataset, DatasetCloser>;
+
+using sites::FeaturePtr;
+
+/// A site's FID as a field value: null for OGRNullFID.
+RowValue fid_value(std::int64_t fid);
+
+void set_value(OGRFeature& feature, int field, const RowValue& value);
+
+/// The dataset being written: layers, fields, transactions, progress and errors.
+class VectorDatasetWriter {
+ public:
+  VectorDatasetWriter(const std::string& path, const VectorOptions& options, gdal::ErrorCapture& trap,
+                      double total_work);
+
+  void open(GDALDriver* driver);
+
+  VectorDatasetWriter(const VectorDatasetWriter&) = delete;
+  VectorDatasetWriter& operator=(const VectorDatasetWriter&) = delete;
+
+  /// Left without close(): a failure or an interrupt, and the file will be removed. Nothing of
+  /// it needs finishing (a GeoPackage would build its deferred spatial index at close, which
+  /// takes many seconds on millions of features), so drop the open transaction and ask GDAL
+  /// not to flush.
+  ~VectorDatasetWriter();
+
+  /// Closes the dataset; throws if GDAL reported any error meanwhile.
+  void close();
+
+  /// Creates a layer; `work` is its share of the progress (features it will write, about).
+  /// `per_cell`: a layer of millions of cell polygons (boundary_cells, cells), which gets no
+  /// GeoPackage spatial index unless the layer options ask for one (see the header).
+  OGRLayer* begin_layer(const char* name, OGRwkbGeometryType type, double work, bool per_cell = false);
+
+  /// Adds a field; returns its index in the layer (drivers may launder its name). A type the
+  /// driver does not list (a list in a shapefile) becomes String with a warning, as ogr2ogr does:
+  /// OGRFeature::SetFieldsFrom then writes the values as text.
+  int add_field(OGRFieldDefn& field);
+
+  /// Starts writing features (after the fields are made).
+  void begin_features();
+
+  void write(OGRFeature& feature);
+
+  /// Rows straight into the current layer's GeoPackage table (see gpkg_rows.hpp); null where
+  /// that does not apply.
+  std::unique_ptr<GpkgRows> direct_rows(const std::vector<int>& fields);
+
+  /// Adds a row to `rows` (direct rows of the current layer) and books it.
+  void write(GpkgRows& rows, const GpkgGeometry& geometry, const RowValue* values);
+
+  /// Runs `work` (direct rows), its WriteError named as our own failures are.
+  template <class Work>
+  auto guard(Work&& work) -> decltype(work()) {
+    try {
+      return work();
+    } catch (const WriteError& e) {
+      fail(e.what());
+    }
+  }
+
+  /// Books one row written (by write() or direct rows): transactions, progress, interrupts.
+  void count_row();
+
+  /// Reports progress within the layer: `done` of `count` features.
+  void layer_progress(double done, double count);
+
+  void end_layer();
+
+  /// The last report, once the dataset is closed (too late to interrupt).
+  void report_done();
+
+  [[noreturn]] void fail(const std::string& what) const;
+
+ private:
+  void check(const std::string& what) const;
+  void start_transaction();
+  void commit();
+  void report();
+
+  std::string path_;
+  const VectorOptions& options_;
+  gdal::ErrorCapture& trap_;
+  OGRSpatialReference srs_;
+  DatasetPtr dataset_;
+  OGRLayer* layer_ = nullptr;
+  std::string layer_name_, driver_name_;
+  CPLStringList field_types_;  ///< the driver's GDAL_DMD_CREATIONFIELDDATATYPES (empty: not stated)
+  bool transactions_ = false, transaction_open_ = false;
+  std::uint64_t in_transaction_ = 0, since_progress_ = 0;
+  double total_work_, work_done_ = 0, layer_work_ = 0, layer_done_ = 0;
+};
+
+/// Where a per-cell layer's polygons go: straight into its GeoPackage table (GpkgRows), or
+/// else through OGR, one reused feature at a time. Values come in the order of `fields`.
+class CellRows {
+ public:
+  CellRows(VectorDatasetWriter& w, OGRLayer* layer, std::vector<int> fields);
+
+  /// Adds the polygon of cell `code` of QTM level `level`, with its values.
+  void add(grid::Code code, int level, const RowValue* values);
+
+  /// After the last add(), before the layer ends.
+  void finish();
+
+ private:
+  VectorDatasetWriter& w_;
+  std::vector<int> fields_;
+  std::unique_ptr<GpkgRows> direct_;
+  GpkgGeometry direct_polygon_;  // the cell's blob, for direct rows
+  FeaturePtr feature_;
+};
+
+}  // namespace qtmv::write

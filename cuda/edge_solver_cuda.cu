@@ -1,28 +1,25 @@
 // EdgeSolver's CUDA back end: the deterministic geodesic of measure/geodesic_math.hpp, compiled
 // without FMA contraction (qtmv::grid adds --fmad=false), one edge a thread, so that a batch's
-// measures equal the CPU's bit for bit. This file only launches and manages memory.
+// measures equal the CPU's bit for bit. This file only launches; its memory is RAII
+// (device_memory.cuh: DeviceArray, PinnedBuffer).
 #include <cuda_runtime.h>
 
+#include <algorithm>
+#include <array>
 #include <condition_variable>
 #include <cstring>
 #include <mutex>
-#include <stdexcept>
-#include <string>
-#include <vector>
 
-#include "cuda_error.hpp"
+#include "device_memory.cuh"
 #include "measure/edge_solver_cuda.hpp"
 
 namespace qtmv::measure::cuda {
 
 namespace {
 
-/// Throws std::runtime_error naming the failed call and its place in the source.
-void check(cudaError_t status, const char* call, const char* file, int line) {
-  if (status == cudaSuccess) return;
-  throw std::runtime_error(cuda_error::describe(status, call, file, line));
-}
-#define QTMV_CUDA_CHECK(call) check((call), #call, __FILE__, __LINE__)
+using device_memory::DeviceArray;
+using device_memory::FaultStep;
+using device_memory::PinnedBuffer;
 
 /// Streams, so that one host thread's copies overlap another's kernel.
 constexpr int kLanes = 4;
@@ -37,10 +34,10 @@ __global__ void solve_edges(Ellipsoid ellipsoid, const EdgeEnds* edges, std::siz
 /// device.
 struct Lane {
   cudaStream_t stream = nullptr;
-  EdgeEnds* host_edges = nullptr;
-  EdgeUnits* host_units = nullptr;
-  EdgeEnds* device_edges = nullptr;
-  EdgeUnits* device_units = nullptr;
+  PinnedBuffer host_edges;  ///< EdgeEnds
+  PinnedBuffer host_units;  ///< EdgeUnits
+  DeviceArray<EdgeEnds> device_edges;
+  DeviceArray<EdgeUnits> device_units;
   bool busy = false;
 };
 
@@ -50,20 +47,18 @@ struct EdgeLanes::State {
   int device = 0;
   Ellipsoid ellipsoid;
   std::size_t capacity = 0;
-  std::vector<Lane> lanes;
+  std::array<Lane, kLanes> lanes;
   std::mutex lock;
   std::condition_variable freed;
 
   ~State() {
-    // Teardown: errors are not reported (an earlier one was).
+    // Teardown: errors are not reported (an earlier one was). The buffers free themselves
+    // after this, on this device.
     (void)cudaSetDevice(device);
     for (Lane& lane : lanes) {
-      if (lane.stream) (void)cudaStreamSynchronize(lane.stream);
-      (void)cudaFreeHost(lane.host_edges);
-      (void)cudaFreeHost(lane.host_units);
-      (void)cudaFree(lane.device_edges);
-      (void)cudaFree(lane.device_units);
-      if (lane.stream) (void)cudaStreamDestroy(lane.stream);
+      if (!lane.stream) continue;
+      (void)cudaStreamSynchronize(lane.stream);
+      (void)cudaStreamDestroy(lane.stream);
     }
   }
 
@@ -96,13 +91,12 @@ EdgeLanes::EdgeLanes(int device, const Ellipsoid& ellipsoid, std::size_t capacit
   s.ellipsoid = ellipsoid;
   s.capacity = capacity;
   QTMV_CUDA_CHECK(cudaSetDevice(device));
-  s.lanes.resize(kLanes);
   for (Lane& lane : s.lanes) {
     QTMV_CUDA_CHECK(cudaStreamCreateWithFlags(&lane.stream, cudaStreamNonBlocking));
-    QTMV_CUDA_CHECK(cudaMallocHost(reinterpret_cast<void**>(&lane.host_edges), capacity * sizeof(EdgeEnds)));
-    QTMV_CUDA_CHECK(cudaMallocHost(reinterpret_cast<void**>(&lane.host_units), capacity * sizeof(EdgeUnits)));
-    QTMV_CUDA_CHECK(cudaMalloc(reinterpret_cast<void**>(&lane.device_edges), capacity * sizeof(EdgeEnds)));
-    QTMV_CUDA_CHECK(cudaMalloc(reinterpret_cast<void**>(&lane.device_units), capacity * sizeof(EdgeUnits)));
+    lane.host_edges.get(capacity * sizeof(EdgeEnds));
+    lane.host_units.get(capacity * sizeof(EdgeUnits));
+    lane.device_edges = DeviceArray<EdgeEnds>::plain(capacity, FaultStep::none);
+    lane.device_units = DeviceArray<EdgeUnits>::plain(capacity, FaultStep::none);
   }
 }
 
@@ -115,16 +109,20 @@ void EdgeLanes::solve(const EdgeEnds* edges, std::size_t count, EdgeUnits* out) 
     const std::size_t n = std::min(s.capacity, count - first);
     Lane& lane = s.take();
     try {
-      std::memcpy(lane.host_edges, edges + first, n * sizeof(EdgeEnds));
-      QTMV_CUDA_CHECK(
-          cudaMemcpyAsync(lane.device_edges, lane.host_edges, n * sizeof(EdgeEnds), cudaMemcpyHostToDevice, lane.stream));
+      // The lane's page-locked buffers, of `capacity` edges since the constructor.
+      void* host_edges = lane.host_edges.get(n * sizeof(EdgeEnds));
+      void* host_units = lane.host_units.get(n * sizeof(EdgeUnits));
+      std::memcpy(host_edges, edges + first, n * sizeof(EdgeEnds));
+      QTMV_CUDA_CHECK(cudaMemcpyAsync(lane.device_edges.get(), host_edges, n * sizeof(EdgeEnds), cudaMemcpyHostToDevice,
+                                      lane.stream));
       const auto blocks = static_cast<unsigned>((n + kBlock - 1) / kBlock);
-      solve_edges<<<blocks, kBlock, 0, lane.stream>>>(s.ellipsoid, lane.device_edges, n, lane.device_units);
+      solve_edges<<<blocks, kBlock, 0, lane.stream>>>(s.ellipsoid, lane.device_edges.get(), n,
+                                                      lane.device_units.get());
       QTMV_CUDA_CHECK(cudaGetLastError());
-      QTMV_CUDA_CHECK(
-          cudaMemcpyAsync(lane.host_units, lane.device_units, n * sizeof(EdgeUnits), cudaMemcpyDeviceToHost, lane.stream));
+      QTMV_CUDA_CHECK(cudaMemcpyAsync(host_units, lane.device_units.get(), n * sizeof(EdgeUnits),
+                                      cudaMemcpyDeviceToHost, lane.stream));
       QTMV_CUDA_CHECK(cudaStreamSynchronize(lane.stream));
-      std::memcpy(out + first, lane.host_units, n * sizeof(EdgeUnits));
+      std::memcpy(out + first, host_units, n * sizeof(EdgeUnits));
     } catch (...) {
       s.give_back(lane);
       throw;

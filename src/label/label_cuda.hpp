@@ -1,15 +1,15 @@
-// The labeller's CUDA back end, as the host code sees it (plain C++; the kernels are in
-// cuda/label_cuda.cu). Without CUDA the build links label_cuda_stub.cpp, which reports no
-// device and throws on use.
+// The labeller's CUDA back end, as the host code sees it (plain C++; cuda/label_cuda.cu
+// implements it on the stages' .cu files beside it). Without CUDA the build links
+// label_cuda_stub.cpp, which reports no device and throws on use.
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
 #include <memory>
-#include <stdexcept>
 #include <string>
 #include <vector>
 
+#include "common/device_out_of_memory.hpp"
 #include "grid/qtm.hpp"
 #include "label/label_engine.hpp"
 #include "label/label_math.hpp"
@@ -26,11 +26,9 @@ struct FixedCell;
 namespace qtmv::label::cuda {
 
 /// A device allocation failed (cudaErrorMemoryAllocation): the caller may retry with smaller
-/// tiles or go on on the CPU. (The tests inject it: QTMV_FAULT_CUDA_OOM, see cuda/label_cuda.cu.)
-class OutOfMemory : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
+/// tiles or go on on the CPU. (The tests inject it: QTMV_FAULT_CUDA_OOM, see
+/// cuda/device_memory.cuh.)
+using OutOfMemory = DeviceOutOfMemory;
 
 /// Cells per selection of select_outline; its buffers take kOutlineSelectBytesPerCell bytes a
 /// cell of it (indices and outline cells), on top of the tile's outputs.
@@ -74,7 +72,7 @@ class Labeller {
   /// tree == nullptr: brute force over all candidates. Throws std::runtime_error on CUDA errors.
   Labeller(int device, const std::vector<Piece>& candidates, const Tree* tree, int level);
   /// `hier` with the tree built on the device, level by level: the tree of build_tree
-  /// (labeller.cpp), node for node and entry for entry. host_threads: CPU threads for the host's
+  /// (tree_build.cpp), node for node and entry for entry. host_threads: CPU threads for the host's
   /// share (the line runs' plan), as LabelOptions::threads (0: all). `cover` (host arrays, may be
   /// null): the claimed cells, as build_tree's.
   Labeller(int device, const std::vector<Piece>& candidates, int level, bool with_distance, int host_threads = 0,

@@ -91,6 +91,11 @@ void check_vector_destination(const std::string& destination, RunPlan& plan) {
   const bool geometry_option = std::any_of(vector.layer_options.begin(), vector.layer_options.end(),
                                            [](const std::string& o) { return STARTS_WITH_CI(o.c_str(), "GEOMETRY="); });
   if (plan.format.driver == "CSV" && !geometry_option) vector.layer_options.push_back("GEOMETRY=AS_WKT");
+  // A shapefile's text is ISO-8859-1 unless told: names beyond Latin-1 would be mangled. UTF-8,
+  // as the sources' text is to OGR, unless -lco ENCODING= says otherwise.
+  const bool encoding_option = std::any_of(vector.layer_options.begin(), vector.layer_options.end(),
+                                           [](const std::string& o) { return STARTS_WITH_CI(o.c_str(), "ENCODING="); });
+  if (plan.format.driver == "ESRI Shapefile" && !encoding_option) vector.layer_options.push_back("ENCODING=UTF-8");
   plan.cells_layer = std::find(vector.layers.begin(), vector.layers.end(), "cells") != vector.layers.end();
 }
 

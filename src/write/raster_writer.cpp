@@ -518,6 +518,12 @@ CPLStringList creation_options(const RasterOptions& options) {
     if (co.FetchNameValue("INTERLEAVE") == nullptr) co.SetNameValue("INTERLEAVE", "BAND");
     if (co.FetchNameValue("NUM_THREADS") == nullptr) co.SetNameValue("NUM_THREADS", "ALL_CPUS");
   }
+  if (EQUAL(options.driver.c_str(), "COG") && co.FetchNameValue("RESAMPLING") == nullptr &&
+      co.FetchNameValue("OVERVIEW_RESAMPLING") == nullptr) {
+    // The FID and boundary bands are categories: the driver's default (CUBIC) made overview
+    // pixels of FIDs that are no site (-8.86, 190.2). One method serves every band.
+    co.SetNameValue("RESAMPLING", "NEAREST");
+  }
   return co;
 }
 
@@ -552,16 +558,17 @@ void describe_dataset(const RasterJob& job, GDALDatasetH ds) {
   auto check = [&](CPLErr err, const std::string& what) {
     if (err != CE_None || job.errors.failed()) throw job.gdal_error(what);
   };
-  check(GDALSetMetadataItem(ds, "QTM_LEVEL", std::to_string(job.level).c_str(), nullptr), "setting metadata QTM_LEVEL");
-  check(GDALSetMetadataItem(ds, "QTM_LAYOUT", qtm ? "octant_row_col" : "lonlat", nullptr),
-        "setting metadata QTM_LAYOUT");
+  // netCDF takes a dataset's metadata as global attributes, named NC_GLOBAL#NAME (a bare name fails).
+  const std::string prefix = job.options.driver == "netCDF" ? "NC_GLOBAL#" : "";
+  const auto set_metadata = [&](const char* name, const std::string& value) {
+    check(GDALSetMetadataItem(ds, (prefix + name).c_str(), value.c_str(), nullptr), std::string("setting metadata ") + name);
+  };
+  set_metadata("QTM_LEVEL", std::to_string(job.level));
+  set_metadata("QTM_LAYOUT", qtm ? "octant_row_col" : "lonlat");
   if (qtm) {
     // Not georeferenced: say so, and how a pixel maps to a cell.
-    check(GDALSetMetadataItem(ds, "QTM_GEOREFERENCED", "NO", nullptr), "setting metadata QTM_GEOREFERENCED");
-    check(GDALSetMetadataItem(ds, "QTM_PIXEL",
-                              "column j, row octant * 2^QTM_LEVEL + i for cell (octant, i, j); nodata where j > 2i",
-                              nullptr),
-          "setting metadata QTM_PIXEL");
+    set_metadata("QTM_GEOREFERENCED", "NO");
+    set_metadata("QTM_PIXEL", "column j, row octant * 2^QTM_LEVEL + i for cell (octant, i, j); nodata where j > 2i");
   } else {
     double transform[6] = {-180.0, job.size.x_resolution, 0.0, 90.0, 0.0, -job.size.y_resolution};
     check(GDALSetGeoTransform(ds, transform), "setting the geotransform");

@@ -1134,6 +1134,23 @@ TEST(CatalogueOutput, ZipBasedFormatsAreWritten) {
   EXPECT_TRUE(qtmv::test::open_dataset(kmz, GDAL_OF_RASTER));
 }
 
+TEST(CatalogueOutput, ShapefileTextIsUtf8) {
+  // The driver's default, ISO-8859-1, mangled every name beyond Latin-1.
+  const std::string dir = test_dir();
+  const std::string src = write_text(dir + "/cities.geojson", R"({"type":"FeatureCollection","features":[
+{"type":"Feature","properties":{"name":"東京"},"geometry":{"type":"Point","coordinates":[139.7,35.7]}},
+{"type":"Feature","properties":{"name":"Москва"},"geometry":{"type":"Point","coordinates":[37.6,55.8]}},
+{"type":"Feature","properties":{"name":"Zürich"},"geometry":{"type":"Point","coordinates":[8.5,47.4]}}]})");
+  const std::string dst = dir + "/out.shp";
+  expect_success(run_small({"-q", "-layers", "regions", src, dst}), dst);
+  EXPECT_EQ(qtmv::test::read_file(dir + "/out.cpg"), "UTF-8");
+  const auto ds = qtmv::test::open_dataset(dst, GDAL_OF_VECTOR);
+  ASSERT_TRUE(ds);
+  std::set<std::string> names;
+  for (auto& f : *ds->GetLayer(0)) names.insert(f->GetFieldAsString("name"));
+  EXPECT_EQ(names, (std::set<std::string>{"東京", "Москва", "Zürich"}));
+}
+
 TEST(CatalogueOutput, AttributeTypeTheFormatCannotHoldBecomesText) {
   const std::string dir = test_dir();
   // List fields: GeoJSON has them, shapefiles do not. As ogr2ogr does, they are written as

@@ -13,6 +13,7 @@
 #include <cstdio>
 #include <cstdint>
 #include <random>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -322,6 +323,30 @@ TEST_F(RasterWriter, CreateCopyOnlyDriverGoesThroughStaging) {
   EXPECT_DOUBLE_EQ(last, 1.0);
   Opened opened(path);
   check_qtm_raster(opened.ds, f, true);
+}
+
+TEST_F(RasterWriter, CogOverviewsOfTheFidBandHoldOnlySiteFids) {
+  // The COG driver's default overview resampling (CUBIC) made FIDs that are no site.
+  if (GDALGetDriverByName("COG") == nullptr) GTEST_SKIP() << "no COG driver";
+  const Fixture f(6, 20, 8);
+  const std::string path = temp_path("cog_overviews.tif");
+  RasterOptions options;
+  options.driver = "COG";
+  options.creation_options = {"BLOCKSIZE=16"};  // overviews even for this small raster
+  write_raster(path, f.labels(), f.table, options);
+  Opened opened(path);
+  ASSERT_TRUE(opened.ds);
+  std::set<double> allowed{-1.0};  // nodata
+  for (int s = 0; s < 20; ++s) allowed.insert(static_cast<double>(Fixture::fid_of(s)));
+  GDALRasterBandH band = GDALGetRasterBand(opened.ds, 1);
+  ASSERT_GT(GDALGetOverviewCount(band), 0);
+  for (int o = 0; o < GDALGetOverviewCount(band); ++o) {
+    GDALRasterBandH overview = GDALGetOverview(band, o);
+    const int w = GDALGetRasterBandXSize(overview), h = GDALGetRasterBandYSize(overview);
+    std::vector<double> values(static_cast<std::size_t>(w) * h);
+    ASSERT_EQ(GDALRasterIO(overview, GF_Read, 0, 0, w, h, values.data(), w, h, GDT_Float64, 0, 0), CE_None);
+    for (const double v : values) ASSERT_TRUE(allowed.count(v)) << "overview " << o << " holds FID " << v;
+  }
 }
 
 TEST_F(RasterWriter, InterruptedLeavesNothing) {

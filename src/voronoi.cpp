@@ -29,6 +29,7 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   label::DeviceStartup devices(options.device, /*contexts=*/options.merge.empty());
   // Every check before any work; the devices' as soon as they are counted.
   pipeline::RunPlan plan = tile_job ? pipeline::plan_tile_job(destination, options) : pipeline::plan_run(destination, options);
+  if (!plan.level_note.empty()) tell(options.messages, Severity::info, plan.level_note);
   pipeline::StagedOutput output(destination, options.overwrite);
   pipeline::RunProgress progress(options.progress);
   VoronoiSummary summary;

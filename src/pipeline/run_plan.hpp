@@ -18,6 +18,7 @@ namespace qtmv::pipeline {
 /// What a run will do, decided before any work.
 struct RunPlan {
   int level = 0;
+  std::string level_note;        ///< why the level, when the run chose it (a lon/lat raster's pixels)
   OutputFormat format;           ///< the driver and whether it writes a raster
   write::VectorOptions vector;   ///< the vector writer's options (progress set by the write stage)
   write::RasterOptions raster;   ///< the raster writer's options (likewise)

@@ -24,7 +24,10 @@ enum class OutputKind { automatic, vector, raster };
 /// The options of a run, each given once: every part's options are built from these, and
 /// nothing a caller sets is overwritten.
 struct VoronoiOptions {
-  int level = label::kDefaultLevel;  ///< QTM level of the whole run (0..24)
+  /// kLevelFromOutput (-level not given): label::kDefaultLevel, or for a lon/lat raster with
+  /// -tr or -ts the level whose cells are about four times finer than a pixel (pixel_level).
+  static constexpr int kLevelFromOutput = -1;
+  int level = kLevelFromOutput;  ///< QTM level of the whole run (0..24), or kLevelFromOutput
   label::Rule rule = label::Rule::exact;  ///< -distance: the distance rule, reading and labelling
   sites::SourceOptions read;  ///< what to read and how (-l, -where, -sql, -s_srs, -oo, -edges, ...)
   std::string device = "auto";  ///< -device auto|cpu|cuda|cuda:N

@@ -558,18 +558,19 @@ void describe_dataset(const RasterJob& job, GDALDatasetH ds) {
   auto check = [&](CPLErr err, const std::string& what) {
     if (err != CE_None || job.errors.failed()) throw job.gdal_error(what);
   };
-  // netCDF takes a dataset's metadata as global attributes, named NC_GLOBAL#NAME (a bare name fails).
+  // Set as one list: netCDF refuses single items (it takes global attributes as NC_GLOBAL#NAME).
   const std::string prefix = job.options.driver == "netCDF" ? "NC_GLOBAL#" : "";
-  const auto set_metadata = [&](const char* name, const std::string& value) {
-    check(GDALSetMetadataItem(ds, (prefix + name).c_str(), value.c_str(), nullptr), std::string("setting metadata ") + name);
-  };
-  set_metadata("QTM_LEVEL", std::to_string(job.level));
-  set_metadata("QTM_LAYOUT", qtm ? "octant_row_col" : "lonlat");
+  CPLStringList metadata(CSLDuplicate(GDALGetMetadata(ds, nullptr)));
+  metadata.SetNameValue((prefix + "QTM_LEVEL").c_str(), std::to_string(job.level).c_str());
+  metadata.SetNameValue((prefix + "QTM_LAYOUT").c_str(), qtm ? "octant_row_col" : "lonlat");
   if (qtm) {
     // Not georeferenced: say so, and how a pixel maps to a cell.
-    set_metadata("QTM_GEOREFERENCED", "NO");
-    set_metadata("QTM_PIXEL", "column j, row octant * 2^QTM_LEVEL + i for cell (octant, i, j); nodata where j > 2i");
-  } else {
+    metadata.SetNameValue((prefix + "QTM_GEOREFERENCED").c_str(), "NO");
+    metadata.SetNameValue((prefix + "QTM_PIXEL").c_str(),
+                          "column j, row octant * 2^QTM_LEVEL + i for cell (octant, i, j); nodata where j > 2i");
+  }
+  check(GDALSetMetadata(ds, metadata.List(), nullptr), "setting the metadata (QTM_LEVEL, QTM_LAYOUT)");
+  if (!qtm) {
     double transform[6] = {-180.0, job.size.x_resolution, 0.0, 90.0, 0.0, -job.size.y_resolution};
     check(GDALSetGeoTransform(ds, transform), "setting the geotransform");
     OGRSpatialReferenceH srs = OSRNewSpatialReference(nullptr);

@@ -1151,6 +1151,20 @@ TEST(CatalogueOutput, ShapefileTextIsUtf8) {
   EXPECT_EQ(names, (std::set<std::string>{"東京", "Москва", "Zürich"}));
 }
 
+TEST(CatalogueOutput, NetCdfRasterKeepsItsQtmMetadata) {
+  // netCDF refuses single metadata items: the run failed on QTM_LEVEL.
+  if (GDALGetDriverCount() == 0) GDALAllRegister();
+  if (GDALGetDriverByName("netCDF") == nullptr) GTEST_SKIP() << "no netCDF driver";
+  const std::string dir = test_dir();
+  const std::string dst = dir + "/out.nc";
+  expect_success(run_small({"-q", "-of", "netCDF", "-raster", "lonlat", "-ts", "360", "180", "-l", "countries_110m",
+                            kCountries, dst}), dst);
+  const auto ds = qtmv::test::open_dataset(dst, GDAL_OF_RASTER);
+  ASSERT_TRUE(ds);
+  EXPECT_STREQ(ds->GetMetadataItem("NC_GLOBAL#QTM_LEVEL"), "4");
+  EXPECT_STREQ(ds->GetMetadataItem("NC_GLOBAL#QTM_LAYOUT"), "lonlat");
+}
+
 TEST(CatalogueOutput, AttributeTypeTheFormatCannotHoldBecomesText) {
   const std::string dir = test_dir();
   // List fields: GeoJSON has them, shapefiles do not. As ogr2ogr does, they are written as

@@ -156,7 +156,7 @@ TEST(QtmvoronoiCore, ParsesOptions) {
   EXPECT_EQ(o.destination, "dst.gpkg");
 
   const auto d = parse_command_line({"in.csv", "out.tif"});
-  EXPECT_EQ(d.run.level, 9);  // the default
+  EXPECT_EQ(d.run.level, qtmv::VoronoiOptions::kLevelFromOutput);  // the default: 9, or from a lon/lat raster's pixels
   EXPECT_EQ(d.run.kind, qtmv::OutputKind::automatic);
   EXPECT_FALSE(d.run.overwrite);
 
@@ -320,6 +320,29 @@ TEST(QtmvoronoiCli, QtmRasterEqualsTheLabeller) {
   }
   EXPECT_EQ(mismatches, 0u);
   EXPECT_EQ(nodata_bad, 0u);
+}
+
+TEST(QtmvoronoiCli, LonLatRasterWithoutALevelTakesCellsFourTimesFinerThanAPixel) {
+  const std::string dir = test_dir();
+  struct Case {
+    std::vector<std::string> size;
+    int level;  // the smallest L with 90 / 2^L <= pixel / 4 (degrees)
+  };
+  for (const Case& c : {Case{{"-tr", "0.5", "0.5"}, 10}, Case{{"-ts", "360", "180"}, 9}, Case{{"-tr", "2", "1"}, 9}}) {
+    const std::string dst = dir + "/auto_" + std::to_string(c.level) + "_" + c.size[1] + ".tif";
+    const Result r = run(concat(concat(c.size, {"-device", "cpu", kCentres, dst}), kCsvOptions));
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.err.find("level " + std::to_string(c.level) + " chosen for pixels of"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("; level " + std::to_string(c.level) + ", "), std::string::npos) << r.err;  // the summary
+    const auto ds = open(dst, GDAL_OF_RASTER);
+    ASSERT_TRUE(ds);
+    EXPECT_STREQ(ds->GetMetadataItem("QTM_LEVEL"), std::to_string(c.level).c_str());
+  }
+  // -level still decides; a QTM-coded raster keeps the default.
+  const Result given = run(concat({"-level", "6", "-tr", "0.5", "0.5", "-device", "cpu", kCentres, dir + "/given.tif"}, kCsvOptions));
+  ASSERT_EQ(given.status, 0) << given.err;
+  EXPECT_EQ(given.err.find("chosen for pixels"), std::string::npos) << given.err;
+  EXPECT_STREQ(open(dir + "/given.tif", GDAL_OF_RASTER)->GetMetadataItem("QTM_LEVEL"), "6");
 }
 
 TEST(QtmvoronoiCli, LonLatRasterAgreesWithPointLocation) {

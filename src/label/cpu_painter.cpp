@@ -90,7 +90,7 @@ class LeafOrder {
     if (!any_group_) return best_of_list(tv, leaf_, x);
     Best best = no_best();
     std::int32_t won = -1;
-    double bound = 1e300;  // squared chord that the best piece's distance cannot exceed
+    double bound = kChord2Infinity;  // squared chord that the best piece's distance cannot exceed
     // Pieces, and the groups' upper bounds; then the groups' subtrees, nearest first.
     for (const Entry& e : order_) {
       if (is_group_item(e.item)) {
@@ -260,7 +260,7 @@ std::int32_t one_site_below(const TreeView& tv, const TreeNode& list, const grid
   const Vec3 centre = shapes.centres(cell, l);
   const std::int32_t* items = tv.lists + list.value;
   bounds.resize(static_cast<std::size_t>(list.count));
-  double min_ub2 = 1e300;
+  double min_ub2 = kChord2Infinity;
   for (std::int32_t k = 0; k < list.count; ++k) {
     double ub2;
     ItemBound& b = bounds[static_cast<std::size_t>(k)];

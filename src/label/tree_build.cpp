@@ -146,7 +146,7 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
         }
         if (l < level && covered.site < 0) {
           bounds.resize(p.parent_count);
-          double min_ub2 = 1e300;
+          double min_ub2 = kChord2Infinity;
           for (std::uint32_t k = 0; k < p.parent_count; ++k) {
             double ub2;
             item_bounds(c, list[k], candidates.data(), groups, &bounds[k].lb2, &ub2, &bounds[k].site);

@@ -222,14 +222,21 @@ QTMV_HD inline double inverse_start(const Ellipsoid& e, double sbet1, double cbe
   return sig12;
 }
 
-}  // namespace detail
+/// The ends of an inverse problem in Karney's canonical form, 0 <= lon12 <= 180,
+/// -90 <= lat1 <= -0, lat1 <= lat2 <= -lat1, with the signs that record the transformation
+/// (1: none).
+struct CanonicalEnds {
+  double lam12;           ///< longitude difference (radians)
+  double slam12, clam12;  ///< its sine and cosine
+  double lon12s;          ///< the supplementary longitude difference (degrees)
+  double lat1;            ///< (degrees)
+  double sbet1, cbet1, sbet2, cbet2;  ///< the reduced latitudes' sines and cosines
+  double dn1, dn2;
+  int lonsign, swapp, latsign;
+};
 
-/// Inverse geodesic problem between (lat1, lon1) and (lat2, lon2) (degrees, |lat| <= 90, any
-/// longitude): the distance s12 (metres) and the area S12 (square metres) between the
-/// geodesic and the equator, as GeographicLib's Geodesic::GenInverse with DISTANCE | AREA.
-QTMV_HD inline InverseSolution geodesic_inverse(const Ellipsoid& e, double lat1, double lon1, double lat2,
-                                                double lon2) {
-  using namespace detail;
+/// (lat1, lon1) and (lat2, lon2) (degrees) in canonical form, with their reduced latitudes.
+QTMV_HD inline CanonicalEnds canonical_ends(const Ellipsoid& e, double lat1, double lon1, double lat2, double lon2) {
   // Longitude difference, exactly as lon12 + lon12s, made non-negative.
   double lon12s;
   double lon12 = ang_diff(lon1, lon2, &lon12s);
@@ -273,107 +280,134 @@ QTMV_HD inline InverseSolution geodesic_inverse(const Ellipsoid& e, double lat1,
   }
   const double dn1 = ::sqrt(1 + e.ep2 * sq(sbet1));
   const double dn2 = ::sqrt(1 + e.ep2 * sq(sbet2));
+  return {lam12, slam12, clam12, lon12s, lat1, sbet1, cbet1, sbet2, cbet2, dn1, dn2, lonsign, swapp, latsign};
+}
 
+/// The geodesic between canonical ends: its distance s12x (metres), its azimuths at both ends,
+/// and omg12, the longitude difference on the auxiliary sphere, where the area needs it.
+struct InverseLine {
   double s12x = 0, salp1 = 0, calp1 = 0, salp2 = 0, calp2 = 0;
-  bool meridian = lat1 == -kQuarterTurn || slam12 == 0;
-  if (meridian) {
-    // Both ends on one full meridian: the geodesic may run along it.
-    calp1 = clam12;
-    salp1 = slam12;
-    calp2 = 1;
-    salp2 = 0;
-    // tan(bet) = tan(sig) cos(alp)
-    const double ssig1 = sbet1, csig1 = calp1 * cbet1;
-    const double ssig2 = sbet2, csig2 = calp2 * cbet2;
-    double sig12 = det_atan2(max_of(0.0, csig1 * ssig2 - ssig1 * csig2) + 0.0, csig1 * csig2 + ssig1 * ssig2);
-    double m12x = 0;
-    lengths(e.n, sig12, ssig1, csig1, dn1, ssig2, csig2, dn2, true, true, &s12x, &m12x);
-    // m12 < 0 means a meridian that is not a shortest path (prolate, nearly antipodal).
-    if (sig12 < 1 || m12x >= 0) {
-      // Zero length geodesics, and no negative s12 for short lines.
-      if (sig12 < 3 * kTiny || (sig12 < kTol0 && (s12x < 0 || m12x < 0))) {
-        sig12 = m12x = s12x = 0;
-      }
-      s12x *= e.b;
-    } else {
-      meridian = false;
-    }
-  }
-
   double omg12 = 0, somg12 = 2, comg12 = 0;  // somg12 = 2: still to be computed
-  if (!meridian && sbet1 == 0 && (e.f <= 0 || lon12s >= e.f * kHalfTurn)) {
-    // Along the equator.
-    calp1 = calp2 = 0;
-    salp1 = salp2 = 1;
-    s12x = e.a * lam12;
-    omg12 = lam12 / e.f1;
-  } else if (!meridian) {
-    double dnm = 0;
-    const double sig12 = inverse_start(e, sbet1, cbet1, sbet2, cbet2, lam12, slam12, clam12, &salp1, &calp1,
-                                       &salp2, &calp2, &dnm);
-    if (sig12 >= 0) {
-      // Really short lines: no iteration.
-      s12x = sig12 * e.b * dnm;
-      omg12 = lam12 / (e.f1 * dnm);
-    } else {
-      // Newton's method on lambda12(alp1) - lam12 = 0, which has one root in (0, pi) with a
-      // positive slope. (alp1a, alp1b) brackets the root; a step that leaves it, or a
-      // non-positive slope, falls back to bisection.
-      LineState st{};
-      double salp1a = kTiny, calp1a = 1, salp1b = kTiny, calp1b = -1;
-      bool tripn = false, tripb = false;
-      for (int numit = 0;; ++numit) {
-        double dv = 0;
-        const double v = lambda12(e, sbet1, cbet1, dn1, sbet2, cbet2, dn2, salp1, calp1, slam12, clam12,
-                                  numit < kMaxIt1, &dv, &st);
-        // The reversed test lets nan escape.
-        if (tripb || !(::fabs(v) >= (tripn ? 8 : 1) * kTol0) || numit == kMaxIt2) break;
-        if (v > 0 && (numit > kMaxIt1 || calp1 / salp1 > calp1b / salp1b)) {
-          salp1b = salp1;
-          calp1b = calp1;
-        } else if (v < 0 && (numit > kMaxIt1 || calp1 / salp1 < calp1a / salp1a)) {
-          salp1a = salp1;
-          calp1a = calp1;
-        }
-        if (numit < kMaxIt1 && dv > 0) {
-          const double dalp1 = -v / dv;
-          if (::fabs(dalp1) < grid::kPi) {
-            double sdalp1, cdalp1;
-            sincos_rad(dalp1, &sdalp1, &cdalp1);
-            const double nsalp1 = salp1 * cdalp1 + calp1 * sdalp1;
-            if (nsalp1 > 0) {
-              calp1 = calp1 * cdalp1 - salp1 * sdalp1;
-              salp1 = nsalp1;
-              norm2(&salp1, &calp1);
-              // Where the slope -> 0 convergence is not quadratic: test against epsilon.
-              tripn = ::fabs(v) <= 16 * kTol0;
-              continue;
-            }
-          }
-        }
-        // Bisection of the bracket.
-        salp1 = (salp1a + salp1b) / 2;
-        calp1 = (calp1a + calp1b) / 2;
-        norm2(&salp1, &calp1);
-        tripn = false;
-        tripb = (::fabs(salp1a - salp1) + (calp1a - calp1) < kTolB || ::fabs(salp1 - salp1b) + (calp1 - calp1b) < kTolB);
-      }
-      salp2 = st.salp2;
-      calp2 = st.calp2;
-      double unused = 0;
-      lengths(st.eps, st.sig12, st.ssig1, st.csig1, dn1, st.ssig2, st.csig2, dn2, true, false, &s12x, &unused);
-      s12x *= e.b;
-      // omg12 = lam12 - domg12
-      double sdomg12, cdomg12;
-      sincos_rad(st.domg12, &sdomg12, &cdomg12);
-      somg12 = slam12 * cdomg12 - clam12 * sdomg12;
-      comg12 = clam12 * cdomg12 + slam12 * sdomg12;
+  bool meridian = false;  ///< along the meridian of both ends
+};
+
+/// Both ends on one full meridian: the geodesic may run along it. Clears line->meridian where
+/// the meridian is not a shortest path.
+QTMV_HD inline void meridian_line(const Ellipsoid& e, const CanonicalEnds& ends, InverseLine* line) {
+  const double sbet1 = ends.sbet1, cbet1 = ends.cbet1, sbet2 = ends.sbet2, cbet2 = ends.cbet2;
+  const double dn1 = ends.dn1, dn2 = ends.dn2;
+  double &s12x = line->s12x, &salp1 = line->salp1, &calp1 = line->calp1, &salp2 = line->salp2,
+         &calp2 = line->calp2;
+  calp1 = ends.clam12;
+  salp1 = ends.slam12;
+  calp2 = 1;
+  salp2 = 0;
+  // tan(bet) = tan(sig) cos(alp)
+  const double ssig1 = sbet1, csig1 = calp1 * cbet1;
+  const double ssig2 = sbet2, csig2 = calp2 * cbet2;
+  double sig12 = det_atan2(max_of(0.0, csig1 * ssig2 - ssig1 * csig2) + 0.0, csig1 * csig2 + ssig1 * ssig2);
+  double m12x = 0;
+  lengths(e.n, sig12, ssig1, csig1, dn1, ssig2, csig2, dn2, true, true, &s12x, &m12x);
+  // m12 < 0 means a meridian that is not a shortest path (prolate, nearly antipodal).
+  if (sig12 < 1 || m12x >= 0) {
+    // Zero length geodesics, and no negative s12 for short lines.
+    if (sig12 < 3 * kTiny || (sig12 < kTol0 && (s12x < 0 || m12x < 0))) {
+      sig12 = m12x = s12x = 0;
     }
+    s12x *= e.b;
+  } else {
+    line->meridian = false;
   }
+}
 
-  InverseSolution out{};
-  out.s12 = 0.0 + s12x;  // -0 to 0
+/// Newton's method on lambda12(alp1) - lam12 = 0, which has one root in (0, pi) with a
+/// positive slope, from the start (*salp1_io, *calp1_io), which becomes the root. (alp1a,
+/// alp1b) brackets the root; a step that leaves it, or a non-positive slope, falls back to
+/// bisection. Returns the line's state at the root.
+QTMV_HD inline LineState newton_alp1(const Ellipsoid& e, const CanonicalEnds& ends, double* salp1_io,
+                                     double* calp1_io) {
+  const double sbet1 = ends.sbet1, cbet1 = ends.cbet1, sbet2 = ends.sbet2, cbet2 = ends.cbet2;
+  const double dn1 = ends.dn1, dn2 = ends.dn2, slam12 = ends.slam12, clam12 = ends.clam12;
+  double &salp1 = *salp1_io, &calp1 = *calp1_io;
+  LineState st{};
+  double salp1a = kTiny, calp1a = 1, salp1b = kTiny, calp1b = -1;
+  bool tripn = false, tripb = false;
+  for (int numit = 0;; ++numit) {
+    double dv = 0;
+    const double v = lambda12(e, sbet1, cbet1, dn1, sbet2, cbet2, dn2, salp1, calp1, slam12, clam12,
+                              numit < kMaxIt1, &dv, &st);
+    // The reversed test lets nan escape.
+    if (tripb || !(::fabs(v) >= (tripn ? 8 : 1) * kTol0) || numit == kMaxIt2) break;
+    if (v > 0 && (numit > kMaxIt1 || calp1 / salp1 > calp1b / salp1b)) {
+      salp1b = salp1;
+      calp1b = calp1;
+    } else if (v < 0 && (numit > kMaxIt1 || calp1 / salp1 < calp1a / salp1a)) {
+      salp1a = salp1;
+      calp1a = calp1;
+    }
+    if (numit < kMaxIt1 && dv > 0) {
+      const double dalp1 = -v / dv;
+      if (::fabs(dalp1) < grid::kPi) {
+        double sdalp1, cdalp1;
+        sincos_rad(dalp1, &sdalp1, &cdalp1);
+        const double nsalp1 = salp1 * cdalp1 + calp1 * sdalp1;
+        if (nsalp1 > 0) {
+          calp1 = calp1 * cdalp1 - salp1 * sdalp1;
+          salp1 = nsalp1;
+          norm2(&salp1, &calp1);
+          // Where the slope -> 0 convergence is not quadratic: test against epsilon.
+          tripn = ::fabs(v) <= 16 * kTol0;
+          continue;
+        }
+      }
+    }
+    // Bisection of the bracket.
+    salp1 = (salp1a + salp1b) / 2;
+    calp1 = (calp1a + calp1b) / 2;
+    norm2(&salp1, &calp1);
+    tripn = false;
+    tripb = (::fabs(salp1a - salp1) + (calp1a - calp1) < kTolB || ::fabs(salp1 - salp1b) + (calp1 - calp1b) < kTolB);
+  }
+  return st;
+}
 
+/// A line neither along a meridian nor along the equator: the spherical start (inverse_start),
+/// which settles really short lines, else Newton's method (newton_alp1).
+QTMV_HD inline void general_line(const Ellipsoid& e, const CanonicalEnds& ends, InverseLine* line) {
+  const double sbet1 = ends.sbet1, cbet1 = ends.cbet1, sbet2 = ends.sbet2, cbet2 = ends.cbet2;
+  const double dn1 = ends.dn1, dn2 = ends.dn2, lam12 = ends.lam12, slam12 = ends.slam12, clam12 = ends.clam12;
+  double &s12x = line->s12x, &salp1 = line->salp1, &calp1 = line->calp1, &salp2 = line->salp2,
+         &calp2 = line->calp2;
+  double &omg12 = line->omg12, &somg12 = line->somg12, &comg12 = line->comg12;
+  double dnm = 0;
+  const double sig12 = inverse_start(e, sbet1, cbet1, sbet2, cbet2, lam12, slam12, clam12, &salp1, &calp1,
+                                     &salp2, &calp2, &dnm);
+  if (sig12 >= 0) {
+    // Really short lines: no iteration.
+    s12x = sig12 * e.b * dnm;
+    omg12 = lam12 / (e.f1 * dnm);
+  } else {
+    const LineState st = newton_alp1(e, ends, &salp1, &calp1);
+    salp2 = st.salp2;
+    calp2 = st.calp2;
+    double unused = 0;
+    lengths(st.eps, st.sig12, st.ssig1, st.csig1, dn1, st.ssig2, st.csig2, dn2, true, false, &s12x, &unused);
+    s12x *= e.b;
+    // omg12 = lam12 - domg12
+    double sdomg12, cdomg12;
+    sincos_rad(st.domg12, &sdomg12, &cdomg12);
+    somg12 = slam12 * cdomg12 - clam12 * sdomg12;
+    comg12 = clam12 * cdomg12 + slam12 * sdomg12;
+  }
+}
+
+/// The area S12 (square metres) between the line and the equator, with the canonical form's
+/// signs undone.
+QTMV_HD inline double inverse_area(const Ellipsoid& e, const CanonicalEnds& ends, const InverseLine& line) {
+  const double sbet1 = ends.sbet1, cbet1 = ends.cbet1, sbet2 = ends.sbet2, cbet2 = ends.cbet2;
+  const double salp1 = line.salp1, calp1 = line.calp1, salp2 = line.salp2, calp2 = line.calp2;
+  const bool meridian = line.meridian;
+  double somg12 = line.somg12, comg12 = line.comg12;
   // Area: S12 = c2 alp12 + A4 (B42 - B41).
   const double salp0 = salp1 * cbet1;
   const double calp0 = det_hypot(calp1, salp1 * sbet1);  // > 0
@@ -392,7 +426,7 @@ QTMV_HD inline InverseSolution geodesic_inverse(const Ellipsoid& e, double lat1,
     const double b42 = sin_cos_series(false, ssig2, csig2, c4, kGeodesicOrder);
     area = a4 * (b42 - b41);
   }  // else sig1 and sig2 are indeterminate on the equator: the series term is 0
-  if (!meridian && somg12 == 2) sincos_rad(omg12, &somg12, &comg12);
+  if (!meridian && somg12 == 2) sincos_rad(line.omg12, &somg12, &comg12);
   constexpr double kCosThreeQuarterPi = -0.7071;
   constexpr double kMaxSinDiff = 1.75;
   double alp12;
@@ -413,8 +447,35 @@ QTMV_HD inline InverseSolution geodesic_inverse(const Ellipsoid& e, double lat1,
     alp12 = det_atan2(salp12, calp12);
   }
   area += e.c2 * alp12;
-  area *= swapp * lonsign * latsign;
-  out.S12 = area + 0.0;  // -0 to 0
+  area *= ends.swapp * ends.lonsign * ends.latsign;
+  return area;
+}
+
+}  // namespace detail
+
+/// Inverse geodesic problem between (lat1, lon1) and (lat2, lon2) (degrees, |lat| <= 90, any
+/// longitude): the distance s12 (metres) and the area S12 (square metres) between the
+/// geodesic and the equator, as GeographicLib's Geodesic::GenInverse with DISTANCE | AREA.
+QTMV_HD inline InverseSolution geodesic_inverse(const Ellipsoid& e, double lat1, double lon1, double lat2,
+                                                double lon2) {
+  using namespace detail;
+  const CanonicalEnds ends = canonical_ends(e, lat1, lon1, lat2, lon2);
+  InverseLine line;
+  line.meridian = ends.lat1 == -kQuarterTurn || ends.slam12 == 0;
+  if (line.meridian) meridian_line(e, ends, &line);
+  if (!line.meridian && ends.sbet1 == 0 && (e.f <= 0 || ends.lon12s >= e.f * kHalfTurn)) {
+    // Along the equator.
+    line.calp1 = line.calp2 = 0;
+    line.salp1 = line.salp2 = 1;
+    line.s12x = e.a * ends.lam12;
+    line.omg12 = ends.lam12 / e.f1;
+  } else if (!line.meridian) {
+    general_line(e, ends, &line);
+  }
+
+  InverseSolution out{};
+  out.s12 = 0.0 + line.s12x;  // -0 to 0
+  out.S12 = inverse_area(e, ends, line) + 0.0;  // -0 to 0
   return out;
 }
 

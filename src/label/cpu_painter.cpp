@@ -90,7 +90,7 @@ class LeafOrder {
     if (!any_group_) return best_of_list(tv, leaf_, x);
     Best best = no_best();
     std::int32_t won = -1;
-    double bound = 1e300;  // squared chord that the best piece's distance cannot exceed
+    double bound = kChord2Infinity;  // squared chord that the best piece's distance cannot exceed
     // Pieces, and the groups' upper bounds; then the groups' subtrees, nearest first.
     for (const Entry& e : order_) {
       if (is_group_item(e.item)) {
@@ -260,7 +260,7 @@ std::int32_t one_site_below(const TreeView& tv, const TreeNode& list, const grid
   const Vec3 centre = shapes.centres(cell, l);
   const std::int32_t* items = tv.lists + list.value;
   bounds.resize(static_cast<std::size_t>(list.count));
-  double min_ub2 = 1e300;
+  double min_ub2 = kChord2Infinity;
   for (std::int32_t k = 0; k < list.count; ++k) {
     double ub2;
     ItemBound& b = bounds[static_cast<std::size_t>(k)];
@@ -386,155 +386,175 @@ bool in_uniform_leaf_of(const TreeView& tv, const grid::Cell& c, int l, std::int
   return tv.nodes[node].count == kUniform && tv.nodes[node].value == site;
 }
 
-/// Visits one leaf: every cell of a list leaf, the rim of a uniform leaf (or of a list leaf
-/// whose cells all got one site); appends the outline cells among them. A leaf of one site whose
-/// three neighbours (of its level) lie in uniform leaves of that site has no boundary cell: only
-/// its row ends are listed.
-void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode& node, OutlineScratch& scratch,
-                        OutlineCells& out) {
+/// One leaf's visit by the outline pass: which visit settles a pair of cells across the leaf's
+/// edges, and the cells it lists then.
+///
+/// A pair of a list leaf's cell and a uniform leaf's is settled by the list leaf's visit, which
+/// then lists the uniform leaf's cell too (a uniform leaf's rim beside a list leaf would
+/// otherwise search the list leaf's cells again); the uniform leaf's visit leaves the pair to a
+/// list leaf that the pass visits. A pair of two list leaves' cells is settled by the later leaf
+/// in the tree's order (the higher node) where the pass visits it, likewise listing both: the
+/// earlier leaf's labels are then often still at hand (OutlineScratch::labelled), whereas the
+/// earlier leaf would have to search the later one's cells. join_in_code_order lists a cell
+/// listed twice once.
+struct LeafVisit {
+  const TreeView& tv;
+  const TreeLeaf& leaf;
+  bool list_leaf;
+  OutlineScratch& scratch;
+  OutlineCells& out;
+
+  /// Whether no cell of `site` beside leaf `a` has to ask: `a` is uniform with that site, or a
+  /// visited list leaf that settles the pairs.
+  bool nothing_to_ask(const OutlineScratch::AcrossLeaf& a, std::int32_t site) const {
+    const TreeNode other = tv.nodes[a.node];
+    if (other.count == kUniform) return other.value == site;
+    return (!list_leaf || a.node > leaf.node) && leaf_visited(a.cell, a.level, tv.level, scratch.range);
+  }
+  /// Whether the neighbour nb of a cell of `site`, in leaf `a` across an edge of this leaf, has
+  /// another site, where nothing_to_ask(a, site) does not settle it.
+  bool differs_in(const grid::Cell& nb, const OutlineScratch::AcrossLeaf& a, std::int32_t site) const {
+    const TreeNode other = tv.nodes[a.node];
+    if (other.count == kUniform) {  // of another site
+      if (list_leaf) out.push_back({grid::code_of(nb, tv.level), other.value, 1u});
+      return true;
+    }
+    const std::int32_t other_site = scratch.site_in_leaf(tv, nb, a.node, a.level);
+    if (other_site == site) return false;
+    if (list_leaf && a.node < leaf.node) out.push_back({grid::code_of(nb, tv.level), other_site, 1u});
+    return true;
+  }
+};
+
+/// Labels every cell of the list leaf `leaf` (node `node`) into scratch.labels, and keeps them
+/// among the thread's labelled leaves.
+void label_list_leaf(const TreeView& tv, const TreeLeaf& leaf, const TreeNode& node, OutlineScratch& scratch) {
   LeafOrder& order = scratch.order;
   LeafLabels& labels = scratch.labels;
   const int level = tv.level;
   const int k = level - leaf.level;
   const std::uint64_t rows = std::uint64_t{1} << k;
-  const bool list_leaf = node.count != kUniform;
-  // A pair of a list leaf's cell and a uniform leaf's is settled by the list leaf's visit, which
-  // then lists the uniform leaf's cell too (a uniform leaf's rim beside a list leaf would
-  // otherwise search the list leaf's cells again); the uniform leaf's visit leaves the pair to a
-  // list leaf that the pass visits. A pair of two list leaves' cells is settled by the later leaf
-  // in the tree's order (the higher node) where the pass visits it, likewise listing both: the
-  // earlier leaf's labels are then often still at hand (OutlineScratch::labelled), whereas the
-  // earlier leaf would have to search the later one's cells. join_in_code_order lists a cell
-  // listed twice once.
-  // Whether no cell of `site` beside leaf `a` has to ask: `a` is uniform with that site, or a
-  // visited list leaf that settles the pairs.
-  const auto nothing_to_ask = [&](const OutlineScratch::AcrossLeaf& a, std::int32_t site) {
-    const TreeNode other = tv.nodes[a.node];
-    if (other.count == kUniform) return other.value == site;
-    return (!list_leaf || a.node > leaf.node) && leaf_visited(a.cell, a.level, level, scratch.range);
-  };
-  // Whether the neighbour nb of a cell of `site`, in leaf `a` across an edge of this leaf, has
-  // another site, where nothing_to_ask(a, site) does not settle it.
-  const auto differs_in = [&](const grid::Cell& nb, const OutlineScratch::AcrossLeaf& a, std::int32_t site) {
-    const TreeNode other = tv.nodes[a.node];
-    if (other.count == kUniform) {  // of another site
-      if (list_leaf) out.push_back({grid::code_of(nb, level), other.value, 1u});
-      return true;
+  labels.reset(leaf.cell, k, level);
+  order.make(tv, node, grid::cell_centre_vector(grid::code_of(leaf.cell, leaf.level), leaf.level),
+             node_radius(leaf.level, leaf.cell));
+  // Nodes below the leaf whose kept items all have one site (the build's own rule, carried on
+  // below the list level): their cells need no search.
+  scratch.settled.clear();
+  settle_below(tv, node, leaf.cell, leaf.level, scratch.settled, scratch.shapes, scratch.bounds);
+  // The settled nodes' cells take their sites, row by row; the others are searched.
+  for (const SettledNode& n : scratch.settled) {
+    const int nk = level - n.level;
+    const std::uint64_t node_rows = std::uint64_t{1} << nk;
+    for (std::uint64_t r = 0; r < node_rows; ++r) {
+      const grid::RowCodes codes = grid::row_codes_below(n.cell, nk, r, level);
+      const std::size_t leaf_row = static_cast<std::size_t>((std::uint64_t{n.cell.row} << nk) + r - (std::uint64_t{leaf.cell.row} << k));
+      const std::size_t at = labels.row_start[leaf_row] + static_cast<std::size_t>(codes.first - labels.rows[leaf_row].first);
+      std::fill_n(labels.site.begin() + static_cast<std::ptrdiff_t>(at), codes.last - codes.first + 1, n.site);
     }
-    const std::int32_t other_site = scratch.site_in_leaf(tv, nb, a.node, a.level);
-    if (other_site == site) return false;
-    if (list_leaf && a.node < leaf.node) out.push_back({grid::code_of(nb, level), other_site, 1u});
-    return true;
-  };
-  bool uniform = !list_leaf;
-  std::int32_t uniform_site = node.value;
-  if (!uniform) {
-    labels.reset(leaf.cell, k, level);
-    order.make(tv, node, grid::cell_centre_vector(grid::code_of(leaf.cell, leaf.level), leaf.level),
-               node_radius(leaf.level, leaf.cell));
-    // Nodes below the leaf whose kept items all have one site (the build's own rule, carried on
-    // below the list level): their cells need no search.
-    scratch.settled.clear();
-    settle_below(tv, node, leaf.cell, leaf.level, scratch.settled, scratch.shapes, scratch.bounds);
-    // The settled nodes' cells take their sites, row by row; the others are searched.
-    for (const SettledNode& n : scratch.settled) {
-      const int nk = level - n.level;
-      const std::uint64_t node_rows = std::uint64_t{1} << nk;
-      for (std::uint64_t r = 0; r < node_rows; ++r) {
-        const grid::RowCodes codes = grid::row_codes_below(n.cell, nk, r, level);
-        const std::size_t leaf_row = static_cast<std::size_t>((std::uint64_t{n.cell.row} << nk) + r - (std::uint64_t{leaf.cell.row} << k));
-        const std::size_t at = labels.row_start[leaf_row] + static_cast<std::size_t>(codes.first - labels.rows[leaf_row].first);
-        std::fill_n(labels.site.begin() + static_cast<std::ptrdiff_t>(at), codes.last - codes.first + 1, n.site);
-      }
-    }
-    for (std::uint64_t r = 0; r < rows; ++r) {
-      grid::Cell c = grid::cell_of(labels.rows[r].first, level);
-      for (std::size_t m = labels.row_start[r]; m < labels.row_end(r); ++m, grid::next_in_code_order(c, level)) {
-        if (labels.site[m] < 0) labels.site[m] = order.best(tv, scratch.centres(c, level)).site;
-      }
-    }
-    scratch.keep_labels(leaf.node);
-    uniform = std::all_of(labels.site.begin(), labels.site.end(), [&](std::int32_t s) { return s == labels.site[0]; });
-    uniform_site = labels.site[0];
   }
-  if (uniform) {
-    // A leaf of one site lists cells along its edges only, edge by edge: the left edge holds each
-    // row's first cell, the right edge each row's last, the base edge the up cells of an up leaf's
-    // last row (the down cells of a down leaf's first row). Along an edge whose neighbour (of the
-    // leaf's level) lies in a uniform leaf of the same site no cell is a boundary cell, since the
-    // cells across it lie in that neighbour: such an edge lists only the row ends on it (on the
-    // octant's left edge, column 0, or its right edge, column 2 row). A corner cell, on two edges,
-    // is listed by each (join_in_code_order keeps it once).
-    const std::int32_t site = uniform_site;
-    grid::Cell around[3];
-    grid::neighbours(leaf.cell, leaf.level, around);
-    bool settled[3];
-    for (int s = 0; s < 3; ++s) settled[s] = in_uniform_leaf_of(tv, around[s], leaf.level, site);
-    const bool up_leaf = grid::is_up(leaf.cell);
-    const grid::Code octant_first = static_cast<grid::Code>(leaf.cell.octant) * grid::cells_per_octant(level);
-    const std::uint32_t first_row = leaf.cell.row << k;
-    const std::uint32_t base = (leaf.cell.col / 2) << (k + 1);  // the leaf's first column in its rows' blocks
-    // The cells of edge s, n of them, the m-th in (row_of(m), col_of(m)). Where the leaf across
-    // a cell asks nothing of it, the cells after it that face the same leaf ask nothing either:
-    // `beyond(a)` is the index past them (the leaf across a side edge is a triangle whose
-    // matching edge runs along it, holding the across cells of all its rows; across the base it
-    // holds a run of the next row's columns).
-    const auto walk_edge = [&](int s, std::uint32_t n, auto row_of, auto col_of, auto beyond) {
-      for (std::uint32_t m = 0; m < n;) {
-        const grid::Cell c{leaf.cell.octant, row_of(m), col_of(m)};
-        std::uint32_t next = m + 1;
-        bool boundary = false;
-        if (!settled[s]) {
-          grid::Cell nb[3];
-          grid::neighbours(c, level, nb);
-          const OutlineScratch::AcrossLeaf& a = scratch.across_leaf(tv, nb[s], s);
-          if (nothing_to_ask(a, site)) {
-            next = std::max(next, std::min(n, beyond(a)));
-          } else {
-            boundary = differs_in(nb[s], a, site);
-          }
-        }
-        for (; m < next; ++m) {
-          const grid::Cell e{leaf.cell.octant, row_of(m), col_of(m)};
-          if (boundary || is_row_end(e)) {
-            out.push_back({octant_first + std::uint64_t{e.row} * e.row + e.col, site, boundary ? 1u : 0u});
-          }
+  for (std::uint64_t r = 0; r < rows; ++r) {
+    grid::Cell c = grid::cell_of(labels.rows[r].first, level);
+    for (std::size_t m = labels.row_start[r]; m < labels.row_end(r); ++m, grid::next_in_code_order(c, level)) {
+      if (labels.site[m] < 0) labels.site[m] = order.best(tv, scratch.centres(c, level)).site;
+    }
+  }
+  scratch.keep_labels(leaf.node);
+}
+
+/// The outline cells of a leaf all of whose cells have `site` (a uniform leaf, or a list leaf
+/// whose cells all got one site).
+void one_site_leaf_outline(const LeafVisit& visit, std::int32_t site) {
+  const TreeView& tv = visit.tv;
+  const TreeLeaf& leaf = visit.leaf;
+  OutlineScratch& scratch = visit.scratch;
+  const int level = tv.level;
+  const int k = level - leaf.level;
+  const std::uint64_t rows = std::uint64_t{1} << k;
+  // A leaf of one site lists cells along its edges only, edge by edge: the left edge holds each
+  // row's first cell, the right edge each row's last, the base edge the up cells of an up leaf's
+  // last row (the down cells of a down leaf's first row). Along an edge whose neighbour (of the
+  // leaf's level) lies in a uniform leaf of the same site no cell is a boundary cell, since the
+  // cells across it lie in that neighbour: such an edge lists only the row ends on it (on the
+  // octant's left edge, column 0, or its right edge, column 2 row). A corner cell, on two edges,
+  // is listed by each (join_in_code_order keeps it once).
+  grid::Cell around[3];
+  grid::neighbours(leaf.cell, leaf.level, around);
+  bool settled[3];
+  for (int s = 0; s < 3; ++s) settled[s] = in_uniform_leaf_of(tv, around[s], leaf.level, site);
+  const bool up_leaf = grid::is_up(leaf.cell);
+  const grid::Code octant_first = static_cast<grid::Code>(leaf.cell.octant) * grid::cells_per_octant(level);
+  const std::uint32_t first_row = leaf.cell.row << k;
+  const std::uint32_t base = (leaf.cell.col / 2) << (k + 1);  // the leaf's first column in its rows' blocks
+  // The cells of edge s, n of them, the m-th in (row_of(m), col_of(m)). Where the leaf across
+  // a cell asks nothing of it, the cells after it that face the same leaf ask nothing either:
+  // `beyond(a)` is the index past them (the leaf across a side edge is a triangle whose
+  // matching edge runs along it, holding the across cells of all its rows; across the base it
+  // holds a run of the next row's columns).
+  const auto walk_edge = [&](int s, std::uint32_t n, auto row_of, auto col_of, auto beyond) {
+    for (std::uint32_t m = 0; m < n;) {
+      const grid::Cell c{leaf.cell.octant, row_of(m), col_of(m)};
+      std::uint32_t next = m + 1;
+      bool boundary = false;
+      if (!settled[s]) {
+        grid::Cell nb[3];
+        grid::neighbours(c, level, nb);
+        const OutlineScratch::AcrossLeaf& a = scratch.across_leaf(tv, nb[s], s);
+        if (visit.nothing_to_ask(a, site)) {
+          next = std::max(next, std::min(n, beyond(a)));
+        } else {
+          boundary = visit.differs_in(nb[s], a, site);
         }
       }
-    };
-    // Past the rows of leaf a (in its octant; the side edges keep the row across octants).
-    const auto past_rows = [&](const OutlineScratch::AcrossLeaf& a) {
-      const std::uint32_t end = (a.cell.row + 1) << (level - a.level);
-      return end > first_row ? end - first_row : 0u;
-    };
-    const std::uint32_t n = static_cast<std::uint32_t>(rows);
-    const std::uint32_t last_col = base + 2 * n - 1;  // of a down leaf's rows
-    const auto row_at = [&](std::uint32_t m) { return first_row + m; };
-    if (!settled[grid::kNeighbourLeft] || leaf.cell.col == 0) {
-      walk_edge(grid::kNeighbourLeft, n, row_at, [&](std::uint32_t m) { return up_leaf ? base : base + 2 * m + 1; },
-                past_rows);
+      for (; m < next; ++m) {
+        const grid::Cell e{leaf.cell.octant, row_of(m), col_of(m)};
+        if (boundary || is_row_end(e)) {
+          visit.out.push_back({octant_first + std::uint64_t{e.row} * e.row + e.col, site, boundary ? 1u : 0u});
+        }
+      }
     }
-    if (!settled[grid::kNeighbourRight] || leaf.cell.col == 2 * leaf.cell.row) {
-      walk_edge(grid::kNeighbourRight, n, row_at, [&](std::uint32_t m) { return up_leaf ? base + 2 * m : last_col; },
-                past_rows);
-    }
-    if (!settled[grid::kNeighbourVertical]) {
-      const std::uint32_t row = up_leaf ? first_row + n - 1 : first_row;
-      // The leaf across holds the columns up to its own base's last in the next row (an up
-      // leaf's base) or the row before (a down leaf's); past the octant's last row the
-      // columns run the other way, so each cell asks.
-      const bool mirrored = up_leaf && std::uint64_t{row} + 1 == grid::rows_per_octant(level);
-      walk_edge(grid::kNeighbourVertical, n, [&](std::uint32_t) { return row; },
-                [&](std::uint32_t m) { return (up_leaf ? base : base + 1) + 2 * m; },
-                [&](const OutlineScratch::AcrossLeaf& a) -> std::uint32_t {
-                  if (mirrored) return 0;
-                  const int ka = level - a.level;
-                  const std::uint32_t a_end = ((a.cell.col / 2) << (ka + 1)) + (2u << ka);  // its columns' block end
-                  return a_end > base ? (a_end - base) / 2 : 0u;
-                });
-    }
-    return;
+  };
+  // Past the rows of leaf a (in its octant; the side edges keep the row across octants).
+  const auto past_rows = [&](const OutlineScratch::AcrossLeaf& a) {
+    const std::uint32_t end = (a.cell.row + 1) << (level - a.level);
+    return end > first_row ? end - first_row : 0u;
+  };
+  const std::uint32_t n = static_cast<std::uint32_t>(rows);
+  const std::uint32_t last_col = base + 2 * n - 1;  // of a down leaf's rows
+  const auto row_at = [&](std::uint32_t m) { return first_row + m; };
+  if (!settled[grid::kNeighbourLeft] || leaf.cell.col == 0) {
+    walk_edge(grid::kNeighbourLeft, n, row_at, [&](std::uint32_t m) { return up_leaf ? base : base + 2 * m + 1; },
+              past_rows);
   }
+  if (!settled[grid::kNeighbourRight] || leaf.cell.col == 2 * leaf.cell.row) {
+    walk_edge(grid::kNeighbourRight, n, row_at, [&](std::uint32_t m) { return up_leaf ? base + 2 * m : last_col; },
+              past_rows);
+  }
+  if (!settled[grid::kNeighbourVertical]) {
+    const std::uint32_t row = up_leaf ? first_row + n - 1 : first_row;
+    // The leaf across holds the columns up to its own base's last in the next row (an up
+    // leaf's base) or the row before (a down leaf's); past the octant's last row the
+    // columns run the other way, so each cell asks.
+    const bool mirrored = up_leaf && std::uint64_t{row} + 1 == grid::rows_per_octant(level);
+    walk_edge(grid::kNeighbourVertical, n, [&](std::uint32_t) { return row; },
+              [&](std::uint32_t m) { return (up_leaf ? base : base + 1) + 2 * m; },
+              [&](const OutlineScratch::AcrossLeaf& a) -> std::uint32_t {
+                if (mirrored) return 0;
+                const int ka = level - a.level;
+                const std::uint32_t a_end = ((a.cell.col / 2) << (ka + 1)) + (2u << ka);  // its columns' block end
+                return a_end > base ? (a_end - base) / 2 : 0u;
+              });
+  }
+}
+
+/// The outline cells of a list leaf of several sites, from its labels (label_list_leaf).
+void list_leaf_outline(const LeafVisit& visit) {
+  const TreeView& tv = visit.tv;
+  const TreeLeaf& leaf = visit.leaf;
+  OutlineScratch& scratch = visit.scratch;
+  LeafLabels& labels = scratch.labels;
+  const int level = tv.level;
+  const int k = level - leaf.level;
+  const std::uint64_t rows = std::uint64_t{1} << k;
   // Pairs of cells inside the leaf, each compared once, row by row from the apex: the neighbours
   // along each row, then each row's down cells with their neighbours in the row before (one place
   // before in an up leaf, whose rows grow by two cells from one first column; one place after in a
@@ -578,11 +598,11 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
         for (int s = 0; s < 3; ++s) {
           if (!ask[s]) continue;
           const OutlineScratch::AcrossLeaf& a = scratch.across_leaf(tv, nb[s], s);
-          boundary = (!nothing_to_ask(a, site) && differs_in(nb[s], a, site)) || boundary;
+          boundary = (!visit.nothing_to_ask(a, site) && visit.differs_in(nb[s], a, site)) || boundary;
         }
-        if (boundary || is_row_end(c)) out.push_back({first_code + p, site, boundary ? 1u : 0u});
+        if (boundary || is_row_end(c)) visit.out.push_back({first_code + p, site, boundary ? 1u : 0u});
       } else if (differs[m]) {
-        out.push_back({first_code + p, labels.site[m], 1u});
+        visit.out.push_back({first_code + p, labels.site[m], 1u});
       }
       // Off the base row only a row's first and last cells ask across: skip the cells between
       // them that differ from no neighbour inside.
@@ -591,6 +611,26 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
         while (m + 1 < end && !differs[m]) ++m;
       }
     }
+  }
+}
+
+/// Visits one leaf: every cell of a list leaf, the rim of a uniform leaf (or of a list leaf
+/// whose cells all got one site); appends the outline cells among them. A leaf of one site whose
+/// three neighbours (of its level) lie in uniform leaves of that site has no boundary cell: only
+/// its row ends are listed.
+void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode& node, OutlineScratch& scratch,
+                        OutlineCells& out) {
+  const LeafVisit visit{tv, leaf, node.count != kUniform, scratch, out};
+  if (!visit.list_leaf) {
+    one_site_leaf_outline(visit, node.value);
+    return;
+  }
+  label_list_leaf(tv, leaf, node, scratch);
+  const LeafLabels& labels = scratch.labels;
+  if (std::all_of(labels.site.begin(), labels.site.end(), [&](std::int32_t s) { return s == labels.site[0]; })) {
+    one_site_leaf_outline(visit, labels.site[0]);
+  } else {
+    list_leaf_outline(visit);
   }
 }
 

@@ -76,6 +76,21 @@ QTMV_HD inline double chord2_to_angle(double chord2) {
   return 2.0 * asin(half_chord);
 }
 
+// Sentinels of squared chords, named as S2 names S1ChordAngle's (Infinity(), kMaxLength2).
+
+/// The largest squared chord between two unit vectors: 4, between antipodes (chord 2).
+constexpr double kChord2Max = 4.0;
+
+/// Above every squared chord and bound the labeller computes: the distance of "nothing seen
+/// yet" (no_best) and the start of a search for the least upper bound, which any candidate
+/// replaces (S2's S1ChordAngle::Infinity()).
+constexpr double kChord2Infinity = 1e300;
+
+/// The pruning threshold that keeps every candidate: above kChord2Max by far more than the
+/// rounding of a computed squared chord (a few ulps above 4 near the antipode), so that no
+/// candidate's distance or lower bound passes it.
+constexpr double kChord2KeepAll = kChord2Max + 1.0;  // 5
+
 /// The best candidate seen so far for one cell centre. Order: smaller squared chord first;
 /// at distance exactly 0, a fixed cell's own centre first (fixed cells keep their site);
 /// then the lower site id (exact ties go to the lower id).
@@ -85,7 +100,7 @@ struct Best {
   std::int32_t site;  ///< -1 while nothing was seen
 };
 
-QTMV_HD inline Best no_best() { return {1e300, 1, -1}; }
+QTMV_HD inline Best no_best() { return {kChord2Infinity, 1, -1}; }
 
 QTMV_HD inline void consider(Best& best, double chord2, const Piece& p) {
   const std::int32_t rank = (chord2 == 0.0 && (p.flags & kPieceFixed)) ? 0 : 1;
@@ -204,11 +219,11 @@ constexpr double kPruneMarginRadians = 2e-7;
 /// The pruning threshold (squared chord) of a node with centre c and radius r (radians) whose
 /// nearest candidate from c is at squared chord min_chord2: a candidate p can be nearest to
 /// some point x of the node only if d(c, p) - r <= d(x, p) <= d(x, q) <= d(c, q) + r for the
-/// nearest q, i.e. d(c, p) <= d_min(c) + 2 r. Returns a value above 4 (keep all) when the
-/// angle reaches pi.
+/// nearest q, i.e. d(c, p) <= d_min(c) + 2 r. Returns kChord2KeepAll when the angle reaches
+/// pi.
 QTMV_HD inline double prune_threshold(double min_chord2, double radius) {
   const double limit = chord2_to_angle(min_chord2) + 2.0 * radius + kPruneMarginRadians;
-  if (limit >= grid::kPi) return 5.0;
+  if (limit >= grid::kPi) return kChord2KeepAll;
   const double half_chord = sin(0.5 * limit);
   return 4.0 * half_chord * half_chord * (1.0 + 1e-12);
 }

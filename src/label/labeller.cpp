@@ -244,183 +244,259 @@ bool outline_pass_pays(const Tree& tree) {
   return list_cells * 3 <= cells;
 }
 
-/// label_cells, or with `outline` label_outlines' pass (no sink then).
-LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
-                         const std::function<void(const LabelTile&)>& sink, OutlineCells* outline) {
-  validate(given, options.rule);
-  const int threads = thread_count(options.threads);
-  const DeviceChoice device = choose_device(options.device);
-  const grid::CodeRange range = range_of(options, given.level);
-  LabelStats stats;
-  auto say = [&](const std::string& message) { tell(options.messages, Severity::info, message); };
-  auto progress = [&](double fraction, const char* stage) { report_progress(options.progress, fraction, stage); };
-  if (device.cuda) {
-    const cuda::DeviceInfo info = cuda::device_info(device.index);
-    stats.device = "cuda:" + std::to_string(device.index) + " (" + info.name + ")";
-  } else {
-    stats.device = "cpu (" + std::to_string(threads) + " threads)";
+/// One run of label_cells, or with `outline` of label_outlines' pass (no sink then), in named
+/// steps: the algorithm, the tree (on the GPU or the host), the host's tile, then the labelling
+/// on the GPU, or on the CPU by the outline pass or in dense tiles.
+class LabellingRun {
+ public:
+  LabellingRun(const LabelOptions& options, const std::function<void(const LabelTile&)>& sink, OutlineCells* outline)
+      : options_(options), sink_(sink), outline_(outline) {}
+
+  LabelStats run(const LabelInput& given) {
+    validate(given, options_.rule);
+    threads_ = thread_count(options_.threads);
+    device_ = choose_device(options_.device);
+    range_ = range_of(options_, given.level);
+    on_gpu_ = device_.cuda;
+    if (device_.cuda) {
+      const cuda::DeviceInfo info = cuda::device_info(device_.index);
+      stats_.device = "cuda:" + std::to_string(device_.index) + " (" + info.name + ")";
+    } else {
+      stats_.device = "cpu (" + std::to_string(threads_) + " threads)";
+    }
+
+    const double t0 = now_seconds();
+    progress(0.0, "prepare");
+    choose_algorithm(given);
+    // Fixed nodes: the tree takes them as its cover (a node of its list level or above is a
+    // uniform leaf at once) and fixed points only where a list leaf may meet claimed cells; brute
+    // force takes every claimed cell as a fixed point.
+    prepared_ = prepare_input(given, hier_);
+    cover_view_ = prepared_.cover.view();
+    say("labelling on " + stats_.device + (hier_ ? ", pruned tree (hier)" : ", brute force"));
+    prepare_tree();
+    stats_.prepare_seconds = now_seconds() - t0;
+
+    HostBuffers host = host_buffers();
+    std::uint64_t done = range_.first;  // cells up to here handed to the sink
+    if (on_gpu_ && label_on_device(host, done)) return stats_;
+    if (outline_ && hier_ && outline_pass_pays(tree_)) {
+      outline_pass(done);
+    } else {
+      label_dense_tiles(host, done);
+    }
+    return stats_;
   }
 
-  const double t0 = now_seconds();
-  progress(0.0, "prepare");
-  // Brute force tests every claimed cell's centre; the tree only the fixed cells finer than its
-  // list level (the coarser fixed nodes are its cover's uniform leaves at once).
-  const double brute_candidates =
-      static_cast<double>((options.rule == Rule::exact ? given.piece_count : given.site_cell_count) +
-                          given.fixed_cell_count + fixed_node_cells(given));
-  stats.algorithm = options.algorithm;
-  if (stats.algorithm == Algorithm::automatic) {
-    const double work = static_cast<double>(grid::cell_count(given.level)) * brute_candidates;
-    stats.algorithm = device.cuda && work <= kBruteWorkLimit ? Algorithm::brute : Algorithm::hier;
+ private:
+  /// The host's buffers for one tile of outputs (empty where the run does not write them).
+  struct HostBuffers {
+    std::uint64_t cells = 0;  ///< of a tile
+    DefaultInitVector<std::int32_t> site;
+    DefaultInitVector<float> metres;
+    DefaultInitVector<std::uint8_t> boundary;
+    HostTile tile() {
+      return {cells, site.data(), metres.empty() ? nullptr : metres.data(), boundary.empty() ? nullptr : boundary.data()};
+    }
+  };
+
+  const LabelInput& input() const { return prepared_.input; }
+  void say(const std::string& message) const { tell(options_.messages, Severity::info, message); }
+  void progress(double fraction, const char* stage) const { report_progress(options_.progress, fraction, stage); }
+  /// The host's tree: the outline pass needs only a coarse jump table; the dense paths and a GPU
+  /// given the host's tree fill the full one (fill_jump_table) when they run.
+  JumpTable jump_table() const { return outline_ ? JumpTable::outline : JumpTable::full; }
+
+  /// The host's candidates, made when the host needs them: the exact rule's device build makes
+  /// its own from the input.
+  const std::vector<Piece>& host_candidates() {
+    if (!candidates_made_) candidates_ = make_candidates(input(), options_.rule, threads_);
+    candidates_made_ = true;
+    return candidates_;
   }
-  const bool hier = stats.algorithm == Algorithm::hier;
-  // The host's tree: the outline pass needs only a coarse jump table; the dense paths and a GPU
-  // given the host's tree fill the full one (fill_jump_table) when they run.
-  const JumpTable jump_table = outline ? JumpTable::outline : JumpTable::full;
-  // Fixed nodes: the tree takes them as its cover (a node of its list level or above is a
-  // uniform leaf at once) and fixed points only where a list leaf may meet claimed cells; brute
-  // force takes every claimed cell as a fixed point.
-  const PreparedInput prepared = prepare_input(given, hier);
-  const LabelInput& input = prepared.input;
-  const CoverView cover_view = prepared.cover.view();
-  // The host's candidates, made when the host needs them: the exact rule's device build makes
-  // its own from the input.
-  std::vector<Piece> candidates;
-  bool candidates_made = false;
-  auto host_candidates = [&]() -> const std::vector<Piece>& {
-    if (!candidates_made) candidates = make_candidates(input, options.rule, threads);
-    candidates_made = true;
-    return candidates;
-  };
-  say("labelling on " + stats.device + (hier ? ", pruned tree (hier)" : ", brute force"));
-  // On a GPU the tree is built there (cuda::Labeller's device constructor), inside prepare.
-  const bool device_tree = hier && device.cuda && options.tree_on_device;
-  std::unique_ptr<cuda::Labeller> gpu_built;
-  Tree tree;
-  // A GPU that runs out of memory hands the rest of the work to the CPU, with a warning.
-  bool on_gpu = device.cuda;
-  auto leave_gpu = [&](const cuda::OutOfMemory& e, std::uint64_t from) {
-    tell(options.messages, Severity::warning,
+
+  /// options.algorithm, with `automatic` settled.
+  void choose_algorithm(const LabelInput& given) {
+    // Brute force tests every claimed cell's centre; the tree only the fixed cells finer than its
+    // list level (the coarser fixed nodes are its cover's uniform leaves at once).
+    const double brute_candidates =
+        static_cast<double>((options_.rule == Rule::exact ? given.piece_count : given.site_cell_count) +
+                            given.fixed_cell_count + fixed_node_cells(given));
+    stats_.algorithm = options_.algorithm;
+    if (stats_.algorithm == Algorithm::automatic) {
+      const double work = static_cast<double>(grid::cell_count(given.level)) * brute_candidates;
+      stats_.algorithm = device_.cuda && work <= kBruteWorkLimit ? Algorithm::brute : Algorithm::hier;
+    }
+    hier_ = stats_.algorithm == Algorithm::hier;
+  }
+
+  /// A GPU that runs out of memory hands the rest of the work to the CPU, with a warning.
+  void leave_gpu(const cuda::OutOfMemory& e, std::uint64_t from) {
+    tell(options_.messages, Severity::warning,
          "the GPU ran out of memory (" + std::string(e.what()) + "); labelling " +
-             (from == range.first ? std::string("on the CPU") : "cells " + std::to_string(from) + " onwards on the CPU") +
+             (from == range_.first ? std::string("on the CPU") : "cells " + std::to_string(from) + " onwards on the CPU") +
              " instead");
-    on_gpu = false;
-    gpu_built.reset();
-    stats.device += ", then cpu (" + std::to_string(threads) + " threads)";
-  };
-  if (device_tree) {
-    try {
-      gpu_built = options.rule == Rule::exact
-                      ? std::make_unique<cuda::Labeller>(device.index, input, options.want_distance, threads,
-                                                         &cover_view)
-                      : std::make_unique<cuda::Labeller>(device.index, host_candidates(), input.level,
-                                                         options.want_distance, threads, &cover_view);
-    } catch (const std::length_error&) {
-      // Too large for the device build's 32-bit work counts: the host builds it (below).
-      gpu_built.reset();
-    } catch (const cuda::OutOfMemory& e) {
-      leave_gpu(e, range.first);
+    on_gpu_ = false;
+    gpu_.reset();
+    stats_.device += ", then cpu (" + std::to_string(threads_) + " threads)";
+  }
+
+  /// The tree of a hier run, on the GPU (cuda::Labeller's device constructor) or on the host, and
+  /// the stats of the candidates a cell tests.
+  void prepare_tree() {
+    const bool device_tree = hier_ && device_.cuda && options_.tree_on_device;
+    if (device_tree) {
+      try {
+        gpu_ = options_.rule == Rule::exact
+                   ? std::make_unique<cuda::Labeller>(device_.index, input(), options_.want_distance, threads_,
+                                                      &cover_view_)
+                   : std::make_unique<cuda::Labeller>(device_.index, host_candidates(), input().level,
+                                                      options_.want_distance, threads_, &cover_view_);
+      } catch (const std::length_error&) {
+        // Too large for the device build's 32-bit work counts: the host builds it (below).
+        gpu_.reset();
+      } catch (const cuda::OutOfMemory& e) {
+        leave_gpu(e, range_.first);
+      }
+    }
+    if (gpu_) {
+      const cuda::TreeInfo info = gpu_->tree_info();
+      stats_.tree_nodes = info.nodes;
+      stats_.tree_list_entries = info.list_entries;
+      stats_.mean_candidates = info.mean_candidates;
+    } else if (hier_) {
+      // Progress after each level of the build, so that a caller can stop a long build.
+      tree_ = build_tree(host_candidates(), input().level, options_.want_distance, threads_,
+                         [&](double fraction) { progress(fraction, "prepare"); }, &cover_view_, jump_table(), range_);
+      stats_.tree_nodes = tree_.nodes.size();
+      stats_.tree_list_entries = tree_.lists.size();
+      stats_.mean_candidates = tree_.mean_candidates;
+    } else {
+      stats_.mean_candidates = options_.rule == Rule::exact
+                                   ? static_cast<double>(input().piece_count + input().fixed_cell_count)
+                                   : static_cast<double>(host_candidates().size());
     }
   }
-  if (gpu_built) {
-    const cuda::TreeInfo info = gpu_built->tree_info();
-    stats.tree_nodes = info.nodes;
-    stats.tree_list_entries = info.list_entries;
-    stats.mean_candidates = info.mean_candidates;
-  } else if (hier) {
-    // Progress after each level of the build, so that a caller can stop a long build.
-    tree = build_tree(host_candidates(), input.level, options.want_distance, threads,
-                      [&](double fraction) { progress(fraction, "prepare"); }, &cover_view, jump_table, range);
-    stats.tree_nodes = tree.nodes.size();
-    stats.tree_list_entries = tree.lists.size();
-    stats.mean_candidates = tree.mean_candidates;
-  } else {
-    stats.mean_candidates = options.rule == Rule::exact ? static_cast<double>(input.piece_count + input.fixed_cell_count)
-                                                        : static_cast<double>(host_candidates().size());
-  }
-  stats.prepare_seconds = now_seconds() - t0;
 
-  const MemoryEstimate need = estimate_output_memory(input.level, options);
-  const std::uint64_t total = range.size();
-  // Host tiles are bounded so that a whole-globe run does not double the caller's memory.
-  const std::uint64_t host_limit = options.memory_limit_bytes ? options.memory_limit_bytes : host_ram_bytes() / 4;
-  std::uint64_t host_tile = std::min<std::uint64_t>(total, std::max<std::uint64_t>(1, host_limit / need.bytes_per_cell));
-  host_tile = std::min<std::uint64_t>(host_tile, std::uint64_t{1} << 28);
-  if (host_tile < std::min<std::uint64_t>(total, kMinTileCells)) {
-    throw std::runtime_error("level " + std::to_string(input.level) + " needs " + format_gib(double(need.output_bytes)) +
-                             " of outputs; not even a tile of 4096 cells fits in the " + format_gib(double(host_limit)) +
-                             " allowed");
+  /// The host's tile: bounded so that a whole-globe run does not double the caller's memory. The
+  /// outline pass takes one only for the CPU's dense tiles (then allocated by label_dense_tiles).
+  HostBuffers host_buffers() {
+    need_ = estimate_output_memory(input().level, options_);
+    const std::uint64_t total = range_.size();
+    const std::uint64_t host_limit = options_.memory_limit_bytes ? options_.memory_limit_bytes : host_ram_bytes() / 4;
+    std::uint64_t host_tile = std::min<std::uint64_t>(total, std::max<std::uint64_t>(1, host_limit / need_.bytes_per_cell));
+    host_tile = std::min<std::uint64_t>(host_tile, std::uint64_t{1} << 28);
+    if (host_tile < std::min<std::uint64_t>(total, kMinTileCells)) {
+      throw std::runtime_error("level " + std::to_string(input().level) + " needs " +
+                               format_gib(double(need_.output_bytes)) + " of outputs; not even a tile of 4096 cells fits in the " +
+                               format_gib(double(host_limit)) + " allowed");
+    }
+    // Not zeroed (a tile is up to 2^28 cells): each tile's labellers write every cell of it.
+    HostBuffers host;
+    host.cells = host_tile;
+    host.site.resize(outline_ ? 0 : host_tile);
+    host.metres.resize(options_.want_distance && !outline_ ? host_tile : 0);
+    host.boundary.resize(options_.want_boundary && !outline_ ? host_tile : 0);
+    return host;
   }
-  // The outline pass takes a host tile only for the CPU's dense tiles (brute force).
-  // Not zeroed (a tile is up to 2^28 cells): each tile's labellers write every cell of it.
-  DefaultInitVector<std::int32_t> site(outline ? 0 : host_tile);
-  DefaultInitVector<float> metres(options.want_distance && !outline ? host_tile : 0);
-  DefaultInitVector<std::uint8_t> boundary(options.want_boundary && !outline ? host_tile : 0);
-  float* metres_ptr = metres.empty() ? nullptr : metres.data();
-  std::uint8_t* boundary_ptr = boundary.empty() ? nullptr : boundary.data();
 
-  std::uint64_t done = range.first;  // cells up to here handed to the sink
-  if (on_gpu) {
+  /// Labels the range on the GPU from `done` on; true when it is done. When the GPU runs out of
+  /// memory, `done` is where the CPU goes on from, and a hier run's tree is built on the host.
+  bool label_on_device(HostBuffers& host, std::uint64_t& done) {
     try {
-      if (!gpu_built) {
-        if (hier) fill_jump_table(tree, tree_jump_level(input.level), threads);
-        gpu_built =
-            std::make_unique<cuda::Labeller>(device.index, host_candidates(), hier ? &tree : nullptr, input.level);
+      if (!gpu_) {
+        if (hier_) fill_jump_table(tree_, tree_jump_level(input().level), threads_);
+        gpu_ = std::make_unique<cuda::Labeller>(device_.index, host_candidates(), hier_ ? &tree_ : nullptr,
+                                                input().level);
       }
-      const HostTile host{host_tile, site.data(), metres_ptr, boundary_ptr};
       const double gpu_start = now_seconds();
-      label_on_gpu(*gpu_built, device.index, input.level, range, options, need, host, sink, stats, done, outline);
+      label_on_gpu(*gpu_, device_.index, input().level, range_, options_, need_, host.tile(), sink_, stats_, done,
+                   outline_);
       trace_printf(TraceStage::label, "%s: %zu tiles, kernels %.3f s, outline selection and copies %.3f s, wall %.3f s",
-                   stats.device.c_str(), stats.tiles, stats.label_seconds, stats.copy_seconds, now_seconds() - gpu_start);
-      gpu_built.reset();
-      cuda::release_cached_memory(device.index);
-      return stats;
+                   stats_.device.c_str(), stats_.tiles, stats_.label_seconds, stats_.copy_seconds,
+                   now_seconds() - gpu_start);
+      gpu_.reset();
+      cuda::release_cached_memory(device_.index);
+      return true;
     } catch (const cuda::OutOfMemory& e) {
       leave_gpu(e, done);
     }
-    if (hier && tree.nodes.empty()) {
-      tree = build_tree(host_candidates(), input.level, options.want_distance, threads, {}, &cover_view, jump_table,
-                        range);
+    if (hier_ && tree_.nodes.empty()) {
+      tree_ = build_tree(host_candidates(), input().level, options_.want_distance, threads_, {}, &cover_view_,
+                         jump_table(), range_);
     }
+    return false;
   }
-  if (outline && hier && outline_pass_pays(tree)) {
-    const TreeView tv = tree.view(host_candidates().data());
+
+  /// The CPU's tree pass (cpu_tree_outlines) from `done` on.
+  void outline_pass(std::uint64_t done) {
+    const TreeView tv = tree_.view(host_candidates().data());
     // Only the leaves that can touch an outline are visited (after a GPU that ran out of memory,
     // those of the cells it had not done).
     const double start = now_seconds();
-    const OutlineCells cpu = cpu_tree_outlines(tree, tv, threads, {done, range.end},
-                                                           [&](double fraction) { progress(fraction, "label"); });
-    outline->insert(outline->end(), cpu.begin(), cpu.end());
-    stats.label_seconds += now_seconds() - start;
-    ++stats.tiles;
+    const OutlineCells cpu = cpu_tree_outlines(tree_, tv, threads_, {done, range_.end},
+                                               [&](double fraction) { progress(fraction, "label"); });
+    outline_->insert(outline_->end(), cpu.begin(), cpu.end());
+    stats_.label_seconds += now_seconds() - start;
+    ++stats_.tiles;
     progress(1.0, "label");
-    return stats;
   }
-  if (hier) fill_jump_table(tree, tree_jump_level(input.level), threads);
-  const TreeView tv = tree.view(host_candidates().data());
-  if (outline) {  // the CPU's dense tiles, compacted as they come
-    site.resize(host_tile);
-    boundary.resize(host_tile);
-    boundary_ptr = boundary.data();
-  }
-  for (std::uint64_t first = done; first < range.end; first += host_tile) {
-    const std::uint64_t count = std::min(host_tile, range.end - first);
-    const double start = now_seconds();
-    if (hier) {
-      cpu_tree_range(tree, tv, first, count, site.data(), metres_ptr, boundary_ptr, threads);
-    } else {
-      cpu_brute_range(candidates, input.level, first, count, site.data(), metres_ptr, boundary_ptr, threads);
+
+  /// The CPU's dense tiles from `done` on, by the tree or by brute force: handed to the sink, or
+  /// compacted into the outline cells as they come.
+  void label_dense_tiles(HostBuffers& host, std::uint64_t done) {
+    const int level = input().level;
+    if (hier_) fill_jump_table(tree_, tree_jump_level(level), threads_);
+    // Brute force needs the candidates alone; the tree a view of itself over them.
+    const std::vector<Piece>& candidates = host_candidates();
+    const TreeView tv = hier_ ? tree_.view(candidates.data()) : TreeView{};
+    if (outline_) {
+      host.site.resize(host.cells);
+      host.boundary.resize(host.cells);
     }
-    stats.label_seconds += now_seconds() - start;
-    ++stats.tiles;
-    if (outline) {
-      append_outline_cells(input.level, first, count, site.data(), boundary_ptr, threads, outline);
-    } else {
-      sink({first, count, site.data(), metres_ptr, boundary_ptr});
+    const HostTile tile = host.tile();
+    const std::uint64_t total = range_.size();
+    for (std::uint64_t first = done; first < range_.end; first += host.cells) {
+      const std::uint64_t count = std::min(host.cells, range_.end - first);
+      const double start = now_seconds();
+      if (hier_) {
+        cpu_tree_range(tree_, tv, first, count, tile.site, tile.metres, tile.boundary, threads_);
+      } else {
+        cpu_brute_range(candidates, level, first, count, tile.site, tile.metres, tile.boundary, threads_);
+      }
+      stats_.label_seconds += now_seconds() - start;
+      ++stats_.tiles;
+      if (outline_) {
+        append_outline_cells(level, first, count, tile.site, tile.boundary, threads_, outline_);
+      } else {
+        sink_({first, count, tile.site, tile.metres, tile.boundary});
+      }
+      progress(double(first + count - range_.first) / double(total), "label");
     }
-    progress(double(first + count - range.first) / double(total), "label");
   }
-  return stats;
+
+  const LabelOptions& options_;
+  const std::function<void(const LabelTile&)>& sink_;
+  OutlineCells* const outline_;
+  int threads_ = 0;
+  DeviceChoice device_;
+  grid::CodeRange range_;
+  LabelStats stats_;
+  bool hier_ = false;
+  bool on_gpu_ = false;
+  PreparedInput prepared_;
+  CoverView cover_view_{};
+  MemoryEstimate need_;
+  std::vector<Piece> candidates_;
+  bool candidates_made_ = false;
+  std::unique_ptr<cuda::Labeller> gpu_;
+  Tree tree_;
+};
+
+/// label_cells, or with `outline` label_outlines' pass (no sink then).
+LabelStats run_labelling(const LabelInput& given, const LabelOptions& options,
+                         const std::function<void(const LabelTile&)>& sink, OutlineCells* outline) {
+  return LabellingRun(options, sink, outline).run(given);
 }
 
 }  // namespace

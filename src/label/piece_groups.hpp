@@ -270,7 +270,7 @@ QTMV_HD inline Best best_of_items(const Vec3& x, const std::int32_t* items, std:
                                   const PieceGroup* groups, std::int32_t* winner) {
   Best best = no_best();
   std::int32_t won = -1;
-  double bound = 1e300;  // squared chord that the best piece's distance cannot exceed
+  double bound = kChord2Infinity;  // squared chord that the best piece's distance cannot exceed
   bool any_group = false;
   for (std::int32_t k = 0; k < count; ++k) {
     const std::int32_t item = items[k];

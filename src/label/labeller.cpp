@@ -1,5 +1,6 @@
 // The labeller's run: input checks, device choice, the algorithm, tiling, and the hand-over to
-// the stages (candidates.cpp, tree_build.cpp, cpu_painter.cpp, cuda/label_cuda.cu).
+// the stages (candidates.cpp, tree_build.cpp, cpu_painter.cpp; on a GPU, cuda/label_cuda.cu and
+// the stages' .cu files beside it).
 #include "label/labeller.hpp"
 
 #include <algorithm>

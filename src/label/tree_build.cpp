@@ -1,5 +1,5 @@
 // The host's build of the pruned tree (label_tree.hpp), level by level on all cores; the device
-// build (cuda/label_cuda.cu) makes the same tree with the same node rule (tree_node_rule.hpp).
+// build (cuda/tree_build_cuda.cu) makes the same tree with the same node rule (tree_node_rule.hpp).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>

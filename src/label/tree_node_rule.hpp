@@ -1,6 +1,6 @@
 // What a node of the labeller's tree becomes (uniform leaf, list leaf or internal node): one
 // QTMV_HD body for the host build (build_tree, tree_build.cpp) and the device build
-// (level_decide_kernel, cuda/label_cuda.cu), so that the two trees are the same node for node.
+// (level_decide_kernel, cuda/tree_build_kernels.cuh), so that the two trees are the same node for node.
 // Also both builds' test for a node covered by one site's fixed cells (the cover's key ranges).
 #pragma once
 

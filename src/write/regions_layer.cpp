@@ -5,14 +5,17 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
+#include <cpl_conv.h>
 #include <cpl_string.h>
 #include <ogrsf_frmts.h>
 
 #include "common/first_exception.hpp"
 #include "common/openmp_threads.hpp"
 #include "common/trace.hpp"
+#include "sites/fid_list.hpp"
 #include "write/region_tracer.hpp"
 #include "write/vector_layer_writers.hpp"
 #include "write/work_ahead.hpp"
@@ -62,6 +65,69 @@ std::string unique_field_name(const std::string& name, const OGRFeatureDefn* sou
   return candidate;
 }
 
+/// A field's type as a message names it: "Integer", "Integer(Boolean)".
+std::string type_name(const OGRFieldDefn& f) {
+  std::string name = OGRFieldDefn::GetFieldTypeName(f.GetType());
+  if (f.GetSubType() != OFSTNone) name += std::string("(") + OGRFieldDefn::GetFieldSubTypeName(f.GetSubType()) + ")";
+  return name;
+}
+
+/// Whether some value of field `sf` of layer `layer`'s sites (Integer64) is too large for a
+/// double to hold exactly (beyond 2^53).
+bool beyond_double(const sites::SiteTable& table, std::size_t layer, int sf) {
+  constexpr std::int64_t kExact = std::int64_t{1} << 53;
+  for (const sites::SiteRecord& site : table.sites) {
+    if (site.layer != layer || !site.attributes || !site.attributes->IsFieldSetAndNotNull(sf)) continue;
+    const std::int64_t v = site.attributes->GetFieldAsInteger64(sf);
+    if (v > kExact || v < -kExact) return true;
+  }
+  return false;
+}
+
+/// Widens union field `into` (of the layers before) to hold the values of `other` too (a field
+/// of the same name in another layer): the same type keeps it (a subtype only when both have
+/// it; the larger width, none when either has none), Integer and Integer64 make Integer64, an
+/// integer and Real make Real (unless an Integer64 value is beyond a double's 2^53: String),
+/// any other pair String, as ogr2ogr's merging does. `big_integers`: whether `other`'s or
+/// `into`'s Integer64 values go beyond 2^53. Returns whether the type or subtype changed.
+bool widen_field(OGRFieldDefn& into, const OGRFieldDefn& other, bool big_integers) {
+  const OGRFieldType a = into.GetType(), b = other.GetType();
+  const OGRFieldType before = a;
+  const OGRFieldSubType sub_before = into.GetSubType();
+  const auto is_integer = [](OGRFieldType t) { return t == OFTInteger || t == OFTInteger64; };
+  OGRFieldType type = OFTString;
+  if (a == b) {
+    type = a;
+  } else if (is_integer(a) && is_integer(b)) {
+    type = OFTInteger64;
+  } else if ((is_integer(a) || a == OFTReal) && (is_integer(b) || b == OFTReal) && !big_integers) {
+    type = OFTReal;
+  }
+  if (type != a) {
+    // Another type: its widths are not this one's (a number's width is no string's).
+    into.SetType(type);
+    into.SetSubType(OFSTNone);
+    into.SetWidth(0);
+    into.SetPrecision(0);
+  } else {
+    if (into.GetSubType() != other.GetSubType()) into.SetSubType(OFSTNone);
+    if (into.GetWidth() > 0) into.SetWidth(other.GetWidth() > 0 ? std::max(into.GetWidth(), other.GetWidth()) : 0);
+    into.SetPrecision(std::max(into.GetPrecision(), other.GetPrecision()));
+  }
+  return into.GetType() != before || into.GetSubType() != sub_before;
+}
+
+/// A Real as text that reads back as the same double: the shortest of 15 to 17 significant
+/// digits that does (OGR's own conversion keeps 16, or 15, and loses the last bits).
+std::string real_text(double v) {
+  char text[40];
+  for (int digits = 15; digits <= 17; ++digits) {
+    CPLsnprintf(text, sizeof text, "%.*g", digits, v);
+    if (CPLStrtod(text, nullptr) == v) break;
+  }
+  return text;
+}
+
 /// Whether the sources' values can go into direct GeoPackage rows exactly as OGR would write
 /// them: every field of `fields` (the union) Integer, Integer64, Real or String without a subtype
 /// (OGR clamps Boolean and Int16 values, rounds Float32 ones) or a default value (which an unset
@@ -80,7 +146,9 @@ bool plain_source_values(const LayerInput& in, const OGRFeatureDefn& fields, con
       const int sf = source_index[k][static_cast<std::size_t>(u)];
       if (sf < 0) continue;
       const OGRFieldDefn* own = in.table.definition(k)->GetFieldDefn(sf);
-      if (own->GetType() != type || own->GetSubType() != OFSTNone) return false;
+      // An Integer into an Integer64 union field: the same INTEGER column, the same values.
+      const bool same = own->GetType() == type || (own->GetType() == OFTInteger && type == OFTInteger64);
+      if (!same || own->GetSubType() != OFSTNone) return false;
     }
   }
   for (const sites::SiteRecord& site : in.table.sites) {
@@ -117,13 +185,16 @@ struct TracedRegions {
 /// The regions layer's fields as made: the source's, then ours.
 struct RegionFields {
   // The source's fields first, as ogr2ogr would copy them; of several source layers (composite
-  // sites), the union of their fields by name (a name's first layer gives its type), and then
-  // site_layer, the layer of each site.
+  // sites), the union of their fields by name (of a type that holds each layer's values:
+  // widen_field), and then site_layer, the layer of each site.
   OGRFeatureDefn union_fields{"fields"};
   // Per source layer: its fields' places in the union (one empty map for a table without a
   // source), and the other way round: the layer's field for each union field (or -1).
   std::vector<std::vector<int>> field_maps, source_index;
   std::vector<int> written;  // the layer's field for each union field
+  // Per source layer: its Real fields whose union field is String (another layer's is text), as
+  // (the layer's field, the regions layer's field): written as real_text, not as OGR's 16 digits.
+  std::vector<std::vector<std::pair<int, int>>> reals_as_text;
   int layer_index = -1, fid_index = -1, cells_index = -1, area_index = -1;  // ours (site_layer: composite only)
 };
 
@@ -136,13 +207,30 @@ void add_region_fields(VectorDatasetWriter& w, const LayerInput& in, RegionField
   const std::size_t source_layers = std::max<std::size_t>(1, in.table.source_count());
   field_maps.resize(source_layers);
   source_index.resize(source_layers);
+  // A name's fields of several layers (composite sites) whose types differ make a union field
+  // that holds them all (widen_field), with one warning naming the layers and their types.
+  std::vector<bool> widened;
   for (std::size_t k = 0; k < in.table.source_count(); ++k) {
     const OGRFeatureDefn* source = in.table.definition(k);
     for (int f = 0; source && f < source->GetFieldCount(); ++f) {
-      int u = fields.GetFieldIndex(source->GetFieldDefn(f)->GetNameRef());
+      const OGRFieldDefn* own = source->GetFieldDefn(f);
+      int u = fields.GetFieldIndex(own->GetNameRef());
       if (u < 0) {
-        fields.AddFieldDefn(source->GetFieldDefn(f));
+        fields.AddFieldDefn(own);
         u = fields.GetFieldCount() - 1;
+        widened.push_back(false);
+      } else {
+        OGRFieldDefn* into = fields.GetFieldDefn(u);
+        bool big = own->GetType() == OFTInteger64 && beyond_double(in.table, k, f);
+        for (std::size_t j = 0; j < k && !big; ++j) {
+          const int jf = in.table.definition(j)->GetFieldIndex(own->GetNameRef());
+          big = jf >= 0 && in.table.definition(j)->GetFieldDefn(jf)->GetType() == OFTInteger64 &&
+                beyond_double(in.table, j, jf);
+        }
+        const bool changed = widen_field(*into, *own, big);
+        widened[static_cast<std::size_t>(u)] =
+            widened[static_cast<std::size_t>(u)] || changed || own->GetType() != into->GetType() ||
+            own->GetSubType() != into->GetSubType();
       }
       field_maps[k].push_back(u);
     }
@@ -151,10 +239,32 @@ void add_region_fields(VectorDatasetWriter& w, const LayerInput& in, RegionField
     source_index[k].assign(static_cast<std::size_t>(fields.GetFieldCount()), -1);
     for (std::size_t f = 0; f < field_maps[k].size(); ++f) source_index[k][static_cast<std::size_t>(field_maps[k][f])] = static_cast<int>(f);
   }
+  out.reals_as_text.resize(source_layers);
+  for (int u = 0; u < fields.GetFieldCount(); ++u) {
+    if (!widened[static_cast<std::size_t>(u)]) continue;
+    const OGRFieldDefn* field = fields.GetFieldDefn(u);
+    std::string types;
+    for (std::size_t k = 0; k < in.table.source_count(); ++k) {
+      const int sf = source_index[k][static_cast<std::size_t>(u)];
+      if (sf < 0) continue;
+      types += (types.empty() ? "" : ", ") + type_name(*in.table.definition(k)->GetFieldDefn(sf)) + " in layer '" +
+               in.table.layer(k) + "'";
+    }
+    qtmv::tell(in.messages, qtmv::Severity::warning,
+               "field '" + std::string(field->GetNameRef()) + "': " + types + ": written as " + type_name(*field));
+  }
   written.resize(static_cast<std::size_t>(fields.GetFieldCount()));
   for (int u = 0; u < fields.GetFieldCount(); ++u) {
     OGRFieldDefn copy(fields.GetFieldDefn(u));
     written[static_cast<std::size_t>(u)] = w.add_field(copy);
+  }
+  for (std::size_t k = 0; k < in.table.source_count(); ++k) {
+    for (std::size_t f = 0; f < field_maps[k].size(); ++f) {
+      const OGRFieldDefn* own = in.table.definition(k)->GetFieldDefn(static_cast<int>(f));
+      if (own->GetType() == OFTReal && fields.GetFieldDefn(field_maps[k][f])->GetType() == OFTString) {
+        out.reals_as_text[k].emplace_back(static_cast<int>(f), written[static_cast<std::size_t>(field_maps[k][f])]);
+      }
+    }
   }
   for (auto& map : field_maps) {
     for (int& u : map) u = written[static_cast<std::size_t>(u)];
@@ -235,6 +345,10 @@ void write_regions(VectorDatasetWriter& w, const LayerInput& in, double work, st
     link_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return block;
   };
+  // The regions of sites without a cell (empty): as the driver can hold them (EmptyRows); the
+  // rows it cannot hold are named in a warning at the end.
+  const EmptyRows empty_rows = w.empty_rows();
+  sites::FidList left_out;
   // A row's values in the order of row_fields: the source's (direct rows only; OGR copies them
   // itself), then ours.
   std::vector<RowValue> values(row_fields.size());
@@ -252,21 +366,36 @@ void write_regions(VectorDatasetWriter& w, const LayerInput& in, double work, st
         w.write(*direct, block.geometries[s - first], values.data());
         continue;
       }
+      const bool empty = block.regions[s - first].empty();
+      if (empty && empty_rows == EmptyRows::left_out) {
+        left_out.add(site.fid);
+        continue;
+      }
       FeaturePtr feature(OGRFeature::CreateFeature(layer->GetLayerDefn()));
       const std::vector<int>& field_map = fields.field_maps[site.layer];
       if (site.attributes && !field_map.empty()) {
         if (feature->SetFieldsFrom(site.attributes.get(), field_map.data(), TRUE) != OGRERR_NONE) {
           w.fail("cannot copy the attributes of site " + std::to_string(s));
         }
+        for (const auto& [sf, field] : fields.reals_as_text[site.layer]) {
+          if (site.attributes->IsFieldSetAndNotNull(sf)) {
+            feature->SetField(field, real_text(site.attributes->GetFieldAsDouble(sf)).c_str());
+          }
+        }
       }
       for (std::size_t k = fields.written.size(); k < row_fields.size(); ++k) set_value(*feature, row_fields[k], values[k]);
-      feature->SetGeometryDirectly(make_multipolygon(block.regions[s - first]));  // empty for a site without cells
+      // Empty for a site without cells; null where the driver keeps nulls but not empties.
+      if (!empty || empty_rows == EmptyRows::empty) feature->SetGeometryDirectly(make_multipolygon(block.regions[s - first]));
       w.write(*feature);
     }
     w.layer_progress(0.4 + 0.6 * static_cast<double>(last) / static_cast<double>(in.site_count), 1.0);
   };
   work_ahead(static_cast<std::size_t>(in.site_count), kRegionBlock, link, write);
   trace("regions traced and written");
+  if (left_out.count() > 0) {
+    w.warn(w.driver_name() + " drops rows without a geometry: the " + std::to_string(left_out.count()) +
+           " site(s) without a cell (FIDs " + left_out.text() + ") are not in it");
+  }
   trace.note("of which tracing", link_seconds);
   if (direct) {
     w.guard([&] { direct->finish(); });

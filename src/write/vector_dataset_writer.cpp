@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <utility>
 
+#include <cpl_conv.h>
 #include <cpl_error.h>
 
 namespace qtmv::write {
@@ -38,6 +39,24 @@ CPLStringList string_list(const std::vector<std::string>& items) {
 }
 
 }  // namespace
+
+EmptyRows empty_rows_of(const std::string& driver) {
+  // GDAL 3.6.2, a MultiPolygon layer (docs/RELIABILITY.md): MapInfo refuses an empty geometry
+  // and keeps a null one; these drop both (or drop the empty and refuse the null), silently.
+  // MVT and MBTiles write tiles, where a row without a geometry has no place.
+  if (EQUAL(driver.c_str(), "MapInfo File")) return EmptyRows::null;
+  for (const char* name : {"FlatGeobuf", "PDF", "DXF", "DGN", "OGR_GMT", "Geoconcept", "MVT", "MBTiles"}) {
+    if (EQUAL(driver.c_str(), name)) return EmptyRows::left_out;
+  }
+  return EmptyRows::empty;
+}
+
+bool counts_cheaply(const std::string& driver) {
+  for (const char* name : {"GPKG", "FlatGeobuf", "ESRI Shapefile", "OpenFileGDB", "MapInfo File"}) {
+    if (EQUAL(driver.c_str(), name)) return true;
+  }
+  return false;
+}
 
 RowValue fid_value(std::int64_t fid) { return fid == OGRNullFID ? RowValue{} : RowValue::of(fid); }
 
@@ -83,6 +102,43 @@ void VectorDatasetWriter::close() {
   layer_name_.clear();
   dataset_.reset();
   check("closing the dataset");
+  check_counts();
+}
+
+void VectorDatasetWriter::check_counts() {
+  if (!counts_cheaply(driver_name_) || layer_rows_.empty()) return;
+  const char* const drivers[] = {driver_name_.c_str(), nullptr};
+  DatasetPtr written;
+  {
+    // A file that cannot be opened again (written to /vsistdout/, say) is not checked.
+    CPLErrorStateBackuper keep_error_state;
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    written.reset(static_cast<GDALDataset*>(
+        GDALOpenEx(path_.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, drivers, nullptr, nullptr)));
+    CPLPopErrorHandler();
+  }
+  if (!written) return;
+  for (const auto& [name, rows] : layer_rows_) {
+    OGRLayer* layer = written->GetLayerByName(name.c_str());
+    if (!layer || !layer->TestCapability(OLCFastFeatureCount)) continue;
+    const GIntBig count = layer->GetFeatureCount(FALSE);
+    if (count < 0 || static_cast<std::uint64_t>(count) == rows) continue;
+    layer_name_ = name;
+    written.reset();
+    fail(std::to_string(rows) + " rows written, but the " + driver_name_ + " file holds " + std::to_string(count) +
+         " of them");
+  }
+}
+
+EmptyRows VectorDatasetWriter::empty_rows() const {
+  if (EQUAL(CPLGetConfigOption("QTMV_FAULT_EMPTY_ROWS", ""), "EMPTY")) return EmptyRows::empty;
+  return empty_rows_of(driver_name_);
+}
+
+void VectorDatasetWriter::warn(const std::string& what) const {
+  std::string where = "'" + path_ + "'";
+  if (!layer_name_.empty()) where += ", layer " + layer_name_;
+  CPLError(CE_Warning, CPLE_AppDefined, "%s: %s", where.c_str(), what.c_str());
 }
 
 OGRLayer* VectorDatasetWriter::begin_layer(const char* name, OGRwkbGeometryType type, double work, bool per_cell) {
@@ -95,6 +151,7 @@ OGRLayer* VectorDatasetWriter::begin_layer(const char* name, OGRwkbGeometryType 
   }
   layer_ = dataset_->CreateLayer(name, &srs_, type, lco.List());
   if (!layer_) fail("cannot create the layer");
+  layer_rows_.emplace_back(layer_->GetName(), 0);
   check("creating the layer");
   return layer_;
 }
@@ -140,6 +197,7 @@ void VectorDatasetWriter::write(GpkgRows& rows, const GpkgGeometry& geometry, co
 }
 
 void VectorDatasetWriter::count_row() {
+  ++layer_rows_.back().second;
   ++in_transaction_;
   if (transactions_ && in_transaction_ >= kTransactionFeatures) {
     commit();

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <cpl_string.h>
@@ -34,6 +35,19 @@ RowValue fid_value(std::int64_t fid);
 
 void set_value(OGRFeature& feature, int field, const RowValue& value);
 
+/// How a row whose geometry is empty (the region of a site without a cell) is written: with its
+/// empty geometry, with a null one (the driver refuses or drops empties but keeps nulls), or not
+/// at all (the driver holds neither: the caller names the rows in a warning). From the survey of
+/// GDAL 3.6's drivers in docs/RELIABILITY.md, "Output drivers and what they cannot hold".
+enum class EmptyRows { empty, null, left_out };
+
+/// EmptyRows for the driver named `driver` (GDAL's short name).
+EmptyRows empty_rows_of(const std::string& driver);
+
+/// Whether the driver's files tell their layers' feature counts cheaply (a header or a table
+/// of counts), so that a closed dataset's layers can be checked against the rows written.
+bool counts_cheaply(const std::string& driver);
+
 /// The dataset being written: layers, fields, transactions, progress and errors.
 class VectorDatasetWriter {
  public:
@@ -51,8 +65,17 @@ class VectorDatasetWriter {
   /// not to flush.
   ~VectorDatasetWriter();
 
-  /// Closes the dataset; throws if GDAL reported any error meanwhile.
+  /// Closes the dataset; throws if GDAL reported any error meanwhile, or if a layer of a driver
+  /// that counts_cheaply holds other than as many features as rows were written.
   void close();
+
+  /// How the current driver takes a row with an empty geometry (fault injection for the tests:
+  /// the configuration option QTMV_FAULT_EMPTY_ROWS=EMPTY writes empties to every driver).
+  EmptyRows empty_rows() const;
+  const std::string& driver_name() const { return driver_name_; }
+
+  /// A warning naming the file and the current layer ("'x.fgb', layer regions: ...").
+  void warn(const std::string& what) const;
 
   /// Creates a layer; `work` is its share of the progress (features it will write, about).
   /// `per_cell`: a layer of millions of cell polygons (boundary_cells, cells), which gets no
@@ -101,6 +124,8 @@ class VectorDatasetWriter {
 
  private:
   void check(const std::string& what) const;
+  /// After the close: each layer's feature count against its rows (counts_cheaply drivers).
+  void check_counts();
   void start_transaction();
   void commit();
   void report();
@@ -112,6 +137,7 @@ class VectorDatasetWriter {
   DatasetPtr dataset_;
   OGRLayer* layer_ = nullptr;
   std::string layer_name_, driver_name_;
+  std::vector<std::pair<std::string, std::uint64_t>> layer_rows_;  ///< each layer's rows written
   CPLStringList field_types_;  ///< the driver's GDAL_DMD_CREATIONFIELDDATATYPES (empty: not stated)
   bool transactions_ = false, transaction_open_ = false;
   std::uint64_t in_transaction_ = 0, since_progress_ = 0;

@@ -7,7 +7,10 @@
 //                   latitude +-90 at the poles. Fields: every field of the source, then
 //                   site_fid (Integer64), cells (Integer64: cells labelled with the site),
 //                   area_m2 (Real: square metres on the WGS84 ellipsoid). A site without cells
-//                   gets its row with an empty geometry.
+//                   gets its row with an empty geometry; with a null one where the driver
+//                   refuses empties but keeps nulls (MapInfo), and none where it holds neither
+//                   (FlatGeobuf, ...: the rows are named in a warning): EmptyRows in
+//                   vector_dataset_writer.hpp.
 //   boundary_cells  one Polygon per boundary cell: code (Integer64), site_fid (Integer64).
 //   voronoi_edges   one MultiLineString per pair of neighbouring sites a < b (site ids): the cell
 //                   edges between their cells, linked into lines. Fields site_a, site_b (the
@@ -18,7 +21,9 @@
 //                   not computed), boundary (Integer, boolean subtype).
 //
 // Composite sites (several source layers, SiteTable::source_count() > 1): regions take the union
-// of the layers' fields by name (a name's first layer gives its type) and a site_layer field
+// of the layers' fields by name (of a type that holds every layer's values: String where they
+// differ, Integer64 for Integer and Integer64, Real for an integer and Real; with a warning
+// naming the field, the layers and their types) and a site_layer field
 // (String) naming each site's layer; boundary_cells and cells get site_layer too, voronoi_edges
 // layer_a and layer_b. FIDs stay those of their layer.
 //

@@ -1190,6 +1190,158 @@ TEST(CatalogueOutput, AttributeTypeTheFormatCannotHoldBecomesText) {
   EXPECT_STREQ(f->GetFieldAsString("ids"), "(3:7,8,9)");
 }
 
+TEST(CatalogueOutput, CompositeSitesWithOneFieldOfTwoTypesKeepEveryValue) {
+  // "code" is Integer in towns, String in wells: the union was Integer (the first layer's type)
+  // and "W-17", "N/A" became 0 with GDAL's warning naming no layer. Now String, with a warning;
+  // Integer and Integer64 make Integer64, Integer and Real make Real (0.1 + 0.2 to the last bit).
+  const std::string dir = test_dir();
+  const std::string src = dir + "/places.gpkg";
+  {
+    GDALAllRegister();
+    GDALDatasetUniquePtr ds(GetGDALDriverManager()->GetDriverByName("GPKG")->Create(src.c_str(), 0, 0, 0, GDT_Unknown, nullptr));
+    ASSERT_TRUE(ds);
+    OGRSpatialReference wgs84;
+    wgs84.importFromEPSG(4326);
+    struct Field {
+      const char* name;
+      OGRFieldType type;
+    };
+    const auto add_layer = [&](const char* name, const std::vector<Field>& fields,
+                               const std::vector<std::pair<double, std::vector<std::string>>>& rows) {
+      OGRLayer* layer = ds->CreateLayer(name, &wgs84, wkbPoint, nullptr);
+      ASSERT_TRUE(layer);
+      for (const Field& f : fields) {
+        OGRFieldDefn defn(f.name, f.type);
+        ASSERT_EQ(layer->CreateField(&defn), OGRERR_NONE);
+      }
+      for (const auto& [x, values] : rows) {
+        OGRFeature feature(layer->GetLayerDefn());
+        for (std::size_t k = 0; k < values.size(); ++k) feature.SetField(static_cast<int>(k), values[k].c_str());
+        OGRPoint point(x, 10);
+        feature.SetGeometry(&point);
+        ASSERT_EQ(layer->CreateFeature(&feature), OGRERR_NONE);
+      }
+    };
+    add_layer("towns", {{"code", OFTInteger}, {"pop", OFTInteger}, {"depth", OFTInteger}},
+              {{10, {"17", "1200", "3"}}, {20, {"42", "800", "4"}}});
+    add_layer("wells", {{"code", OFTString}, {"pop", OFTInteger64}, {"depth", OFTReal}},
+              {{-30, {"W-17", "5000000000", "0.30000000000000004"}}, {-40, {"N/A", "7", "2.5"}}});
+  }
+  const std::string dst = dir + "/out.gpkg";
+  const Result r = run_small({"-layers", "regions", "-l", "towns", "-l", "wells", src, dst});
+  expect_success(r, dst);
+  EXPECT_TRUE(contains(r.err, "warning: field 'code': Integer in layer 'towns', String in layer 'wells': written as String"))
+      << r.err;
+  EXPECT_TRUE(contains(r.err, "field 'pop': Integer in layer 'towns', Integer64 in layer 'wells': written as Integer64"))
+      << r.err;
+  EXPECT_TRUE(contains(r.err, "field 'depth': Integer in layer 'towns', Real in layer 'wells': written as Real")) << r.err;
+  EXPECT_FALSE(contains(r.err, "Warning 1")) << r.err;  // GDAL's own, naming no layer
+  const auto ds = qtmv::test::open_dataset(dst, GDAL_OF_VECTOR);
+  ASSERT_TRUE(ds && ds->GetLayerByName("regions"));
+  OGRLayer* regions = ds->GetLayerByName("regions");
+  const OGRFeatureDefn* defn = regions->GetLayerDefn();
+  EXPECT_EQ(defn->GetFieldDefn(defn->GetFieldIndex("code"))->GetType(), OFTString);
+  EXPECT_EQ(defn->GetFieldDefn(defn->GetFieldIndex("pop"))->GetType(), OFTInteger64);
+  EXPECT_EQ(defn->GetFieldDefn(defn->GetFieldIndex("depth"))->GetType(), OFTReal);
+  std::vector<std::string> codes, layers;
+  std::vector<GIntBig> pops;
+  std::vector<double> depths;
+  for (auto& f : *regions) {
+    codes.push_back(f->GetFieldAsString("code"));
+    layers.push_back(f->GetFieldAsString("site_layer"));
+    pops.push_back(f->GetFieldAsInteger64("pop"));
+    depths.push_back(f->GetFieldAsDouble("depth"));
+  }
+  EXPECT_EQ(codes, (std::vector<std::string>{"17", "42", "W-17", "N/A"}));
+  EXPECT_EQ(layers, (std::vector<std::string>{"towns", "towns", "wells", "wells"}));
+  EXPECT_EQ(pops, (std::vector<GIntBig>{1200, 800, 5000000000LL, 7}));
+  EXPECT_EQ(depths, (std::vector<double>{3, 4, 0.1 + 0.2, 2.5}));
+
+  // Real and String make String: the Real written to its last bit, not as OGR's 16 digits ("0.3").
+  // A shapefile (the regions through OGR features) as well.
+  const std::string shp = dir + "/mixed.shp";
+  {
+    const auto up = qtmv::test::open_dataset(src, GDAL_OF_VECTOR | GDAL_OF_UPDATE);
+    ASSERT_TRUE(up);
+    OGRLayer* depths_layer = up->CreateLayer("gauges", up->GetLayerByName("towns")->GetSpatialRef(), wkbPoint, nullptr);
+    OGRFieldDefn code("code", OFTReal);
+    ASSERT_EQ(depths_layer->CreateField(&code), OGRERR_NONE);
+    OGRFeature feature(depths_layer->GetLayerDefn());
+    feature.SetField(0, 0.1 + 0.2);
+    OGRPoint point(100, -20);
+    feature.SetGeometry(&point);
+    ASSERT_EQ(depths_layer->CreateFeature(&feature), OGRERR_NONE);
+  }
+  const Result mixed = run_small({"-layers", "regions", "-l", "gauges", "-l", "wells", src, shp});
+  expect_success(mixed, shp);
+  EXPECT_TRUE(contains(mixed.err, "field 'code': Real in layer 'gauges', String in layer 'wells': written as String"))
+      << mixed.err;
+  const auto out = qtmv::test::open_dataset(shp, GDAL_OF_VECTOR);
+  ASSERT_TRUE(out);
+  codes.clear();
+  for (auto& f : *out->GetLayer(0)) codes.push_back(f->GetFieldAsString("code"));
+  EXPECT_EQ(codes, (std::vector<std::string>{"0.30000000000000004", "W-17", "N/A"}));
+}
+
+TEST(CatalogueOutput, FlatGeobufNamesTheRowsItCannotHoldAndEveryRowIsCounted) {
+  // 10 of the 241 country centres get no cell at level 5: their regions are empty, which
+  // FlatGeobuf (GDAL 3.6) drops, as it drops null geometries: 231 rows, exit 0, not a word.
+  const std::string dir = test_dir();
+  const std::string fgb = dir + "/x.fgb";
+  const std::vector<std::string> args = concat({"-level", "5", "-device", "cpu", "-layers", "regions"}, kCsvOptions);
+  const Result r = run(concat(args, {kCentres, fgb}));
+  expect_success(r, fgb);
+  EXPECT_TRUE(contains(r.err, "'" + fgb + "', layer regions: FlatGeobuf drops rows without a geometry: the 10 site(s) "
+                              "without a cell (FIDs 28, 73, 119, 131, 164, 165, 186, 189, 213, 241) are not in it"))
+      << r.err;
+  const auto read_fids = [](const std::string& path) {
+    std::set<GIntBig> fids;
+    const auto ds = qtmv::test::open_dataset(path, GDAL_OF_VECTOR);
+    if (!ds) return fids;
+    for (auto& f : *ds->GetLayer(0)) {
+      EXPECT_TRUE(f->GetGeometryRef() == nullptr || !f->GetGeometryRef()->IsEmpty() ||
+                  f->GetFieldAsInteger64("cells") == 0);
+      fids.insert(f->GetFieldAsInteger64("site_fid"));
+    }
+    return fids;
+  };
+  const std::set<GIntBig> in_fgb = read_fids(fgb);
+  EXPECT_EQ(in_fgb.size(), 231u);
+  for (const GIntBig fid : {28, 73, 119, 131, 164, 165, 186, 189, 213, 241}) EXPECT_EQ(in_fgb.count(fid), 0u) << fid;
+
+  // MapInfo refuses an empty geometry and keeps a null one: every row, those 10 without geometry.
+  const std::string tab = dir + "/x.tab";
+  const Result mapinfo = run(concat(concat(args, {"-of", "MapInfo File"}), {kCentres, tab}));
+  expect_success(mapinfo, tab);
+  {
+    const auto ds = qtmv::test::open_dataset(tab, GDAL_OF_VECTOR);
+    ASSERT_TRUE(ds);
+    std::set<GIntBig> without;
+    GIntBig rows = 0;
+    for (auto& f : *ds->GetLayer(0)) {
+      ++rows;
+      if (f->GetGeometryRef() == nullptr) without.insert(f->GetFieldAsInteger64("site_fid"));
+    }
+    EXPECT_EQ(rows, 241);
+    EXPECT_EQ(without, (std::set<GIntBig>{28, 73, 119, 131, 164, 165, 186, 189, 213, 241}));
+  }
+
+  // GeoPackage and Shapefile keep them (empty, or null in a shapefile): 241 rows.
+  for (const std::string name : {"x.gpkg", "kept.shp"}) {
+    const std::string dst = dir + "/" + name;
+    const Result kept = run(concat(args, {kCentres, dst}));
+    expect_success(kept, dst);
+    EXPECT_FALSE(contains(kept.err, "drops rows")) << kept.err;
+    EXPECT_EQ(read_fids(dst).size(), 241u) << name;
+  }
+
+  // The count check after writing: should the driver lose rows it was given (here the empties
+  // written anyway, by fault injection), the run fails naming the count, and nothing is left.
+  const std::string lost = dir + "/lost.fgb";
+  expect_failure(run(concat(concat(args, {"--config", "QTMV_FAULT_EMPTY_ROWS", "EMPTY"}), {kCentres, lost})), 1,
+                 {lost + ", layer regions: 241 rows written, but the FlatGeobuf file holds 231 of them"}, lost);
+}
+
 // A file system that fills up: the run's file size limit (ulimit -f). The write fails, the run
 // says where, and nothing is left: neither the destination nor the temporary directory.
 void expect_disk_full(const std::vector<std::string>& args, const std::string& dst, long bytes,

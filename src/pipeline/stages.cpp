@@ -47,6 +47,17 @@ auto as_stage(RunProgress& progress, const std::string& prefix, Work&& work) -> 
   }
 }
 
+/// What becomes of the rows of sites without a cell in the output (vector_writer.hpp's EmptyRows).
+std::string row_kept(const RunPlan& plan) {
+  if (plan.format.raster || plan.tile_count > 0) return "";
+  switch (write::empty_rows_of(plan.format.driver)) {
+    case write::EmptyRows::empty: return "; they keep their row, with an empty geometry";
+    case write::EmptyRows::null: return "; they keep their row, with a null geometry";
+    case write::EmptyRows::left_out: return "; " + plan.format.driver + " cannot hold their rows (no geometry): they are left out";
+  }
+  return "";
+}
+
 /// Marks the sites that got no cell (SiteRecord::has_own_cell) from the cells per site, with one
 /// warning naming them (they keep their row); returns their count.
 std::uint64_t mark_sites_without_cell(const std::vector<std::uint64_t>& count, const RunPlan& plan,
@@ -59,7 +70,7 @@ std::uint64_t mark_sites_without_cell(const std::vector<std::uint64_t>& count, c
   if (missing.count() > 0) {
     tell(messages, Severity::warning,
          std::to_string(missing.count()) + " site(s) got no cell of their own at level " + std::to_string(plan.level) +
-             " (FIDs " + missing.text() + "); they keep their row, with an empty geometry");
+             " (FIDs " + missing.text() + ")" + row_kept(plan));
   }
   return missing.count();
 }

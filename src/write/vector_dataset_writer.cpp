@@ -6,6 +6,8 @@
 #include <cpl_conv.h>
 #include <cpl_error.h>
 
+#include "common/config_option.hpp"
+
 namespace qtmv::write {
 
 namespace {
@@ -131,7 +133,7 @@ void VectorDatasetWriter::check_counts() {
 }
 
 EmptyRows VectorDatasetWriter::empty_rows() const {
-  if (EQUAL(CPLGetConfigOption("QTMV_FAULT_EMPTY_ROWS", ""), "EMPTY")) return EmptyRows::empty;
+  if (EQUAL(fault_switch("QTMV_FAULT_EMPTY_ROWS").c_str(), "EMPTY")) return EmptyRows::empty;
   return empty_rows_of(driver_name_);
 }
 

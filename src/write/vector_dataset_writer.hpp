@@ -18,6 +18,7 @@
 #include "sites/site_table.hpp"
 #include "write/cell_labels.hpp"
 #include "write/gpkg_rows.hpp"
+#include "write/vector_writer.hpp"
 
 namespace qtmv::write {
 
@@ -34,15 +35,6 @@ using sites::FeaturePtr;
 RowValue fid_value(std::int64_t fid);
 
 void set_value(OGRFeature& feature, int field, const RowValue& value);
-
-/// How a row whose geometry is empty (the region of a site without a cell) is written: with its
-/// empty geometry, with a null one (the driver refuses or drops empties but keeps nulls), or not
-/// at all (the driver holds neither: the caller names the rows in a warning). From the survey of
-/// GDAL 3.6's drivers in docs/RELIABILITY.md, "Output drivers and what they cannot hold".
-enum class EmptyRows { empty, null, left_out };
-
-/// EmptyRows for the driver named `driver` (GDAL's short name).
-EmptyRows empty_rows_of(const std::string& driver);
 
 /// Whether the driver's files tell their layers' feature counts cheaply (a header or a table
 /// of counts), so that a closed dataset's layers can be checked against the rows written.

@@ -84,4 +84,13 @@ void write_vector(const std::string& path, const label::Outlines& outlines, cons
 void write_vector(const std::string& path, const CellLabels& labels, const sites::SiteTable& table,
                   const VectorOptions& options);
 
+/// How a row whose geometry is empty (the region of a site without a cell) is written: with its
+/// empty geometry, with a null one (the driver refuses or drops empties but keeps nulls), or not
+/// at all (the driver holds neither: the caller names the rows in a warning). From the survey of
+/// GDAL 3.6's drivers in docs/RELIABILITY.md, "Output drivers and what they cannot hold".
+enum class EmptyRows { empty, null, left_out };
+
+/// EmptyRows for the driver named `driver` (GDAL's short name).
+EmptyRows empty_rows_of(const std::string& driver);
+
 }  // namespace qtmv::write

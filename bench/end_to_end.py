@@ -7,15 +7,19 @@ memory (the child's maximum resident set, from wait4) and the stage times of the
 line (read / label / write). Ratios are taken within one run of this script, on one machine.
 
   bench/end_to_end.py --tool PATH [--device cuda|cpu|both|cuda:all|cuda:0,1] [--cases NAMES] [--repeat N]
-                      [--csv OUT] [--data DIR] [--tiles N]
+                      [--threads N[,M...]] [--csv OUT] [--data DIR] [--tiles N]
+
+--threads N,M,...: each case once per -threads value (0: the tool's default, all cores), on every
+device (the readers and writers run on the host's cores whatever labels), for the sweep that shows
+whether a stage gets slower with more threads.
 
 --tiles N: each vector case also as N tile jobs (-tile K/N) run one after another, then the merge
 (-merge); its wall time is the sum of all N + 1 processes, its peak memory the largest of them, and
 its regions are compared with the whole run's (the rows of the GeoPackage's regions table).
 
 PATH is the qtmvoronoi binary or the bundle's bin/qtmvoronoi wrapper (scripts/make_bundle.sh).
-The inputs: testdata/country_centres.csv (241 points) and 135 233 points spread evenly over the
-sphere (seeded; written here as CSV, so that no GDAL tool is needed on the machine); for the
+The inputs: testdata/country_centres.csv (241 points), and 135 233 and 1 000 000 points spread evenly
+over the sphere (seeded; written here as CSV, so that no GDAL tool is needed on the machine); for the
 polygon cases, Natural Earth's 50m countries and 10m land as GeoPackages in --data DIR (made by
 bench/make_natural_earth.sh where GDAL's tools are; copied to the GPU machine with the bundle).
 Standard library only: it runs on the GPU machine too.
@@ -55,6 +59,10 @@ CASES = {
     "centres-L17-regions+edges": ("centres", 17, "regions,voronoi_edges", ("cuda",)),
     "centres-L18-regions+edges": ("centres", 18, "regions,voronoi_edges", ("cuda",)),
     "points135k-L13-regions": ("points", 13, "regions", ("cpu", "cuda")),
+    "points1m-L10-regions": ("points1m", 10, "regions", ("cpu", "cuda")),
+    "points1m-L12-regions": ("points1m", 12, "regions", ("cpu", "cuda")),
+    "points1m-L14-regions": ("points1m", 14, "regions", ("cpu", "cuda")),
+    "points1m-L16-regions": ("points1m", 16, "regions", ("cuda",)),
     "points135k-L15-regions": ("points", 15, "regions", ("cpu", "cuda")),
     "points135k-L11-tif": ("points", 11, "tif", ("cpu", "cuda")),
     "points135k-L13-tif": ("points", 13, "tif", ("cpu", "cuda")),
@@ -152,7 +160,7 @@ def main():
     parser.add_argument("--tiles", type=int, default=0, help="also run each vector case as N tile jobs and a merge")
     parser.add_argument("--cases", default=",".join(CASES), help="comma-separated case names")
     parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--threads", type=int, default=0, help="-threads for the CPU runs (0: all)")
+    parser.add_argument("--threads", default="0", help="-threads values, comma-separated, each a row (0: the default)")
     parser.add_argument("--csv", help="also write the rows here")
     parser.add_argument("--keep", help="directory for the outputs (default: a temporary one)")
     parser.add_argument("--data", default=os.path.join(HERE, "..", "build", "bench-data"),
@@ -160,11 +168,15 @@ def main():
     args = parser.parse_args()
 
     work = args.keep or tempfile.mkdtemp(prefix="qtmv_e2e_")
-    points = os.path.join(work, "points135k.csv")
-    inputs = {"centres": CENTRES, "points": points}
+    # The evenly spread points: the input's name, its count and its seed.
+    spread = {"points": (135233, 135233), "points1m": (1000000, 1000000)}
+    inputs = {"centres": CENTRES}
     names = [c for c in args.cases.split(",") if c]
-    if any(CASES[c][0] == "points" for c in names):
-        even_points(points)
+    for source, (count, seed) in spread.items():
+        inputs[source] = os.path.join(work, "%s.csv" % source)
+        if any(CASES[c][0] == source for c in names):
+            even_points(inputs[source], count, seed)
+    thread_counts = [int(t) for t in args.threads.split(",") if t]
     devices = ["cpu", "cuda"] if args.device == "both" else [args.device]
     kind = lambda device: "cuda" if device.startswith("cuda") else device
 
@@ -173,7 +185,7 @@ def main():
     print("|---|---|---|---|---|---|")
     for name in names:
         source, level, layers, allowed = CASES[name]
-        for device in devices:
+        for device, threads in [(d, t) for d in devices for t in thread_counts]:
             if kind(device) not in allowed:
                 continue
             raster = layers == "tif"
@@ -181,8 +193,9 @@ def main():
             command = [args.tool, "-overwrite", "-device", device, "-level", str(level)]
             if not raster:
                 command += ["-layers", layers]
-            if device == "cpu" and args.threads:
-                command += ["-threads", str(args.threads)]
+            if threads:
+                command += ["-threads", str(threads)]
+            label = device + (" -threads %d" % threads if threads else "")
             if source in NATURAL_EARTH:
                 file, layer = NATURAL_EARTH[source]
                 command += ["-l", layer, os.path.join(args.data, file), out]
@@ -194,7 +207,7 @@ def main():
                 runs.append(run_once(command))
             failed = [r for r in runs if r[2] != 0]
             if failed:
-                print("| %s | %s | failed (exit %d): %s |" % (name, device, failed[0][2], failed[0][3].strip().splitlines()[-1]))
+                print("| %s | %s | failed (exit %d): %s |" % (name, label, failed[0][2], failed[0][3].strip().splitlines()[-1]))
                 sys.stdout.flush()
                 continue
             wall = statistics.median(r[0] for r in runs)
@@ -202,9 +215,9 @@ def main():
             stages = [SUMMARY.search(r[3]) for r in runs]
             stage = [statistics.median(float(m.group(g)) for m in stages if m) for g in (1, 2, 4)] if all(stages) else [0, 0, 0]
             size = os.path.getsize(out) / 1e6
-            print("| %s | %s | %.2f | %.0f | %.2f / %.2f / %.2f | %.1f |" % (name, device, wall, peak, *stage, size))
+            print("| %s | %s | %.2f | %.0f | %.2f / %.2f / %.2f | %.1f |" % (name, label, wall, peak, *stage, size))
             sys.stdout.flush()
-            rows.append({"case": name, "device": device, "level": level, "layers": layers, "wall_s": "%.3f" % wall,
+            rows.append({"case": name, "device": label, "level": level, "layers": layers, "wall_s": "%.3f" % wall,
                          "peak_mb": "%.0f" % peak, "read_s": stage[0], "label_s": stage[1], "write_s": stage[2],
                          "walls": " ".join("%.3f" % r[0] for r in runs), "command": " ".join(command)})
             if args.tiles and not raster:

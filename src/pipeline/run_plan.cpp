@@ -234,7 +234,7 @@ RunPlan plan_run(const std::string& destination, const VoronoiOptions& options) 
                          " layers: a raster's FID band cannot tell their sites apart; write vector output, whose "
                          "rows name each site's layer");
     }
-    if (options.vector.all_ring_vertices) {
+    if (options.vector.ring_vertices != write::VectorLayers::Vertices::automatic) {
       throw VoronoiError("-vertices is for the regions of vector output; " + plan.format.driver + " output is a raster");
     }
     if (options.algorithm == label::Algorithm::brute) {

@@ -107,9 +107,13 @@ struct VectorLayers {
   std::vector<std::string> layers{"regions", "boundary_cells", "voronoi_edges"};
   std::vector<std::string> dataset_options;  ///< -dsco NAME=VALUE
   std::vector<std::string> layer_options;    ///< -lco NAME=VALUE
-  /// -vertices all: the regions' rings keep every cell vertex along parallels (see
-  /// RingVertices in region_tracer.hpp), so that their edges read as geodesics give area_m2.
-  bool all_ring_vertices = false;
+  /// -vertices: which vertices the regions' rings keep where they run along a parallel
+  /// (RingVertices in region_tracer.hpp). automatic (-vertices not given) is all: every cell
+  /// vertex, so that readers of geodesic edges (PostGIS geography, BigQuery, S2) get the region
+  /// drawn and its area_m2; corners: the runs' ends only, for planar readers alone.
+  enum class Vertices { automatic, corners, all };
+  Vertices ring_vertices = Vertices::automatic;
+  bool all_ring_vertices() const { return ring_vertices != Vertices::corners; }
 };
 
 /// Vector output (any OGR driver), all in EPSG:4326.

@@ -23,7 +23,7 @@ struct LayerInput {
   const CellTileSource& cell_tiles;  ///< the cells layer's labels
   const sites::SiteTable& table;
   std::int32_t site_count;
-  bool all_ring_vertices;  ///< VectorOptions::all_ring_vertices
+  bool all_ring_vertices;  ///< VectorOptions::all_ring_vertices()
   int geodesic_device;     ///< VectorOptions::geodesic_device
   const MessageSink& messages;
 

@@ -62,7 +62,7 @@ void write_vector(const std::string& path, const label::Outlines& outlines, cons
   const bool want_cells = std::find(layers.begin(), layers.end(), "cells") != layers.end();
   if (want_cells && !cell_tiles) throw std::invalid_argument("write_vector: the cells layer needs the cells' labels");
   const Code cells = grid::cell_count(outlines.level);
-  const LayerInput in{outlines, cell_tiles, table, site_count, options.all_ring_vertices, options.geodesic_device,
+  const LayerInput in{outlines, cell_tiles, table, site_count, options.all_ring_vertices(), options.geodesic_device,
                  options.messages};
   std::uint64_t boundary_count = 0;
   const auto outline_cells = static_cast<std::int64_t>(outlines.cells.size());

@@ -176,9 +176,12 @@ TEST(QtmvoronoiCore, ParsesOptions) {
   EXPECT_THROW(parse_command_line({"-ts", "10", "a", "b"}), UsageError);
   EXPECT_THROW(parse_command_line({"-layers", "regions,regions", "a", "b"}), UsageError);
   EXPECT_TRUE(parse_command_line({"a", "--help"}).help);
-  EXPECT_FALSE(o.run.vector.all_ring_vertices);
-  EXPECT_TRUE(parse_command_line({"-vertices", "ALL", "a", "b"}).run.vector.all_ring_vertices);
-  EXPECT_FALSE(parse_command_line({"-vertices", "corners", "a", "b"}).run.vector.all_ring_vertices);
+  // Without -vertices, every vertex (the reading geodesic consumers need); the choice is recorded.
+  EXPECT_EQ(o.run.vector.ring_vertices, qtmv::write::VectorLayers::Vertices::automatic);
+  EXPECT_TRUE(o.run.vector.all_ring_vertices());
+  EXPECT_EQ(parse_command_line({"-vertices", "ALL", "a", "b"}).run.vector.ring_vertices,
+            qtmv::write::VectorLayers::Vertices::all);
+  EXPECT_FALSE(parse_command_line({"-vertices", "corners", "a", "b"}).run.vector.all_ring_vertices());
 }
 
 TEST(QtmvoronoiCore, GuessesTheFormatFromGdalsDriverMetadata) {

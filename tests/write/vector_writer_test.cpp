@@ -320,7 +320,7 @@ TEST_F(VectorTest, AllRingVerticesMakeTheGeodesicAreaTheRegionsArea) {
     const TempPath out(name);
     VectorOptions options;
     options.layers = {"regions"};
-    options.all_ring_vertices = all_vertices;
+    options.ring_vertices = all_vertices ? VectorOptions::Vertices::all : VectorOptions::Vertices::corners;
     write_vector(out.path, {level, labels.data(), nullptr, nullptr}, table, options);
     auto ds = open_vector(out.path);
     EXPECT_TRUE(ds);

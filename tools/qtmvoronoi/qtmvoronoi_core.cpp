@@ -228,7 +228,8 @@ bool parse_vector_option(const OptionAt& at, VoronoiOptions& run) {
   } else if (name == "-vertices") {
     const std::string v = lower(at.value());
     if (v != "corners" && v != "all") throw UsageError("-vertices: '" + v + "' is not one of corners, all");
-    run.vector.all_ring_vertices = v == "all";
+    using Vertices = write::VectorLayers::Vertices;
+    run.vector.ring_vertices = v == "all" ? Vertices::all : Vertices::corners;
   } else {
     return false;
   }

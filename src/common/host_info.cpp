@@ -1,5 +1,6 @@
 #include "common/host_info.hpp"
 
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -21,6 +22,10 @@ std::string format_gib(double bytes) {
   char text[64];
   std::snprintf(text, sizeof text, "%.2f GiB", bytes / double(std::uint64_t{1} << 30));
   return text;
+}
+
+const char* special_file_kind(unsigned mode) {
+  return S_ISFIFO(mode) ? "a FIFO" : S_ISSOCK(mode) ? "a socket" : "a device";
 }
 
 }  // namespace qtmv

@@ -15,4 +15,8 @@ std::uint64_t host_ram_bytes();
 /// "1.25 GiB": a byte count for messages.
 std::string format_gib(double bytes);
 
+/// "a FIFO", "a socket" or "a device": what a path that is neither a regular file nor a
+/// directory is, by its stat mode (st_mode), for a message refusing it.
+const char* special_file_kind(unsigned mode);
+
 }  // namespace qtmv

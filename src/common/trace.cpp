@@ -33,9 +33,8 @@ const char* trace_stage_name(TraceStage stage) {
 }
 
 bool trace_enabled(TraceStage stage) {
+  if (!config_flag("QTMV_TRACE")) return false;  // unset, empty, NO, OFF, FALSE, 0
   const char* value = config_option("QTMV_TRACE");
-  if (!value || !*value) return false;
-  if (!config_flag("QTMV_TRACE")) return false;  // NO, OFF, FALSE, 0
   // A list of stages ("read,write", "label write"); any other value (all, YES, ON, 1) is every stage.
   bool listed_any = false;
   for (const char* p = value; *p;) {

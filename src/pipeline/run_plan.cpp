@@ -5,7 +5,6 @@
 #include <gdal_priv.h>
 
 #include <algorithm>
-#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
@@ -24,13 +23,6 @@
 namespace qtmv::pipeline {
 
 namespace {
-
-bool ends_with_ignoring_case(const std::string& text, const std::string& suffix) {
-  return text.size() >= suffix.size() &&
-         std::equal(suffix.rbegin(), suffix.rend(), text.rbegin(), [](char a, char b) {
-           return std::tolower(static_cast<unsigned char>(a)) == std::tolower(static_cast<unsigned char>(b));
-         });
-}
 
 // A lon/lat raster's pixel takes the site of the cell holding its centre: with cells this many
 // times finer than a pixel (in latitude), few pixels name a site that is not the nearest to their
@@ -120,15 +112,20 @@ void check_vector_destination(const std::string& destination, RunPlan& plan) {
                        "them, or name a directory (for drivers that write one file per layer there) or a format " +
                        "such as GPKG");
   }
+  // A driver's layer option the user did not give: set to the project's default.
+  const auto default_layer_option = [&](const char* driver, const char* name, const char* value) {
+    if (plan.format.driver != driver) return;
+    const std::string prefix = std::string(name) + "=";
+    if (std::none_of(vector.layer_options.begin(), vector.layer_options.end(),
+                     [&](const std::string& o) { return STARTS_WITH_CI(o.c_str(), prefix.c_str()); })) {
+      vector.layer_options.push_back(prefix + value);
+    }
+  };
   // CSV keeps no geometry unless asked to: keep it, as WKT.
-  const bool geometry_option = std::any_of(vector.layer_options.begin(), vector.layer_options.end(),
-                                           [](const std::string& o) { return STARTS_WITH_CI(o.c_str(), "GEOMETRY="); });
-  if (plan.format.driver == "CSV" && !geometry_option) vector.layer_options.push_back("GEOMETRY=AS_WKT");
+  default_layer_option("CSV", "GEOMETRY", "AS_WKT");
   // A shapefile's text is ISO-8859-1 unless told: names beyond Latin-1 would be mangled. UTF-8,
-  // as the sources' text is to OGR, unless -lco ENCODING= says otherwise.
-  const bool encoding_option = std::any_of(vector.layer_options.begin(), vector.layer_options.end(),
-                                           [](const std::string& o) { return STARTS_WITH_CI(o.c_str(), "ENCODING="); });
-  if (plan.format.driver == "ESRI Shapefile" && !encoding_option) vector.layer_options.push_back("ENCODING=UTF-8");
+  // as the sources' text is to OGR.
+  default_layer_option("ESRI Shapefile", "ENCODING", "UTF-8");
   plan.cells_layer = std::find(vector.layers.begin(), vector.layers.end(), "cells") != vector.layers.end();
 }
 
@@ -284,7 +281,7 @@ RunPlan plan_tile_job(const std::string& destination, const VoronoiOptions& opti
   RunPlan plan = plan_level(options);
   if (!options.merge.empty()) throw VoronoiError("-tile and -merge: a run labels one tile, or merges all of them");
   if (destination.empty()) throw VoronoiError("-tile: no file named for the tile product");
-  if (!ends_with_ignoring_case(destination, kTileProductExtension)) {
+  if (!EQUAL(CPLGetExtension(destination.c_str()), kTileProductExtension + 1)) {  // ".qtmt" without its dot
     // part1.gpkg would be a tile product under a GeoPackage's name: GIS software cannot read it.
     throw VoronoiError("-tile: '" + destination + "': a tile job writes a tile product, which only -merge reads: " +
                        "name it with " + kTileProductExtension + ", and give the output's name to the -merge run");

@@ -231,14 +231,15 @@ void StagedOutput::commit() {
     std::vector<fs::path> entries;
     for (const fs::directory_entry& entry : fs::directory_iterator(made, ec)) entries.push_back(entry.path());
     if (ec) throw VoronoiError("cannot write '" + destination_ + "': " + ec.message());
-    std::set<std::string> stems;
-    for (const fs::path& p : entries) stems.insert(p.stem().string());
-    for (const std::string& name : names_in(gdal_file_list(destination_), dest)) {
-      if (stems.count(fs::path(name).stem().string())) moves.set_aside(dest / name);
-    }
+    std::set<std::string> stems, old;
     for (const fs::path& p : entries) {
-      if (fs::exists(fs::symlink_status(dest / p.filename(), ec))) moves.set_aside(dest / p.filename());
+      stems.insert(p.stem().string());
+      if (fs::exists(fs::symlink_status(dest / p.filename(), ec))) old.insert(p.filename().string());
     }
+    for (const std::string& name : names_in(gdal_file_list(destination_), dest)) {
+      if (stems.count(fs::path(name).stem().string())) old.insert(name);
+    }
+    for (const std::string& name : old) moves.set_aside(dest / name);
     for (const fs::path& from : entries) moves.move_in(from, dest / from.filename());
     moves.done();
     committed_ = true;

@@ -87,16 +87,14 @@ void check_raster_fids(const sites::SiteTable& table) {
     throw VoronoiError(where + "sites without a FID: a raster's FID band cannot name them; write vector output, " +
                        "whose rows keep every site");
   }
-  std::vector<std::int64_t> shared;
+  sites::FidList shared;  // each shared FID once
   for (std::size_t k = 1; k < fids.size(); ++k) {
-    if (fids[k] == fids[k - 1] && (shared.empty() || shared.back() != fids[k])) shared.push_back(fids[k]);
+    if (fids[k] == fids[k - 1] && (k == 1 || fids[k - 1] != fids[k - 2])) shared.add(fids[k]);
   }
-  if (shared.empty()) return;
-  std::string listed;
-  for (std::size_t k = 0; k < std::min<std::size_t>(shared.size(), 10); ++k) listed += (k ? ", " : "") + std::to_string(shared[k]);
-  if (shared.size() > 10) listed += ", ... (" + std::to_string(shared.size()) + " in all)";
-  throw VoronoiError(where + "several sites share FID " + listed + ": a raster's FID band could not tell them apart; " +
-                     "write vector output (its rows keep every site), or give the sites unique FIDs");
+  if (shared.count() == 0) return;
+  const std::string all = shared.count() > sites::FidList::kListed ? " (" + std::to_string(shared.count()) + " in all)" : "";
+  throw VoronoiError(where + "several sites share FID " + shared.text() + all + ": a raster's FID band could not tell " +
+                     "them apart; write vector output (its rows keep every site), or give the sites unique FIDs");
 }
 
 }  // namespace

@@ -4,8 +4,6 @@
 #include <cpl_string.h>
 #include <cpl_vsi.h>
 
-#include <sys/stat.h>
-
 #include <algorithm>
 #include <cstring>
 #include <functional>
@@ -13,6 +11,7 @@
 #include <memory>
 #include <stdexcept>
 
+#include "common/host_info.hpp"
 #include "common/run_context.hpp"
 #include "gdal/error_capture.hpp"
 #include "grid/qtm_code_ranges.hpp"
@@ -252,7 +251,7 @@ namespace {
 void check_regular_file(const std::string& path, const VSIStatBufL& stat) {
   if (VSI_ISREG(stat.st_mode)) return;
   throw VoronoiError("-merge: '" + path + "': not a regular file (" +
-                     (S_ISFIFO(stat.st_mode) ? "a FIFO" : S_ISSOCK(stat.st_mode) ? "a socket" : "a device") +
+                     special_file_kind(static_cast<unsigned>(stat.st_mode)) +
                      "); a tile product is a file that a -tile run wrote");
 }
 

@@ -6,6 +6,8 @@
 
 #include <cstddef>
 
+#include "common/host_info.hpp"
+
 namespace qtmv::sites {
 
 namespace {
@@ -19,7 +21,7 @@ GDALDatasetUniquePtr open_dataset(const std::string& dataset_name, const ReadOpt
   if (dataset_name.rfind("/vsi", 0) != 0 && stat(dataset_name.c_str(), &local) == 0 && !S_ISREG(local.st_mode) &&
       !S_ISDIR(local.st_mode)) {
     throw ReadError("cannot open '" + dataset_name + "': not a regular file or directory (" +
-                    (S_ISFIFO(local.st_mode) ? "a FIFO" : S_ISSOCK(local.st_mode) ? "a socket" : "a device") +
+                    special_file_kind(local.st_mode) +
                     "); for standard input use /vsistdin/");
   }
   CPLStringList open_options;

@@ -1,0 +1,91 @@
+// The trace channel and the run switches (common/trace.hpp, common/config_option.hpp): which
+// values of QTMV_TRACE switch which stages on, that lines go through the installed sink at
+// Severity::debug (and nowhere when off), and that an installed lookup replaces the environment.
+#include "common/trace.hpp"
+
+#include <gtest/gtest.h>
+#include <stdlib.h>
+
+#include <cstring>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "common/config_option.hpp"
+
+namespace qtmv {
+namespace {
+
+/// Sets QTMV_TRACE (nullptr: unsets it) for its lifetime.
+class TraceSwitch {
+ public:
+  explicit TraceSwitch(const char* value) {
+    if (value) {
+      ::setenv("QTMV_TRACE", value, 1);
+    } else {
+      ::unsetenv("QTMV_TRACE");
+    }
+  }
+  ~TraceSwitch() { ::unsetenv("QTMV_TRACE"); }
+};
+
+std::vector<bool> stages_on() {
+  return {trace_enabled(TraceStage::read), trace_enabled(TraceStage::label), trace_enabled(TraceStage::write)};
+}
+
+TEST(Trace, StagesFollowTheSwitch) {
+  using V = std::vector<bool>;
+  const std::vector<std::pair<const char*, V>> cases = {
+      {nullptr, {false, false, false}}, {"", {false, false, false}},    {"NO", {false, false, false}},
+      {"off", {false, false, false}},   {"0", {false, false, false}},   {"all", {true, true, true}},
+      {"YES", {true, true, true}},      {"1", {true, true, true}},      {"write", {false, false, true}},
+      {"read,label", {true, true, false}}, {"label write", {false, true, true}},
+  };
+  for (const auto& [value, expected] : cases) {
+    const TraceSwitch on(value);
+    EXPECT_EQ(stages_on(), expected) << (value ? value : "(unset)");
+  }
+}
+
+TEST(Trace, LinesGoToTheSinkAtDebugSeverityOnlyWhenOn) {
+  std::vector<std::pair<Severity, std::string>> lines;
+  const ScopedTraceSink sink([&](Severity s, const std::string& m) { lines.emplace_back(s, m); });
+  {
+    const TraceSwitch on("write");
+    StepTrace write(TraceStage::write);
+    StepTrace read(TraceStage::read);
+    EXPECT_TRUE(write.on());
+    EXPECT_FALSE(read.on());
+    write("rows written", "42 rows");
+    write.note("of which tracing", 0.5);
+    read("features examined");
+    trace_printf(TraceStage::write, "raster %d strips", 3);
+    trace_printf(TraceStage::label, "host level %d", 1);
+  }
+  ASSERT_EQ(lines.size(), 3u);
+  for (const auto& [severity, text] : lines) EXPECT_EQ(severity, Severity::debug) << text;
+  EXPECT_EQ(lines[0].second.rfind("trace: write rows written ", 0), 0u) << lines[0].second;
+  EXPECT_NE(lines[0].second.find(" ms  42 rows"), std::string::npos) << lines[0].second;
+  EXPECT_NE(lines[1].second.find("of which tracing"), std::string::npos) << lines[1].second;
+  EXPECT_NE(lines[1].second.find("500.000 ms"), std::string::npos) << lines[1].second;
+  EXPECT_EQ(lines[2].second, "trace: write raster 3 strips");
+}
+
+const char* fake_lookup(const char* name, const char*) {
+  return std::strcmp(name, "QTMV_FAULT_TEST") == 0 ? "allocate" : nullptr;
+}
+
+TEST(ConfigOption, AnInstalledLookupReplacesTheEnvironment) {
+  ::setenv("QTMV_FAULT_OTHER", "build", 1);
+  EXPECT_EQ(fault_switch("QTMV_FAULT_OTHER"), "build");
+  EXPECT_EQ(fault_switch("QTMV_FAULT_TEST"), "");
+  set_config_lookup(&fake_lookup);
+  EXPECT_EQ(fault_switch("QTMV_FAULT_TEST"), "allocate");
+  EXPECT_EQ(fault_switch("QTMV_FAULT_OTHER"), "");  // the lookup decides, not the environment
+  set_config_lookup(nullptr);
+  EXPECT_EQ(fault_switch("QTMV_FAULT_OTHER"), "build");
+  ::unsetenv("QTMV_FAULT_OTHER");
+}
+
+}  // namespace
+}  // namespace qtmv

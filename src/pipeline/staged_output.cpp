@@ -4,6 +4,7 @@
 #include <stdio.h>
 #include <unistd.h>
 
+#include <cpl_conv.h>
 #include <cpl_string.h>
 
 #include <set>
@@ -191,20 +192,54 @@ StagedOutput::StagedOutput(std::string destination, bool overwrite)
 StagedOutput::~StagedOutput() {
   std::error_code ec;
   if (!temp_dir_.empty()) fs::remove_all(temp_dir_, ec);
-  // A direct write that failed leaves what the driver made: remove it (best effort).
+  // A direct write that failed leaves what the driver made: remove it (best effort), then put
+  // the old dataset back.
   if (direct_ && !committed_ && began_ && !starts_with(destination_, "/vsistdout")) {
     VSIUnlink(destination_.c_str());
   }
+  if (!committed_) put_back_virtual();
+}
+
+void StagedOutput::set_aside_virtual() {
+  VSIStatBufL stat;
+  const bool directory = VSIStatL(destination_.c_str(), &stat) == 0 && VSI_ISDIR(stat.st_mode);
+  // A directory of layers keeps the user's other files: only what GDAL lists for it goes aside.
+  std::vector<std::string> old;
+  for (const fs::path& file : gdal_file_list(destination_)) {
+    if (file.string() != destination_) old.push_back(file.string());
+  }
+  if (!directory) {
+    for (const char* suffix : kNamedSidecars) {
+      const std::string name = destination_ + suffix;
+      if (VSIStatL(name.c_str(), &stat) == 0) old.push_back(name);
+    }
+    old.push_back(destination_);
+  }
+  std::sort(old.begin(), old.end());
+  old.erase(std::unique(old.begin(), old.end()), old.end());
+  const std::string tag = ".old" + std::to_string(static_cast<long>(::getpid())) + "_";
+  for (const std::string& name : old) {
+    const std::string aside = CPLFormFilename(CPLGetPath(name.c_str()), (tag + CPLGetFilename(name.c_str())).c_str(), nullptr);
+    if (VSIRename(name.c_str(), aside.c_str()) != 0) {
+      put_back_virtual();
+      throw VoronoiError("cannot write '" + destination_ + "' with -overwrite: its file system cannot rename '" + name +
+                         "' aside, and the old dataset is not deleted before the new one is written; it is left as "
+                         "it is: remove it first, or write a local file and copy it");
+    }
+    virtual_aside_.push_back({name, aside});
+  }
+}
+
+void StagedOutput::put_back_virtual() {
+  for (auto a = virtual_aside_.rbegin(); a != virtual_aside_.rend(); ++a) {
+    VSIUnlink(a->old.c_str());
+    VSIRename(a->aside.c_str(), a->old.c_str());
+  }
+  virtual_aside_.clear();
 }
 
 const std::string& StagedOutput::begin() {
-  if (direct_ && exists_) {
-    if (GDALDriverH driver = GDALIdentifyDriver(destination_.c_str(), nullptr)) {
-      GDALDeleteDataset(driver, destination_.c_str());
-    } else {
-      VSIUnlink(destination_.c_str());
-    }
-  }
+  if (direct_ && exists_) set_aside_virtual();
   began_ = true;
   return write_path_;
 }
@@ -212,6 +247,8 @@ const std::string& StagedOutput::begin() {
 void StagedOutput::commit() {
   if (direct_) {
     committed_ = true;
+    for (const Aside& a : virtual_aside_) VSIUnlink(a.aside.c_str());
+    virtual_aside_.clear();
     return;
   }
   const fs::path dest(destination_);

@@ -49,6 +49,10 @@ class RenameInMessages {
 /// sidecars: .aux.xml, -wal, -shm, ...) go aside first and are removed only once the new one is in
 /// place; a failure puts everything back. A destination that is an existing directory of
 /// per-layer files (Shapefile, CSV) keeps every file but the layers written and their sidecars.
+/// A GDAL virtual file system destination (/vsimem/, /vsis3/, ...) is written in place, most of
+/// them having no rename into a directory; with -overwrite its old files are renamed aside in
+/// their directory first (put back on failure, removed on commit), and where the file system
+/// cannot rename (/vsizip/) -overwrite is refused, the old dataset kept.
 class StagedOutput {
  public:
   StagedOutput(std::string destination, bool overwrite);
@@ -64,6 +68,15 @@ class StagedOutput {
   void commit();
 
  private:
+  /// A /vsi destination's old files renamed aside (-overwrite), or a VoronoiError.
+  void set_aside_virtual();
+  /// The old files renamed back (a failed run).
+  void put_back_virtual();
+
+  struct Aside {
+    std::string old, aside;
+  };
+  std::vector<Aside> virtual_aside_;
   std::string destination_, write_path_;
   fs::path dir_, temp_dir_;
   bool overwrite_ = false, direct_ = false, exists_ = false, began_ = false, committed_ = false;

@@ -643,6 +643,14 @@ TEST(QtmvoronoiLibrary, RunsIntoVsimemWithProgressAndMessages) {
   options.progress = [](double f, const char*) { return f < 0.9; };
   EXPECT_THROW(qtmv::run_voronoi(kCentres, stopped, options), qtmv::Interrupted);
   EXPECT_NE(VSIStatL(stopped.c_str(), &stat), 0);
+  // Stopped while overwriting it in place: the old dataset is put back, whole.
+  const GIntBig rows = open(dst, GDAL_OF_VECTOR)->GetLayerByName("regions")->GetFeatureCount();
+  EXPECT_THROW(qtmv::run_voronoi(kCentres, dst, options), qtmv::Interrupted);
+  {
+    const auto ds = open(dst, GDAL_OF_VECTOR);
+    ASSERT_TRUE(ds);
+    EXPECT_EQ(ds->GetLayerByName("regions")->GetFeatureCount(), rows);
+  }
   VSIUnlink(dst.c_str());
 }
 

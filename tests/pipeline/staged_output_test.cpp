@@ -8,9 +8,11 @@
 #include <gdal_priv.h>
 #include <ogrsf_frmts.h>
 
+#include <algorithm>
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "../test_temp_dir.hpp"
 #include "pipeline/voronoi_error.hpp"
@@ -151,6 +153,89 @@ TEST(StagedOutput, OverwriteIntoADirectoryOfLayersReplacesOnlyTheLayersWritten) 
   EXPECT_EQ(read_text(dst + "/voronoi_edges.csv"), "new edges");
   EXPECT_EQ(hidden_count(dir), 0);
   EXPECT_EQ(hidden_count(dst), 0);
+}
+
+/// A file of GDAL's virtual file systems written whole.
+void write_virtual(const std::string& path, const std::string& text) {
+  VSILFILE* f = VSIFOpenL(path.c_str(), "wb");
+  ASSERT_NE(f, nullptr) << path;
+  VSIFWriteL(text.data(), 1, text.size(), f);
+  VSIFCloseL(f);
+}
+
+/// A virtual file's text ("<none>" when it is not there).
+std::string read_virtual(const std::string& path) {
+  VSILFILE* f = VSIFOpenL(path.c_str(), "rb");
+  if (!f) return "<none>";
+  std::string text;
+  char buffer[256];
+  for (size_t n; (n = VSIFReadL(buffer, 1, sizeof buffer, f)) > 0;) text.append(buffer, n);
+  VSIFCloseL(f);
+  return text;
+}
+
+/// The names in a virtual directory, sorted.
+std::vector<std::string> virtual_names(const std::string& dir) {
+  std::vector<std::string> names;
+  char** list = VSIReadDir(dir.c_str());
+  for (char** name = list; name && *name; ++name) names.emplace_back(*name);
+  CSLDestroy(list);
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+TEST(StagedOutput, AVirtualDestinationsOldDatasetSurvivesAFailedOverwrite) {
+  const std::string dir = "/vsimem/staged_failed";
+  write_virtual(dir + "/out.tif", "old");
+  write_virtual(dir + "/out.tif.aux.xml", "old statistics");
+  write_virtual(dir + "/notes.txt", "the user's");
+  {
+    StagedOutput output(dir + "/out.tif", /*overwrite=*/true);
+    const std::string path = output.begin();
+    EXPECT_EQ(path, dir + "/out.tif");
+    EXPECT_EQ(read_virtual(path), "<none>");  // the old one is aside, not deleted
+    write_virtual(path, "half");
+    write_virtual(path + ".aux.xml", "half statistics");
+  }  // no commit: the run failed
+  EXPECT_EQ(read_virtual(dir + "/out.tif"), "old");
+  EXPECT_EQ(read_virtual(dir + "/out.tif.aux.xml"), "old statistics");
+  EXPECT_EQ(virtual_names(dir), (std::vector<std::string>{"notes.txt", "out.tif", "out.tif.aux.xml"}));
+  VSIRmdirRecursive(dir.c_str());
+}
+
+TEST(StagedOutput, AVirtualDestinationsOverwriteReplacesTheWholeOldDataset) {
+  const std::string dir = "/vsimem/staged_replaced";
+  write_virtual(dir + "/out.tif", "old");
+  write_virtual(dir + "/out.tif.aux.xml", "old statistics");
+  write_virtual(dir + "/notes.txt", "the user's");
+  {
+    StagedOutput output(dir + "/out.tif", /*overwrite=*/true);
+    write_virtual(output.begin(), "new");
+    output.commit();
+  }
+  EXPECT_EQ(read_virtual(dir + "/out.tif"), "new");
+  EXPECT_EQ(virtual_names(dir), (std::vector<std::string>{"notes.txt", "out.tif"}));
+  VSIRmdirRecursive(dir.c_str());
+}
+
+TEST(StagedOutput, AVirtualFileSystemThatCannotRenameRefusesOverwriteAndKeepsTheOld) {
+  const std::string zip = "/vsimem/staged_archive.zip";
+  const std::string dst = "/vsizip/" + zip + "/out.csv";
+  write_virtual(dst, "old");
+  std::string message;
+  {
+    StagedOutput output(dst, /*overwrite=*/true);
+    try {
+      output.begin();
+    } catch (const VoronoiError& e) {
+      message = e.what();
+    }
+  }
+  EXPECT_NE(message.find("cannot write '" + dst + "' with -overwrite: its file system cannot rename"),
+            std::string::npos)
+      << message;
+  EXPECT_EQ(read_virtual(dst), "old");
+  VSIUnlink(zip.c_str());
 }
 
 TEST(StagedOutput, WithoutCommitNothingIsLeft) {

@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "common/device_spec.hpp"
+#include "common/visible_devices.hpp"
 #include "common/host_info.hpp"
 #include "grid/qtm_checks.hpp"
 #include "label/label_session.hpp"
@@ -303,14 +304,15 @@ RunPlan plan_tile_job(const std::string& destination, const VoronoiOptions& opti
 
 void check_devices(const RunPlan& plan, int cuda_devices) {
   const DeviceSpec device = parse_device_spec(plan.label.device);
-  if (device.kind != DeviceSpec::Kind::cuda) return;
-  const int highest = device.all ? 0 : *std::max_element(device.indices.begin(), device.indices.end());
-  if (cuda_devices <= 0 || highest >= cuda_devices) {
-    throw VoronoiError("-device " + plan.label.device + ": " +
-                       (cuda_devices <= 0 ? std::string("no usable CUDA GPU found")
-                                          : "this host has " + std::to_string(cuda_devices) + " CUDA device(s)") +
-                       "; use -device cpu or auto");
-  }
+  const int missing = first_missing_device(device, cuda_devices);
+  if (missing < 0) return;
+  // Restricted to the devices asked for (common/visible_devices.hpp), CUDA counts only those.
+  throw VoronoiError("-device " + plan.label.device + ": " +
+                     (cuda_devices <= 0 ? std::string("no usable CUDA GPU found")
+                      : visible_devices().restricted
+                          ? "this host has no CUDA device cuda:" + std::to_string(missing)
+                          : "this host has " + std::to_string(cuda_devices) + " CUDA device(s)") +
+                     "; use -device cpu or auto");
 }
 
 void settle_devices(RunPlan& plan, const VoronoiOptions& options, int cuda_devices) {
@@ -319,7 +321,8 @@ void settle_devices(RunPlan& plan, const VoronoiOptions& options, int cuda_devic
   plan.label.memory_limit_bytes = tile_limit(options.memory_limit_bytes, plan.label.device, cuda_devices);
   // The writer's geodesics go where the labels are made: the first GPU of the list.
   const DeviceSpec device = parse_device_spec(plan.label.device);
-  plan.vector.geodesic_device = labels_on_cpu(plan.label.device, cuda_devices) ? -1 : device.all ? 0 : device.index;
+  plan.vector.geodesic_device =
+      labels_on_cpu(plan.label.device, cuda_devices) ? -1 : device.all ? 0 : cuda_ordinal(device.index);
   if (plan.tile_count == 0) set_stage_ends(plan);
 }
 

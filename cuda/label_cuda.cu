@@ -6,6 +6,7 @@
 #include <cuda_runtime.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <cstdint>
 #include <memory>
 #include <stdexcept>
@@ -59,6 +60,9 @@ DeviceInfo device_info(int device) {
   QTMV_CUDA_CHECK(cudaSetDevice(device));
   DeviceInfo info;
   info.name = prop.name;
+  char bus[32];
+  std::snprintf(bus, sizeof bus, "%04x:%02x:%02x", prop.pciDomainID, prop.pciBusID, prop.pciDeviceID);
+  info.pci_bus_id = bus;
   QTMV_CUDA_CHECK(cudaMemGetInfo(&info.free_bytes, &info.total_bytes));
   info.pool_idle_bytes = device_memory::pool_idle_bytes(device);
   info.free_bytes += info.pool_idle_bytes;

@@ -1,6 +1,7 @@
 #include "voronoi.hpp"
 
 #include <future>
+#include <memory>
 #include <string>
 
 #include <cpl_conv.h>
@@ -26,10 +27,20 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   const bool tile_job = options.tile_count > 0;
   // The GPUs are counted and their contexts made (tenths of a second a process: much of a small
   // run, and of every tile job) while the run is planned and its sites read; a merge makes none.
-  label::DeviceStartup devices(options.device, /*contexts=*/options.merge.empty());
+  // -device auto starts them only once its estimate picks a GPU (a run the CPU does faster never
+  // pays the driver's start): before the read when the plan alone says so, else after it.
+  std::unique_ptr<label::DeviceStartup> devices;
+  const auto start_devices = [&] {
+    if (!devices) devices = std::make_unique<label::DeviceStartup>(options.device, /*contexts=*/options.merge.empty());
+  };
+  const bool automatic = options.device == "auto";
+  if (!automatic) start_devices();
   // Every check before any work; the devices' as soon as they are counted.
   pipeline::RunPlan plan = tile_job ? pipeline::plan_tile_job(destination, options) : pipeline::plan_run(destination, options);
   if (!plan.level_note.empty()) tell(options.messages, Severity::info, plan.level_note);
+  label::AutoDevice auto_choice;  // with no sites yet: the least work the plan can take
+  if (automatic) auto_choice = pipeline::estimate_auto_device(plan, 0, 0);
+  if (auto_choice.gpu) start_devices();
   pipeline::StagedOutput output(destination, options.overwrite);
   pipeline::RunProgress progress(options.progress);
   VoronoiSummary summary;
@@ -45,10 +56,10 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   // and its error comes before any of the read's.
   bool devices_checked = false;
   const auto devices_fit = [&] {
-    if (devices_checked || !devices.counted()) return true;
+    if (devices_checked || !devices || !devices->counted()) return true;
     devices_checked = true;
     try {
-      pipeline::check_devices(plan, devices.device_count());
+      pipeline::check_devices(plan, devices->device_count());
     } catch (const VoronoiError&) {
       return false;
     }
@@ -58,11 +69,21 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   try {
     sites = pipeline::read_stage(source, options, plan, progress, devices_fit);
   } catch (...) {
-    pipeline::check_devices(plan, devices.device_count());
+    if (devices) pipeline::check_devices(plan, devices->device_count());
     throw;
   }
-  pipeline::settle_devices(plan, options, devices.device_count());
-  devices.wait();
+  if (automatic) {
+    const label::LabelInput input = sites.geometry.input();
+    const std::uint64_t candidates =
+        (options.rule == label::Rule::exact ? input.piece_count : input.site_cell_count) + input.fixed_cell_count;
+    auto_choice = pipeline::estimate_auto_device(plan, sites.table.sites.size(), candidates);
+    if (auto_choice.gpu) start_devices();
+    trace_printf(TraceStage::label, "auto: %s", auto_choice.reason().c_str());
+  }
+  const int cuda_devices = devices ? devices->device_count() : 0;
+  if (automatic) pipeline::settle_auto_device(plan, auto_choice, cuda_devices);
+  pipeline::settle_devices(plan, options, cuda_devices);
+  if (devices) devices->wait();
   summary.features = sites.summary.features;
   summary.sites = sites.summary.sites;
   summary.skipped = sites.summary.skipped;
@@ -76,7 +97,9 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   const pipeline::LabelledLevel labels =
       plan.merge_files.empty() ? pipeline::label_stage(sites, options, plan, progress, &summary.sites_without_cell)
                                : pipeline::merge_stage(source, sites, options, plan, progress, &summary.sites_without_cell);
-  summary.device = labels.device;
+  summary.device = automatic && plan.merge_files.empty()
+                       ? pipeline::auto_device_summary(labels.device, auto_choice, cuda_devices)
+                       : labels.device;
   summary.prepare_seconds = labels.prepare_seconds;
   summary.label_seconds = now_seconds() - t0;
 

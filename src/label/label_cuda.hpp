@@ -50,6 +50,7 @@ void release_cached_memory(int device);
 
 struct DeviceInfo {
   std::string name;
+  std::string pci_bus_id;           ///< "domain:bus:device" (hexadecimal), which no restriction renumbers
   std::size_t free_bytes = 0;       ///< free, plus what the labeller's memory pool holds idle
   std::size_t pool_idle_bytes = 0;  ///< of free_bytes, what that pool holds idle
   std::size_t total_bytes = 0;

@@ -25,7 +25,7 @@ namespace qtmv::label {
 /// the CUDA devices present. Throws std::runtime_error for a GPU asked for and missing.
 struct DeviceChoice {
   bool cuda = false;
-  int index = 0;
+  int index = 0;  ///< the process's CUDA ordinal (cuda_device_name: the user's cuda:N)
 };
 DeviceChoice choose_device(const std::string& name);
 /// Every device a name asks for ("cuda:all": all CUDA devices; "cuda:0,2": those two; the other

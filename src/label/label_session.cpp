@@ -12,6 +12,7 @@
 
 #include "common/host_info.hpp"
 #include "common/openmp_threads.hpp"
+#include "common/visible_devices.hpp"
 #include "grid/qtm_checks.hpp"
 #include "label/cpu_painter.hpp"
 #include "label/fixed_cover.hpp"
@@ -95,7 +96,7 @@ LabelSession::LabelSession(const LabelInput& input, const LabelOptions& options)
       s.stats.tree_nodes = info.nodes;
       s.stats.tree_list_entries = info.list_entries;
       s.stats.mean_candidates = info.mean_candidates;
-      s.stats.device = "cuda:" + std::to_string(device.index) + " (" + cuda::device_info(device.index).name + ")";
+      s.stats.device = cuda_device_name(device.index) + " (" + cuda::device_info(device.index).name + ")";
     } catch (const std::exception& e) {
       s.gpu.reset();
       tell(options.messages, Severity::warning,

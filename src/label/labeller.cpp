@@ -19,6 +19,7 @@
 
 #include "common/device_spec.hpp"
 #include "common/host_info.hpp"
+#include "common/visible_devices.hpp"
 #include "common/trace.hpp"
 #include "grid/qtm_checks.hpp"
 #include "label/cpu_painter.hpp"
@@ -94,18 +95,18 @@ std::vector<DeviceChoice> choose_devices(const std::string& name) {
   const int count = cuda::device_count();
   if (spec.kind == DeviceSpec::Kind::automatic) return {count > 0 ? DeviceChoice{true, 0} : DeviceChoice{}};
   if (count == 0) throw std::runtime_error("device '" + name + "' was asked for, but no usable CUDA GPU was found");
+  if (const int missing = first_missing_device(spec, count); missing >= 0) {
+    throw std::runtime_error("device '" + name + "' was asked for, but " +
+                             (visible_devices().restricted ? "this host has no CUDA device cuda:" + std::to_string(missing)
+                                                           : "there are only " + std::to_string(count) + " CUDA device(s)"));
+  }
   std::vector<DeviceChoice> out;
   if (spec.all) {
     for (int d = 0; d < count; ++d) out.push_back({true, d});
     return out;
   }
-  for (const int index : spec.indices) {
-    if (index >= count) {
-      throw std::runtime_error("device '" + name + "' was asked for, but there are only " + std::to_string(count) +
-                               " CUDA device(s)");
-    }
-    out.push_back({true, index});
-  }
+  // The user's cuda:N, as this process's CUDA ordinal (common/visible_devices.hpp).
+  for (const int index : spec.indices) out.push_back({true, cuda_ordinal(index)});
   return out;
 }
 
@@ -261,7 +262,7 @@ class LabellingRun {
     on_gpu_ = device_.cuda;
     if (device_.cuda) {
       const cuda::DeviceInfo info = cuda::device_info(device_.index);
-      stats_.device = "cuda:" + std::to_string(device_.index) + " (" + info.name + ")";
+      stats_.device = cuda_device_name(device_.index) + " (" + info.name + ")";
     } else {
       stats_.device = "cpu (" + std::to_string(threads_) + " threads)";
     }
@@ -511,7 +512,7 @@ LabelStats label_outlines(const LabelInput& input, const LabelOptions& options, 
   const std::vector<DeviceChoice> devices = choose_devices(options.device);
   if (devices.size() > 1) {
     std::vector<std::string> names;
-    for (const DeviceChoice& d : devices) names.push_back("cuda:" + std::to_string(d.index));
+    for (const DeviceChoice& d : devices) names.push_back(cuda_device_name(d.index));
     return label_outlines_on(input, options, names, out);
   }
   LabelOptions outline_options = options;

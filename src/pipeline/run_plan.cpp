@@ -10,7 +10,9 @@
 #include <stdexcept>
 
 #include "common/device_spec.hpp"
+#include "common/visible_devices.hpp"
 #include "common/host_info.hpp"
+#include "common/openmp_threads.hpp"
 #include "grid/qtm_checks.hpp"
 #include "label/label_session.hpp"
 #include "label/outline_cells.hpp"
@@ -169,12 +171,8 @@ std::uint64_t estimate_run_memory(const RunPlan& plan, std::uint64_t sites) {
   const std::uint64_t tile_cells =
       std::min({dense.cells, std::max<std::uint64_t>(1, limit / dense.bytes_per_cell), std::uint64_t{1} << 28});
   const std::uint64_t tile_bytes = tile_cells * dense.bytes_per_cell;
-  // Outline cells: the row ends, and boundary cells along the Voronoi edges, whose length grows
-  // as the square root of the sites (about 6.6 sqrt(n) radians for n sites spread evenly), at
-  // about 3 boundary cells per cell edge (pi / 2^(L+1) radians) of it.
-  const double boundary = 6.6 * std::sqrt(static_cast<double>(std::max<std::uint64_t>(sites, 1))) * 3.0 *
-                          std::ldexp(1.0, level + 1) / 3.14159265358979;
-  double outline = static_cast<double>(label::row_end_count(level)) + std::min(boundary, double(dense.cells));
+  // Outline cells: the row ends, and boundary cells along the Voronoi edges (label/auto_device.hpp).
+  double outline = label::expected_outline_cells(level, sites);
   // A tile job holds its part of them (its rows, about its share of the edges).
   if (plan.label.range.end != 0) outline *= static_cast<double>(plan.label.range.size()) / static_cast<double>(dense.cells);
   if (plan.format.raster) {
@@ -303,14 +301,44 @@ RunPlan plan_tile_job(const std::string& destination, const VoronoiOptions& opti
 
 void check_devices(const RunPlan& plan, int cuda_devices) {
   const DeviceSpec device = parse_device_spec(plan.label.device);
-  if (device.kind != DeviceSpec::Kind::cuda) return;
-  const int highest = device.all ? 0 : *std::max_element(device.indices.begin(), device.indices.end());
-  if (cuda_devices <= 0 || highest >= cuda_devices) {
-    throw VoronoiError("-device " + plan.label.device + ": " +
-                       (cuda_devices <= 0 ? std::string("no usable CUDA GPU found")
-                                          : "this host has " + std::to_string(cuda_devices) + " CUDA device(s)") +
-                       "; use -device cpu or auto");
+  const int missing = first_missing_device(device, cuda_devices);
+  if (missing < 0) return;
+  // Restricted to the devices asked for (common/visible_devices.hpp), CUDA counts only those.
+  throw VoronoiError("-device " + plan.label.device + ": " +
+                     (cuda_devices <= 0 ? std::string("no usable CUDA GPU found")
+                      : visible_devices().restricted
+                          ? "this host has no CUDA device cuda:" + std::to_string(missing)
+                          : "this host has " + std::to_string(cuda_devices) + " CUDA device(s)") +
+                     "; use -device cpu or auto");
+}
+
+label::AutoDevice estimate_auto_device(const RunPlan& plan, std::uint64_t sites, std::uint64_t candidates) {
+  label::LabelWork work;
+  work.level = plan.level;
+  work.sites = sites;
+  work.candidates = candidates;
+  work.outlines = !plan.format.raster;
+  const double cells = static_cast<double>(grid::cell_count(plan.level));
+  if (plan.label.range.end != 0) work.share = static_cast<double>(plan.label.range.size()) / cells;
+  if (plan.cells_layer) work.every_cell = grid::cell_count(plan.level);
+  if (plan.format.raster) {
+    try {
+      const write::RasterSize size = write::raster_size(plan.level, plan.raster);
+      work.every_cell = static_cast<std::uint64_t>(size.width) * static_cast<std::uint64_t>(size.height);
+    } catch (const write::WriteError&) {
+      // bad sizes are reported by plan_run
+    }
   }
+  work.threads = thread_count(plan.label.threads);
+  return label::choose_auto_device(work);
+}
+
+void settle_auto_device(RunPlan& plan, const label::AutoDevice& choice, int cuda_devices) {
+  plan.label.device = choice.gpu && cuda_devices > 0 ? "cuda" : "cpu";
+}
+
+std::string auto_device_summary(const std::string& device, const label::AutoDevice& choice, int cuda_devices) {
+  return "auto: " + device + ", " + choice.reason() + (choice.gpu && cuda_devices <= 0 ? ", but no usable CUDA GPU" : "");
 }
 
 void settle_devices(RunPlan& plan, const VoronoiOptions& options, int cuda_devices) {
@@ -319,7 +347,8 @@ void settle_devices(RunPlan& plan, const VoronoiOptions& options, int cuda_devic
   plan.label.memory_limit_bytes = tile_limit(options.memory_limit_bytes, plan.label.device, cuda_devices);
   // The writer's geodesics go where the labels are made: the first GPU of the list.
   const DeviceSpec device = parse_device_spec(plan.label.device);
-  plan.vector.geodesic_device = labels_on_cpu(plan.label.device, cuda_devices) ? -1 : device.all ? 0 : device.index;
+  plan.vector.geodesic_device =
+      labels_on_cpu(plan.label.device, cuda_devices) ? -1 : device.all ? 0 : cuda_ordinal(device.index);
   if (plan.tile_count == 0) set_stage_ends(plan);
 }
 

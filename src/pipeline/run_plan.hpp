@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "label/auto_device.hpp"
 #include "label/label_options.hpp"
 #include "pipeline/output_format.hpp"
 #include "pipeline/voronoi_error.hpp"
@@ -49,6 +50,19 @@ RunPlan plan_tile_job(const std::string& destination, const VoronoiOptions& opti
 /// Throws VoronoiError naming -device when it names CUDA devices that the host's `cuda_devices`
 /// do not include.
 void check_devices(const RunPlan& plan, int cuda_devices);
+
+/// -device auto's estimate for this plan (label/auto_device.hpp): the level, what is written (the
+/// outlines, the cells layer's every cell, a raster's pixels), a tile job's share, the threads;
+/// `sites` and `candidates` (the labeller's input: points, arcs, fixed cells) 0 before the read.
+label::AutoDevice estimate_auto_device(const RunPlan& plan, std::uint64_t sites, std::uint64_t candidates);
+
+/// -device auto settled once the sites are read: plan.label.device becomes "cuda" when `choice`
+/// picks a GPU and `cuda_devices` (counted only then) has one, else "cpu" (before settle_devices).
+void settle_auto_device(RunPlan& plan, const label::AutoDevice& choice, int cuda_devices);
+
+/// The summary's device for a run that -device auto settled: "auto: cpu (2 threads), 2.2 M cells
+/// of work, below the GPU's start (4.7 M on 2 threads)"; `device` is where the labelling ran.
+std::string auto_device_summary(const std::string& device, const label::AutoDevice& choice, int cuda_devices);
 
 /// check_devices, then what the devices decide: the labeller's tiles (the CPU's are smaller, so
 /// that an interrupt is seen within a second) and the label stage's slice of the progress.

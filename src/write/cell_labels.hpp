@@ -120,8 +120,8 @@ struct VectorLayers {
 struct VectorOptions : VectorLayers {
   std::string driver = "GPKG";  ///< OGR driver short name
   ProgressFunc progress;        ///< may be empty
-  /// The CUDA device that solves the regions' geodesics (their areas, the Voronoi edges'
-  /// lengths); -1: the CPU. The same values either way: a device that cannot be used leaves
+  /// The CUDA device (the process's ordinal) that solves the regions' geodesics (their areas,
+  /// the Voronoi edges' lengths); -1: the CPU. The same values either way: a device that cannot be used leaves
   /// them to the CPU, with a warning to `messages`.
   int geodesic_device = -1;
   MessageSink messages;  ///< may be empty

@@ -15,6 +15,7 @@
 #include "common/first_exception.hpp"
 #include "common/openmp_threads.hpp"
 #include "common/trace.hpp"
+#include "common/visible_devices.hpp"
 #include "sites/fid_list.hpp"
 #include "write/region_tracer.hpp"
 #include "write/vector_layer_writers.hpp"
@@ -299,7 +300,7 @@ void write_regions(VectorDatasetWriter& w, const LayerInput& in, double work, st
   RegionAreaSums area_sums(in.site_count, pair_lengths != nullptr, in.geodesic_device, &device_problem);
   if (!device_problem.empty()) {
     qtmv::tell(in.messages, qtmv::Severity::warning,
-         "the regions' geodesics are solved on the CPU instead of cuda:" + std::to_string(in.geodesic_device) + " (" +
+         "the regions' geodesics are solved on the CPU instead of " + cuda_device_name(in.geodesic_device) + " (" +
              device_problem + ")");
   }
   bool gathered = false;  // RegionTracer's steps, in order: gather (and measure), bucket

@@ -84,6 +84,46 @@ TEST(RunPlan, TilesAndProgressFollowTheSettledDevice) {
   EXPECT_EQ(asked.label.memory_limit_bytes, limited.memory_limit_bytes);
 }
 
+// -device auto's estimate takes what the plan writes: the outlines, the cells layer's every cell,
+// a raster's pixels, a tile's share; once the sites are read it settles the device.
+TEST(RunPlan, AutoEstimatesWhatThePlanWrites) {
+  VoronoiOptions o = options_for("auto");
+  o.level = 12;
+  o.threads = 16;
+  const RunPlan regions = planned(o);
+  const label::AutoDevice before = estimate_auto_device(regions, 0, 0);
+  const label::AutoDevice after = estimate_auto_device(regions, 241, 241);
+  EXPECT_FALSE(after.gpu);  // the country centres at level 12: the CPU's
+  EXPECT_LE(before.work_cells, after.work_cells);
+  EXPECT_EQ(after.threads, 16);
+
+  VoronoiOptions with_cells = o;
+  with_cells.vector.layers = {"regions", "cells"};
+  const label::AutoDevice cells = estimate_auto_device(planned(with_cells), 241, 241);
+  EXPECT_DOUBLE_EQ(cells.work_cells - after.work_cells, static_cast<double>(grid::cell_count(12)));
+  EXPECT_TRUE(cells.gpu);
+
+  VoronoiOptions tile = o;
+  tile.tile_index = 1;
+  tile.tile_count = 8;
+  if (GDALGetDriverCount() == 0) GDALAllRegister();
+  const RunPlan tile_plan = plan_tile_job(test::process_temp_dir() + "/plan.qtmt", tile);
+  EXPECT_LT(estimate_auto_device(tile_plan, 241, 241).work_cells, after.work_cells);
+
+  RunPlan settled = regions;
+  label::AutoDevice gpu = after;
+  gpu.gpu = true;
+  settle_auto_device(settled, gpu, 0);
+  EXPECT_EQ(settled.label.device, "cpu");  // no GPU to take
+  EXPECT_EQ(auto_device_summary("cpu (16 threads)", gpu, 0).find("auto: cpu (16 threads), "), 0u);
+  EXPECT_NE(auto_device_summary("cpu (16 threads)", gpu, 0).find(", but no usable CUDA GPU"), std::string::npos);
+  settle_auto_device(settled, gpu, 2);
+  EXPECT_EQ(settled.label.device, "cuda");
+  settle_auto_device(settled, after, 2);
+  EXPECT_EQ(settled.label.device, "cpu");
+  EXPECT_EQ(auto_device_summary("cpu (16 threads)", after, 2), "auto: cpu (16 threads), " + after.reason());
+}
+
 TEST(DeviceStartup, CountsWhatTheLabellerCounts) {
   const int gpus = label::cuda_device_count();
   {

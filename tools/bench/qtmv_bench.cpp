@@ -30,6 +30,7 @@
 
 #include "grid/qtm.hpp"
 #include "common/device_spec.hpp"
+#include "common/visible_devices.hpp"
 #include "common/host_info.hpp"
 #include "common/openmp_threads.hpp"
 #include "label/label_engine.hpp"
@@ -392,9 +393,9 @@ void time_label_cells(const Args& a, const label::LabelInput& input, const label
 // The GPU directly, so that the labels can stay on the device between repetitions.
 void time_gpu(const Args& a, const label::LabelInput& input, const label::LabelOptions& options, int level, int device,
               const std::vector<grid::Code>& codes, Row& row, Timings& t, std::vector<std::int32_t>& got) {
-  if (label::cuda_device_count() <= device) throw std::runtime_error("no CUDA device " + std::to_string(device));
+  if (device < 0 || label::cuda_device_count() <= device) throw std::runtime_error("no CUDA device " + a.device);
   const label::cuda::DeviceInfo info = label::cuda::device_info(device);
-  row.device = "cuda:" + std::to_string(device) + " " + info.name;
+  row.device = cuda_device_name(device) + " " + info.name;
   std::vector<label::Piece> candidates;
   label::Tree tree;
   const bool hier = a.algorithm == Algorithm::hier;
@@ -498,7 +499,7 @@ Row run_one(const Args& a, const std::string& spec, int level) {
   } else if (!cuda) {
     time_label_cells(a, input, options, level, codes, row, t, got);
   } else {
-    time_gpu(a, input, options, level, device_spec.index, codes, row, t, got);
+    time_gpu(a, input, options, level, cuda_ordinal(device_spec.index), codes, row, t, got);
   }
   row.prepare_ms = median(t.prepare);
   row.label_ms = median(t.labelling);
@@ -514,6 +515,8 @@ Row run_one(const Args& a, const std::string& spec, int level) {
 
 int main(int argc, char** argv) {
   const Args a = parse(argc, argv);
+  // As qtmvoronoi: CUDA starts only the devices asked for (common/visible_devices.hpp).
+  restrict_visible_devices(a.device);
   try {
     if (!a.csv || a.csv_header) print_header(a.csv);
     std::uint64_t mismatches = 0;

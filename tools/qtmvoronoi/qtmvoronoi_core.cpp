@@ -1,4 +1,5 @@
 #include "common/device_spec.hpp"
+#include "common/visible_devices.hpp"
 #include "qtmvoronoi_core.hpp"
 
 #include <cpl_conv.h>
@@ -472,6 +473,9 @@ int qtmvoronoi_main(int argc, char** argv) {
     return true;
   };
 
+  // CUDA is to start only the devices asked for (the driver starts every visible one), and no
+  // CUDA call has been made yet: the names stay the user's (common/visible_devices.hpp).
+  restrict_visible_devices(run.device);
   install_signal_handlers();
   try {
     run_voronoi(options.source, options.destination, run);

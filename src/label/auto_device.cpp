@@ -43,7 +43,7 @@ AutoDevice choose_auto_device(const LabelWork& work) {
                     : 0.0;
   choice.work_cells =
       outline + static_cast<double>(work.every_cell) + kCellsPerCandidate * static_cast<double>(work.candidates);
-  choice.start_cells = kGpuStartSeconds * choice.threads / kCpuSecondsPerCell;
+  choice.start_cells = kGpuStartSeconds * std::min(choice.threads, kCpuScalingThreads) / kCpuSecondsPerCell;
   choice.gpu = choice.work_cells > choice.start_cells;
   return choice;
 }

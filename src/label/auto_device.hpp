@@ -13,6 +13,10 @@ namespace qtmv::label {
 /// One CPU thread's time to label a cell in dense tiles (seconds): 135 233 points at level 13
 /// (537 M cells, dense tiles) took 5.28 s on 16 threads, 157 ns a cell a thread.
 constexpr double kCpuSecondsPerCell = 150e-9;
+/// The CPU threads the estimate counts at most: beyond 16 a small run's labelling gets no faster
+/// (on the 64-core, 4-GPU host, country centres L12 took 0.95 s to label on 64 threads, 0.07 s on
+/// one H200, and centres L13 0.33 s on a 16-core host: bench/RESULTS.md, session 20).
+constexpr int kCpuScalingThreads = 16;
 /// The outline pass's work per outline cell (the leaves it visits, the cells it labels around
 /// each), in cells: country centres at level 13 (1.7 M outline cells) took 0.13-0.15 s on 16 threads.
 constexpr double kCellsPerOutlineCell = 10;

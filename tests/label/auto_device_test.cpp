@@ -49,11 +49,14 @@ TEST(AutoDevice, LargeRunsTakeTheGpu) {
 }
 
 TEST(AutoDevice, TheChoiceFollowsTheWorkAndTheThreads) {
-  // The GPU's start in cells grows with the CPU's threads.
+  // The GPU's start in cells grows with the CPU's threads, up to kCpuScalingThreads.
   const AutoDevice two = choose_auto_device(points(12, 10000, 2));
+  const AutoDevice sixteen = choose_auto_device(points(12, 10000, 16));
   const AutoDevice many = choose_auto_device(points(12, 10000, 64));
   EXPECT_DOUBLE_EQ(two.start_cells, kGpuStartSeconds * 2 / kCpuSecondsPerCell);
-  EXPECT_DOUBLE_EQ(many.start_cells, 32 * two.start_cells);
+  EXPECT_DOUBLE_EQ(sixteen.start_cells, 8 * two.start_cells);
+  EXPECT_DOUBLE_EQ(many.start_cells, sixteen.start_cells);
+  EXPECT_EQ(many.threads, 64);
   EXPECT_DOUBLE_EQ(two.work_cells, many.work_cells);
   // More sites, a finer level, a larger share: never less work.
   for (int level = 4; level <= 20; ++level) {

@@ -129,7 +129,7 @@ TEST(VisibleDevicesGpu, AMissingDeviceIsNamed) {
   const std::vector<std::string> all = host_devices();
   if (all.empty()) GTEST_SKIP() << "no CUDA GPU";
   const std::string missing = "cuda:" + std::to_string(all.size());
-  const std::string out = child("--label cuda:0," + missing);
+  const std::string out = child("--label cuda:0," + std::to_string(all.size()));
   EXPECT_TRUE(contains(out, "error ")) << out;
   EXPECT_TRUE(contains(out, "no CUDA device " + missing)) << out;
 }

@@ -277,29 +277,48 @@ def _numpy_column(values):
     """A column of GDAL's Arrow stream as pandas takes it: text decoded, nulls None or NaN."""
     if isinstance(values, np.ma.MaskedArray):
         mask = np.ma.getmaskarray(values)
-        if values.dtype.kind in "iub":
-            data = values.data.astype(object) if mask.any() else values.data
-            if mask.any():
-                data[mask] = None
+        if not mask.any():
+            return values.data if values.dtype.kind not in "SV" else _numpy_column(values.data)
+        if values.dtype.kind in "iuf":  # as pandas makes a column of numbers and nulls: float64, NaN
+            return values.astype(np.float64).filled(np.nan)
+        if values.dtype.kind == "M":
+            return values.filled(np.datetime64("NaT"))
+        if values.dtype.kind == "b":
+            data = values.data.astype(object)
+            data[mask] = None
             return data
-        if values.dtype.kind == "f":
-            return values.filled(np.nan)
         values = values.data
     else:
         mask = None
-    if values.dtype.kind == "S":
-        data = np.array([v.decode("utf-8") for v in values.tolist()], dtype=object)
+    if values.dtype.kind in "SV":
+        # Text comes as fixed-width bytes; binary (WKB) of one length in a batch as fixed-size void.
+        if values.dtype.kind == "S":
+            data = np.array([v.decode("utf-8") for v in values.tolist()], dtype=object)
+        else:
+            data = np.array([v.tobytes() for v in values], dtype=object)
         if mask is not None:
-            data[mask] = None
+            data[mask] = np.nan  # as geopandas.read_file has null text
         return data
     return values
+
+
+def _boolean_column(layer, index):
+    """A Boolean field's values, read feature by feature: GDAL 3.6's Arrow stream to numpy
+    mis-reads bit-packed Booleans."""
+    definition = layer.GetLayerDefn()
+    others = [definition.GetFieldDefn(k).GetName() for k in range(definition.GetFieldCount()) if k != index]
+    layer.SetIgnoredFields(others + ["OGR_GEOMETRY"])
+    layer.ResetReading()
+    values = [feature.GetField(index) for feature in layer]
+    layer.SetIgnoredFields([])
+    return np.array(values, dtype=object if None in values else bool)
 
 
 def read_layer(dataset, name):
     """The layer `name` of the dataset `dataset` (a GDAL name) as a GeoDataFrame.
 
-    The rows in FID order with a RangeIndex, its fields as columns (text as str, nulls as None,
-    or NaN in float columns), its geometry last as 'geometry', its CRS: what geopandas.read_file
+    The rows in FID order with a RangeIndex, its fields as columns (text as str; nulls NaN, NaT
+    in datetimes; integers with nulls float64), its geometry last as 'geometry', its CRS: what geopandas.read_file
     gives for the layer, read through GDAL's Arrow stream (numpy columns, not one Python object
     per feature).
     """
@@ -317,19 +336,18 @@ def read_layer(dataset, name):
         for batch in layer.GetArrowStreamAsNumPy(options=["INCLUDE_FID=NO"]):
             for key, values in batch.items():
                 batches.setdefault(key, []).append(values)
+        booleans = {definition.GetFieldDefn(k).GetName(): _boolean_column(layer, k) for k in range(len(fields))
+                     if definition.GetFieldDefn(k).GetSubType() == ogr.OFSTBoolean}
         srs = layer.GetSpatialRef()
         crs = srs.ExportToWkt() if srs is not None else None
-        source = None
+        layer = source = None
 
     def column(key):
-        parts = batches.get(key, [])
-        if not parts:
-            return np.array([], dtype=object)
-        if any(isinstance(p, np.ma.MaskedArray) for p in parts):
-            return np.ma.concatenate(parts)
-        return np.concatenate(parts)
+        # Each batch on its own: one batch's fixed widths are not the next's.
+        parts = [_numpy_column(p) for p in batches.get(key, [])]
+        return np.concatenate(parts) if parts else np.array([], dtype=object)
 
-    data = {f: _numpy_column(column(f)) for f in fields}
+    data = {f: booleans[f] if f in booleans else column(f) for f in fields}
     geometry = gpd.GeoSeries.from_wkb(column(geometry_field), crs=crs)
     return gpd.GeoDataFrame(data, geometry=geometry, crs=crs)
 

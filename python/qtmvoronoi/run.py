@@ -250,7 +250,7 @@ def voronoi(sites, level=None, *, layers="regions", raster=None, tr=None, ts=Non
     try:
         source, description = conversions.sites_source(sites, directory)
         if destination is not None:
-            return execute(source, destination, options, progress, messages, description)
+            return execute(source, os.fspath(destination), options, progress, messages, description)
         return run_in_memory(directory, source, options, progress, messages, description, single=isinstance(layers, str))
     finally:
         directory.remove()

@@ -101,3 +101,14 @@ def test_run_voronoi_is_the_tool(tmp_path):
                             progress=lambda f, s: seen.append(f) is None, messages=lambda sev, text: seen.append(text))
     assert summary.level == 6 and summary.line() in seen and 1.0 in seen
     assert_geodataframe_equal(gpd.read_file(tmp_path / "lib.gpkg"), gpd.read_file(tmp_path / "tool.gpkg"))
+
+
+def test_a_gpu_gives_the_cpus_result(centres):
+    # On a host with a CUDA device and a CUDA build; skipped elsewhere.
+    try:
+        gpu = q.voronoi(centres, 10, layers=LAYERS, device="cuda")
+    except q.Error as e:
+        pytest.skip(f"no CUDA device here: {e}")
+    assert_same_layers(gpu, q.voronoi(centres, 10, layers=LAYERS, device="cpu"))
+    raster = q.voronoi(centres, 9, raster="qtm", device="cuda")
+    np.testing.assert_array_equal(raster.values, q.voronoi(centres, 9, raster="qtm", device="cpu").values)

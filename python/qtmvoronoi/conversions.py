@@ -24,6 +24,7 @@ SITES_LAYER = "sites"
 
 
 def _require(module, package):
+    """The module `module`, or ImportError naming the Debian package that has it."""
     try:
         return __import__(module, fromlist=["_"])
     except ImportError as e:
@@ -31,10 +32,12 @@ def _require(module, package):
 
 
 def _gdal():
+    """osgeo.gdal (python3-gdal)."""
     return _require("osgeo.gdal", "python3-gdal")
 
 
 def _ogr():
+    """osgeo.ogr (python3-gdal)."""
     return _require("osgeo.ogr", "python3-gdal")
 
 
@@ -60,6 +63,7 @@ class MemoryDirectory:
     everything in it by remove(). Flat: /vsimem/ lists only the directories made with Mkdir."""
 
     def __init__(self):
+        """Makes the directory (osgeo's GDAL checked to be the module's first)."""
         _check_shared_vsimem()
         self.path = f"/vsimem/qtmvoronoi-{uuid.uuid4().hex}"
         _gdal().Mkdir(self.path, 0o755)
@@ -150,6 +154,7 @@ def _column_values(series, field_type):
 
 
 def _unused_name(preferred, taken):
+    """`preferred`, or preferred_1, preferred_2, ...: the first not in `taken` (lower case names)."""
     name, k = preferred, 1
     while name.lower() in taken:
         name, k = f"{preferred}_{k}", k + 1
@@ -343,7 +348,7 @@ def read_layer(dataset, name):
         layer = source = None
 
     def column(key):
-        # Each batch on its own: one batch's fixed widths are not the next's.
+        """The field's values over every batch (each converted on its own: their fixed widths differ)."""
         parts = [_numpy_column(p) for p in batches.get(key, [])]
         return np.concatenate(parts) if parts else np.array([], dtype=object)
 

@@ -76,7 +76,8 @@ def voronoi(client, sites, level, tiles, *, progress=None, **options):
     run.make_options(level, **options)  # every option checked here, before any task
     single = isinstance(options.get("layers", "regions"), str)
     reading = {k: v for k, v in options.items() if k in _TILE_JOB_OPTIONS}
-    payload = os.fspath(sites) if isinstance(sites, (str, os.PathLike)) else client.scatter(sites)
+    # Sent once, whole: scatter takes a list's (a (lon, lat) pair's) items one by one.
+    payload = os.fspath(sites) if isinstance(sites, (str, os.PathLike)) else client.scatter([sites])[0]
     token = uuid.uuid4().hex[:8]
     jobs = [client.submit(tile_product, payload, level, k, tiles, reading, key=f"qtmvoronoi-tile-{k}-of-{tiles}-{token}")
             for k in range(1, tiles + 1)]

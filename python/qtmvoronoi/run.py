@@ -21,6 +21,7 @@ class QtmvoronoiWarning(UserWarning):
 
 
 def _pair(value, name):
+    """tr or ts as a pair: None, a number (both), or two numbers."""
     if value is None:
         return None
     if isinstance(value, (int, float)):
@@ -74,6 +75,7 @@ def _text_progress():
     state = {"ticks": -1}
 
     def show(fraction, stage):
+        """Prints the dots up to `fraction` (0..1)."""
         tick = max(0, min(40, int(fraction * 40)))
         while tick > state["ticks"]:
             state["ticks"] += 1
@@ -94,6 +96,7 @@ def _tqdm_progress():
     bar = tqdm(total=1000, unit="‰", desc="qtmvoronoi", leave=False)
 
     def show(fraction, stage):
+        """Moves the bar to `fraction` (0..1), `stage` its description."""
         done = int(round(fraction * 1000))
         if done > bar.n:
             bar.update(done - bar.n)
@@ -134,6 +137,7 @@ def message_sink(messages, rename):
         return lambda severity, text: messages(severity, rename(text))
 
     def default(severity, text):
+        """One message of the run to warnings, the logger or stderr."""
         text = rename(text)
         if severity == "warning":
             warnings.warn(text, QtmvoronoiWarning, stacklevel=_caller_level())
@@ -156,6 +160,7 @@ def execute(source, destination, options, progress=None, messages=None, descript
         names[f"'{destination}'"] = "the result"
 
     def rename(text):
+        """`text` with the in-memory names replaced by what they are."""
         for name, said in names.items():
             text = text.replace(name, said)
         return text

@@ -28,6 +28,14 @@ def test_frame_tiles_equal_the_single_run(client, centres, tiles):
     assert done[-1] == 1.0 and len(done) == tiles
 
 
+def test_lonlat_tiles_equal_the_single_run(client, centres):
+    sites = (centres.lon.to_numpy(), centres.lat.to_numpy())
+    result = q.dask.voronoi(client, sites, 8, tiles=5, layers=["regions", "voronoi_edges"])
+    single = q.voronoi(sites, 8, layers=["regions", "voronoi_edges"])
+    for layer in single:
+        assert_geodataframe_equal(result[layer], single[layer], check_less_precise=False)
+
+
 def test_path_tiles_equal_the_single_run(client):
     options = dict(source_layers="countries_110m", distance="cell")
     result = q.dask.voronoi(client, str(COUNTRIES), 7, tiles=4, **options)

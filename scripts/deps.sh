@@ -6,8 +6,10 @@ set -euo pipefail
 
 # parallel: GNU parallel, for the test of the tile jobs' example (examples/tiles_gnu_parallel.sh).
 # dpkg-dev and file: cpack's Debian package (dpkg-shlibdeps finds its dependencies).
+# python3-dev, python3-numpy, pybind11-dev: the Python package (python/; left out without them).
 packages=(cmake ninja-build g++ pkg-config perl parallel dpkg-dev file
-          libgdal-dev libgeos-dev libsqlite3-dev libgeographiclib-dev libgtest-dev libbenchmark-dev)
+          libgdal-dev libgeos-dev libsqlite3-dev libgeographiclib-dev libgtest-dev libbenchmark-dev
+          python3-dev python3-numpy pybind11-dev)
 
 # Arguments: more packages a script needs (the demo: gdal-bin, for its picture).
 packages+=("$@")

@@ -9,5 +9,10 @@ scripts/deps.sh qgis python3-qgis qgis-providers ||
 # GDAL's own validators (validate_gpkg.py, the COG validator) read the outputs in a test.
 scripts/deps.sh python3-gdal ||
   echo "qtmvoronoi: warning: python3-gdal could not be installed; the validators' test is left out" >&2
+# The Python package's tests (tests/python/): pytest on Debian's python3, with its GeoPandas, xarray,
+# Dask and tqdm, and matplotlib (the README's picture, scripts/python_example.py).
+scripts/deps.sh python3-pytest python3-gdal python3-geopandas python3-xarray python3-dask python3-distributed \
+  python3-tqdm python3-matplotlib ||
+  echo "qtmvoronoi: warning: the Python test packages could not be installed; the Python package's tests are left out" >&2
 scripts/build.sh
 ctest --test-dir build --output-on-failure -j "$(nproc)"

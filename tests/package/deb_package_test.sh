@@ -72,4 +72,30 @@ csv=(-oo X_POSSIBLE_NAMES=lon -oo Y_POSSIBLE_NAMES=lat -s_srs EPSG:4326)
   "$testdata/country_centres.csv" "$work/built.csv"
 cmp -s "$work/packaged.csv" "$work/built.csv" || fail "the packaged tool's regions differ from the build's"
 [ "$(wc -l < "$work/packaged.csv")" -gt 200 ] || fail "too few regions"
+
+# The Python package, where the build has it: in Debian python3's own dist-packages, with its
+# python3 and numpy dependencies, and the packaged module's regions are the packaged tool's.
+if [ -d "$build/python/qtmvoronoi" ]; then
+  site=/usr/lib/python3/dist-packages
+  module=$(ls "$build"/python/qtmvoronoi/_qtmvoronoi*.so)
+  for f in __init__.py conversions.py run.py dask.py "$(basename "$module")"; do
+    grep -qx -- ".$site/qtmvoronoi/$f" <<<"$contents" || fail "the package lacks $site/qtmvoronoi/$f"
+  done
+  grep -qx "python3" <<<"$depends_names" || fail "Depends lacks python3"
+  grep -qx "python3-numpy" <<<"$depends_names" || fail "Depends lacks python3-numpy"
+  if /usr/bin/python3 -c "import geopandas, osgeo.ogr" 2> /dev/null; then
+    PYTHONPATH=$work/root$site /usr/bin/python3 - "$work/root" "$testdata/country_centres.csv" "$work/built.csv" <<'PY' || fail "the packaged Python package"
+import sys
+import geopandas as gpd
+import qtmvoronoi
+root, centres, built = sys.argv[1:]
+assert qtmvoronoi.__file__.startswith(root), qtmvoronoi.__file__
+assert qtmvoronoi.lonlat_to_code(0.0, 90.0, 0) == 0
+regions = qtmvoronoi.voronoi(centres, 7, device="cpu", open_options=["X_POSSIBLE_NAMES=lon", "Y_POSSIBLE_NAMES=lat"], s_srs="EPSG:4326")
+tool = gpd.read_file(built)
+assert regions.site_fid.tolist() == tool.site_fid.astype(int).tolist()
+assert regions.cells.tolist() == tool.cells.astype(int).tolist()
+PY
+  fi
+fi
 echo "ok"

@@ -7,14 +7,22 @@
 #
 # SOURCE and TILE_DIR must be on a file system that every node sees (or a /vsis3/ style GDAL
 # path). READING OPTIONS go to every task and to the merge, OUTPUT OPTIONS to the merge alone.
-# Extra sbatch options: SBATCH_TILE_OPTIONS (default "--gpus=1"), SBATCH_MERGE_OPTIONS.
+# Extra sbatch options: SBATCH_TILE_OPTIONS (default "--gpus=1"; set it empty on a cluster without
+# GPUs), SBATCH_MERGE_OPTIONS.
+#
+# When a task fails, the merge stays pending (squeue: DependencyNeverSatisfied). Cancel it, mend
+# the cause, rerun the failed tasks and then the merge from their own job scripts, e.g. for task 3:
+#   scontrol write batch_script ARRAY_ID tile.sh; scontrol write batch_script MERGE_ID merge.sh
+#   scancel MERGE_ID; rerun=$(sbatch --parsable --array=3 --output=TILE_DIR/tile-%a.log tile.sh)
+#   sbatch --dependency=afterok:$rerun --output=TILE_DIR/merge.log merge.sh
+# (tests/cli/slurm_example_test.sh does this on a one-node cluster.)
 #
 # Example: level 16 in 16 tiles, the regions as a GeoPackage
 #   examples/slurm_tiles.sh 16 16 /shared/sites.gpkg /shared/voronoi.gpkg /shared/tiles -- -layers regions
 set -euo pipefail
 
 if [ $# -lt 5 ]; then
-  sed -n '6,10p' "$0" >&2
+  sed -n '6,11p' "$0" >&2
   exit 2
 fi
 level=$1 tiles=$2 source=$3 destination=$4 tile_dir=$5
@@ -30,7 +38,7 @@ quoted_reading="" quoted_output=""
 [ ${#output[@]} -gt 0 ] && quoted_output=$(printf ' %q' "${output[@]}")
 
 # Each task labels tile $SLURM_ARRAY_TASK_ID of $tiles; --parsable gives the array's job id.
-array=$(sbatch --parsable --job-name=qtmv-tiles --array=1-"$tiles" ${SBATCH_TILE_OPTIONS:---gpus=1} \
+array=$(sbatch --parsable --job-name=qtmv-tiles --array=1-"$tiles" ${SBATCH_TILE_OPTIONS---gpus=1} \
   --output="$tile_dir/tile-%a.log" \
   --wrap="$(printf '%q' "$tool") -q -overwrite -level $level -tile \$SLURM_ARRAY_TASK_ID/$tiles$quoted_reading \
 $(printf '%q' "$source") $(printf '%q' "$tile_dir")/\$SLURM_ARRAY_TASK_ID.qtmt")

@@ -14,5 +14,9 @@ scripts/deps.sh python3-gdal ||
 scripts/deps.sh python3-pytest python3-gdal python3-geopandas python3-xarray python3-dask python3-distributed \
   python3-tqdm python3-matplotlib ||
   echo "qtmvoronoi: warning: the Python test packages could not be installed; the Python package's tests are left out" >&2
+# Slurm (slurmctld, slurmd, sbatch) and munge for the test of examples/slurm_tiles.sh on a
+# one-node cluster that the test starts and stops.
+scripts/deps.sh slurm-wlm munge ||
+  echo "qtmvoronoi: warning: slurm-wlm and munge could not be installed; the real-Slurm test is left out" >&2
 scripts/build.sh
 ctest --test-dir build --output-on-failure -j "$(nproc)"

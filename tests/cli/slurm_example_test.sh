@@ -41,7 +41,7 @@ dd if=/dev/urandom of="$work/munge.key" bs=1024 count=1 status=none
 chmod 400 "$work/munge.key"
 # -F: a child of this script, stopped and reaped on exit like the Slurm daemons.
 munged -F -f -S "$work/munge.socket" --key-file="$work/munge.key" --pid-file="$work/munged.pid" \
-  --log-file="$work/munged.log" --seed-file="$work/munged.seed" &
+  --log-file="$work/munged.log" --seed-file="$work/munged.seed" > "$work/munged.out" 2>&1 &
 pids+=($!)
 for _ in $(seq 100); do [ -S "$work/munge.socket" ] && break; sleep 0.1; done
 

@@ -21,7 +21,9 @@ class EdgeSolver {
   static constexpr std::size_t kBatchEdges = std::size_t{1} << 16;
 
   /// `cuda_device`: the ordinal of the CUDA device that solves the batches; -1: the CPU, each
-  /// batch on the thread that passes it. A device that cannot be used (none, no memory left, a
+  /// batch on the thread that passes it (an edge like one of the last few hundred of its batch,
+  /// the same latitudes and longitude difference, takes that one's bits: a cell edge along a
+  /// parallel mostly has the one before it). A device that cannot be used (none, no memory left, a
   /// build without CUDA) leaves the batches to the CPU, with the same results: `problem` (may
   /// be null) then gets the reason.
   explicit EdgeSolver(int cuda_device = -1, std::string* problem = nullptr);

@@ -181,11 +181,11 @@ void GpkgRows::exec(const std::string& sql) {
   if (sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, nullptr) != SQLITE_OK) fail("cannot run '" + sql + "'");
 }
 
-void GpkgRows::add(const GpkgGeometry& geometry, const RowValue* values) {
-  blobs_.insert(blobs_.end(), geometry.data(), geometry.data() + geometry.size());
-  geometries_.push_back({blobs_.size(), geometry.envelope()});
+void GpkgRows::add(const GpkgBlob& geometry, const RowValue* values) {
+  blobs_.insert(blobs_.end(), geometry.data, geometry.data + geometry.size);
+  geometries_.push_back({blobs_.size(), geometry.envelope});
   values_.insert(values_.end(), values, values + (columns_ - 1));
-  extent_.add(geometry.envelope());
+  extent_.add(geometry.envelope);
   if (geometries_.size() == insert_.rows()) flush();
 }
 

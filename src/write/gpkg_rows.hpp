@@ -70,6 +70,13 @@ struct GpkgEnvelope {
   }
 };
 
+/// A geometry's GeoPackage blob made ahead (GpkgGeometry::blob, or a block's), and its envelope.
+struct GpkgBlob {
+  const unsigned char* data = nullptr;
+  std::size_t size = 0;
+  GpkgEnvelope envelope;
+};
+
 /// A geometry as the GeoPackage blob GDAL's GPkgGeometryFromOGR makes for a 2D geometry in
 /// EPSG:4326: "GP", version 0, flags (little-endian, and an xy envelope or, for an empty geometry,
 /// the empty bit and no envelope), srs_id 4326, the envelope (min x, max x, min y, max y), then
@@ -93,6 +100,8 @@ class GpkgGeometry {
   std::size_t size() const { return bytes_.size(); }
   /// Its points' envelope (empty for an empty geometry).
   const GpkgEnvelope& envelope() const { return envelope_; }
+  /// The blob (ended), valid until the next begin().
+  GpkgBlob blob() const { return {bytes_.data(), bytes_.size(), envelope_}; }
 
  private:
   void u32(std::uint32_t v);
@@ -118,8 +127,8 @@ class GpkgRows {
   GpkgRows(const GpkgRows&) = delete;
   GpkgRows& operator=(const GpkgRows&) = delete;
 
-  /// Adds a row: its geometry (ended) and one value per field.
-  void add(const GpkgGeometry& geometry, const RowValue* values);
+  /// Adds a row: its geometry's blob (copied) and one value per field.
+  void add(const GpkgBlob& geometry, const RowValue* values);
 
   /// Writes the rows still held, fills the R-tree, puts GDAL's triggers back, sets the feature
   /// count, the extent and the time of the last change. Throws WriteError on an SQLite failure.

@@ -16,7 +16,7 @@ namespace qtmv::write {
 
 /// Runs work(first, last), which returns the results of items first .. last - 1 (in parallel
 /// with OpenMP), on a helper thread one block ahead of write(first, last, results) on this
-/// thread: the dataset takes one row at a time on this thread, so working on the next block
+/// thread (which may take the results by reference and move from them): the dataset takes one row at a time on this thread, so working on the next block
 /// overlaps writing this one, and no more than two blocks are held. An exception from either
 /// side comes out of here (after the helper has finished its block).
 ///

@@ -293,6 +293,23 @@ double planar_ring_area(const std::vector<LonLat>& ring) {
   return 0.5 * twice;
 }
 
+OctantSteps::OctantSteps(const label::Outlines& outlines) {
+  // Steps of at least 1024 cells of an octant, at most 1024 of them: tasks enough for any
+  // team, few enough to cost nothing.
+  const Code per_octant = grid::cells_per_octant(outlines.level);
+  steps_ = static_cast<std::size_t>(std::clamp<Code>(per_octant / 1024, 1, 1024));
+  bounds_.resize(8 * (steps_ + 1));
+  const label::OutlineCells& cells = outlines.cells;
+  for (std::size_t octant = 0; octant < 8; ++octant) {
+    for (std::size_t j = 0; j <= steps_; ++j) {
+      const Code code = octant * per_octant + per_octant / steps_ * j + (j == steps_ ? per_octant % steps_ : 0);
+      bounds_[octant * (steps_ + 1) + j] = static_cast<std::size_t>(
+          std::lower_bound(cells.begin(), cells.end(), code, [](const label::OutlineCell& c, Code v) { return c.code < v; }) -
+          cells.begin());
+    }
+  }
+}
+
 RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertices,
                            const std::function<void(double)>& step_done, RegionEdgeObserver* observer)
     : level_(outlines.level), vertices_(vertices) {
@@ -302,32 +319,34 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertice
   const int level = outlines.level;
   grid::require_level(level);
   const label::OutlineCells& cells = outlines.cells;
-  const auto n = static_cast<std::int64_t>(cells.size());
 
   // The outline cells with region edges, each thread's in a list of its own: the cells' indices
   // in the outlines here (so that bucketing reads each cell's site and code in order).
   const int team = thread_count(0);
   std::vector<CellEdgesList> parts(static_cast<std::size_t>(team));
   FirstException failure;
+  const OctantSteps steps(outlines);
 #pragma omp parallel num_threads(team)
   {
     CellEdgesList& local = parts[static_cast<std::size_t>(thread_index())];
     std::unique_ptr<RegionEdgeObserver::Local> seen;
-    label::NearSearch search;
+    label::NearSearch search[8];
     failure.run([&] {
       if (observer) seen = observer->local();
     });
-#pragma omp for schedule(dynamic, 4096)  // boundary cells, with their geodesics to solve, come in clusters
-    for (std::int64_t k = 0; k < n; ++k) {
+#pragma omp for schedule(dynamic, 1)  // boundary cells, with their geodesics to solve, come in clusters
+    for (std::int64_t step = 0; step < static_cast<std::int64_t>(steps.count()); ++step) {
       failure.run([&] {
-        const std::int32_t site = cells[static_cast<std::size_t>(k)].site;
-        CellEdges mask = 0;
-        const auto add = [&](int e, const LonLat& from, const LonLat& to, std::int32_t other) {
-          mask |= CellEdges{1} << e;
-          if (seen) seen->edge(site, from, to, other);
-        };
-        visit_region_edges(outlines, static_cast<std::size_t>(k), search, add);
-        if (mask != 0) local.push_back(static_cast<CellEdges>(k) << kEdgeMaskBits | mask);
+        steps.visit(static_cast<std::size_t>(step), search, [&](std::size_t k, label::NearSearch& near) {
+          const std::int32_t site = cells[k].site;
+          CellEdges mask = 0;
+          const auto add = [&](int e, const LonLat& from, const LonLat& to, std::int32_t other) {
+            mask |= CellEdges{1} << e;
+            if (seen) seen->edge(site, from, to, other);
+          };
+          visit_region_edges(outlines, k, near, add);
+          if (mask != 0) local.push_back(static_cast<CellEdges>(k) << kEdgeMaskBits | mask);
+        });
       });
     }
     failure.run([&] {

@@ -44,6 +44,7 @@ void write_boundary_cells(VectorDatasetWriter& w, const LayerInput& in, double w
       rows.add(block, row++, values);
       if (++done % kProgressEvery == 0) w.layer_progress(static_cast<double>(done), static_cast<double>(count));
     }
+    rows.end_block();
   };
   work_ahead(cells.size(), kCellBlock, make, write);
   rows.finish();

@@ -58,6 +58,7 @@ void write_cells(VectorDatasetWriter& w, const LayerInput& in, double work) {
         rows.add(block, k - first, values);
         if ((code + 1) % kProgressEvery == 0) w.layer_progress(static_cast<double>(code + 1), static_cast<double>(cells));
       }
+      rows.end_block();
     };
     work_ahead(static_cast<std::size_t>(tile.count), kCellBlock, make, write);
     next = tile.first + tile.count;

@@ -182,8 +182,7 @@ void GpkgRows::exec(const std::string& sql) {
 }
 
 void GpkgRows::add(const GpkgBlob& geometry, const RowValue* values) {
-  blobs_.insert(blobs_.end(), geometry.data, geometry.data + geometry.size);
-  geometries_.push_back({blobs_.size(), geometry.envelope});
+  geometries_.push_back(geometry);
   values_.insert(values_.end(), values, values + (columns_ - 1));
   extent_.add(geometry.envelope);
   if (geometries_.size() == insert_.rows()) flush();
@@ -200,11 +199,9 @@ void GpkgRows::flush() {
   sqlite3_stmt* statement = insert_.prepare(pending);
 
   int parameter = 1, rc = SQLITE_OK;
-  std::size_t start = 0;
   for (std::size_t r = 0; r < pending && rc == SQLITE_OK; ++r) {
-    const std::size_t end = geometries_[r].end;
-    rc = sqlite3_bind_blob(statement, parameter++, blobs_.data() + start, static_cast<int>(end - start), SQLITE_STATIC);
-    start = end;
+    const GpkgBlob& blob = geometries_[r];
+    rc = sqlite3_bind_blob(statement, parameter++, blob.data, static_cast<int>(blob.size), SQLITE_STATIC);
     for (std::size_t c = 0; c + 1 < columns_ && rc == SQLITE_OK; ++c) {
       const RowValue& v = values_[r * (columns_ - 1) + c];
       rc = v.kind == RowValue::Kind::integer ? sqlite3_bind_int64(statement, parameter, v.integer)
@@ -225,7 +222,6 @@ void GpkgRows::flush() {
     }
   }
   rows_ += pending;
-  blobs_.clear();
   geometries_.clear();
   values_.clear();
 }

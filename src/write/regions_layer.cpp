@@ -334,7 +334,7 @@ void write_regions(VectorDatasetWriter& w, const LayerInput& in, double work, st
       block.features.resize(last - first);
     }
     FirstException failure;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(thread_count(0))
+#pragma omp parallel for schedule(dynamic, 1) num_threads(ahead_threads())
     for (std::int64_t s = static_cast<std::int64_t>(first); s < static_cast<std::int64_t>(last); ++s) {
       failure.run([&] {
         const Region region = tracer.trace(static_cast<std::int32_t>(s));
@@ -395,6 +395,7 @@ void write_regions(VectorDatasetWriter& w, const LayerInput& in, double work, st
       if (geometry) feature->SetGeometryDirectly(geometry.release());
       w.write(*feature);
     }
+    if (direct) w.guard([&] { direct->flush(); });  // before the block's blobs go
     w.layer_progress(0.4 + 0.6 * static_cast<double>(last) / static_cast<double>(in.site_count), 1.0);
   };
   work_ahead(static_cast<std::size_t>(in.site_count), kRegionBlock, link, write);

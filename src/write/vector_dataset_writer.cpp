@@ -9,6 +9,7 @@
 #include "common/config_option.hpp"
 #include "common/first_exception.hpp"
 #include "common/openmp_threads.hpp"
+#include "write/work_ahead.hpp"
 
 namespace qtmv::write {
 
@@ -281,7 +282,7 @@ CellPolygons CellRows::make(std::vector<Code> codes, int level) const {
   }
   block.codes = std::move(codes);
   FirstException failure;
-#pragma omp parallel num_threads(thread_count(0))
+#pragma omp parallel num_threads(ahead_threads())
   {
     GpkgGeometry polygon;
 #pragma omp for schedule(static)
@@ -318,6 +319,10 @@ void CellRows::add(const CellPolygons& block, std::size_t k, const RowValue* val
   set_ring(*feature_, block.rings.data() + k * grid::kMaxPolygonCorners, block.corners[k]);
   for (std::size_t f = 0; f < fields_.size(); ++f) set_value(*feature_, fields_[f], values[f]);
   w_.write(*feature_);
+}
+
+void CellRows::end_block() {
+  if (direct_) w_.guard([&] { direct_->flush(); });
 }
 
 void CellRows::finish() {

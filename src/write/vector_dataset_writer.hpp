@@ -13,6 +13,7 @@
 #include <ogr_spatialref.h>
 #include <ogrsf_frmts.h>
 
+#include "common/default_init_allocator.hpp"
 #include "gdal/error_capture.hpp"
 #include "grid/qtm.hpp"
 #include "sites/site_table.hpp"
@@ -143,7 +144,7 @@ struct CellPolygons {
   static constexpr std::size_t kBlobStride = 8 + 32 + 9 + 4 + 16 * (grid::kMaxPolygonCorners + 1);
 
   std::vector<grid::Code> codes;           ///< the cells, in the order of their rows
-  std::vector<unsigned char> blobs;        ///< direct rows: cell k's blob at k * kBlobStride
+  DefaultInitVector<unsigned char> blobs;  ///< direct rows: cell k's blob at k * kBlobStride
   std::vector<std::uint32_t> blob_sizes;   ///< direct rows
   std::vector<GpkgEnvelope> envelopes;     ///< direct rows
   std::vector<grid::LonLat> rings;         ///< OGR: cell k's ring at k * kMaxPolygonCorners
@@ -162,6 +163,9 @@ class CellRows {
 
   /// Adds the row of cell k of `block`, with its values.
   void add(const CellPolygons& block, std::size_t k, const RowValue* values);
+
+  /// After the block's last add(), before the block goes: writes the rows that point at it.
+  void end_block();
 
   /// After the last add(), before the layer ends.
   void finish();

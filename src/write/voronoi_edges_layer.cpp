@@ -78,7 +78,7 @@ void write_voronoi_edges(VectorDatasetWriter& w, const LayerInput& in, double wo
   const auto measure = [&](std::size_t first, std::size_t last) {
     std::vector<MeasuredPair> block(last - first);
     FirstException failure;
-#pragma omp parallel for schedule(dynamic, 16) num_threads(thread_count(0))
+#pragma omp parallel for schedule(dynamic, 16) num_threads(ahead_threads())
     for (std::int64_t p = static_cast<std::int64_t>(first); p < static_cast<std::int64_t>(last); ++p) {
       failure.run([&] {
         MeasuredPair& out = block[static_cast<std::size_t>(p) - first];
@@ -121,6 +121,7 @@ void write_voronoi_edges(VectorDatasetWriter& w, const LayerInput& in, double wo
       for (std::size_t k = 0; k < row_fields.size(); ++k) set_value(*feature, row_fields[k], values[k]);
       w.write(*feature);
     }
+    if (direct) w.guard([&] { direct->flush(); });  // before the block's blobs go
     w.layer_progress(0.2 + 0.8 * static_cast<double>(last) / static_cast<double>(pairs), 1.0);
   };
   work_ahead(pairs, kEdgePairBlock, measure, write);

@@ -12,11 +12,19 @@
 #include <thread>
 #include <utility>
 
+#include "common/openmp_threads.hpp"
+
 namespace qtmv::write {
 
+/// The threads for the work done beside a writing thread (work_ahead's): one core is the
+/// writer's, so that the team does not take turns with it (and spin at its barriers while the
+/// writer waits for a core).
+inline int ahead_threads() { return std::max(1, thread_count(0) - 1); }
+
 /// Runs work(first, last), which returns the results of items first .. last - 1 (in parallel
-/// with OpenMP), on a helper thread one block ahead of write(first, last, results) on this
-/// thread (which may take the results by reference and move from them): the dataset takes one row at a time on this thread, so working on the next block
+/// with OpenMP, ahead_threads() of them), on a helper thread one block ahead of
+/// write(first, last, results) on this thread, which may take the results by reference and move
+/// from them: the dataset takes one row at a time on this thread, so working on the next block
 /// overlaps writing this one, and no more than two blocks are held. An exception from either
 /// side comes out of here (after the helper has finished its block).
 ///

@@ -26,6 +26,7 @@
 #include "common/openmp_threads.hpp"
 #include "label/labeller.hpp"
 #include "label/synthetic_sites.hpp"
+#include "sqlite_rows.hpp"
 #include "write/vector_writer.hpp"
 
 namespace qtmv::write {
@@ -89,39 +90,7 @@ std::string write_with(const Scene& scene, int threads, const std::string& drive
   return path;
 }
 
-/// Runs `sql` on `db`: each row's columns as text (blobs in hex, reals to 17 digits).
-std::vector<std::string> rows(sqlite3* db, const std::string& sql) {
-  std::vector<std::string> out;
-  sqlite3_stmt* st = nullptr;
-  EXPECT_EQ(sqlite3_prepare_v2(db, sql.c_str(), -1, &st, nullptr), SQLITE_OK) << sql << ": " << sqlite3_errmsg(db);
-  while (st && sqlite3_step(st) == SQLITE_ROW) {
-    std::string row;
-    for (int c = 0; c < sqlite3_column_count(st); ++c) {
-      char text[64];
-      switch (sqlite3_column_type(st, c)) {
-        case SQLITE_NULL: row += " null"; break;
-        case SQLITE_INTEGER: row += " i" + std::to_string(sqlite3_column_int64(st, c)); break;
-        case SQLITE_FLOAT:
-          std::snprintf(text, sizeof text, " r%.17g", sqlite3_column_double(st, c));
-          row += text;
-          break;
-        case SQLITE_BLOB: {
-          const auto* bytes = static_cast<const unsigned char*>(sqlite3_column_blob(st, c));
-          row += " x";
-          for (int k = 0; k < sqlite3_column_bytes(st, c); ++k) {
-            row += "0123456789abcdef"[bytes[k] >> 4];
-            row += "0123456789abcdef"[bytes[k] & 15];
-          }
-          break;
-        }
-        default: row += std::string(" t") + reinterpret_cast<const char*>(sqlite3_column_text(st, c));
-      }
-    }
-    out.push_back(row);
-  }
-  sqlite3_finalize(st);
-  return out;
-}
+std::vector<std::string> rows(sqlite3* db, const std::string& sql) { return test::sqlite_rows(db, sql); }
 
 /// FNV-1a of the lines.
 std::uint64_t digest(const std::vector<std::string>& lines) {

@@ -37,13 +37,17 @@ QTMV_HD inline std::int64_t nearest_integer(double x) {
 /// `metres` in kLengthUnit, rounded.
 QTMV_HD inline std::int64_t length_units(double metres) { return nearest_integer(metres / kLengthUnit); }
 
-/// The measures of one edge on `ellipsoid`.
-QTMV_HD inline EdgeUnits edge_units(const Ellipsoid& ellipsoid, const EdgeEnds& edge) {
-  const InverseSolution g = geodesic_inverse(ellipsoid, edge.from.lat, edge.from.lon, edge.to.lat, edge.to.lon);
+/// An edge's measures from its geodesic.
+QTMV_HD inline EdgeUnits edge_units_of(const InverseSolution& g) {
   EdgeUnits units;
   units.area = nearest_integer(g.S12 / kAreaUnit);
   units.length = length_units(g.s12);
   return units;
+}
+
+/// The measures of one edge on `ellipsoid`.
+QTMV_HD inline EdgeUnits edge_units(const Ellipsoid& ellipsoid, const EdgeEnds& edge) {
+  return edge_units_of(geodesic_inverse(ellipsoid, edge.from.lat, edge.from.lon, edge.to.lat, edge.to.lon));
 }
 
 }  // namespace qtmv::measure

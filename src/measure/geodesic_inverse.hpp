@@ -235,19 +235,24 @@ struct CanonicalEnds {
   int lonsign, swapp, latsign;
 };
 
-/// (lat1, lon1) and (lat2, lon2) (degrees) in canonical form, with their reduced latitudes.
-QTMV_HD inline CanonicalEnds canonical_ends(const Ellipsoid& e, double lat1, double lon1, double lat2, double lon2) {
+/// An inverse problem reduced to Karney's canonical form: all its solution depends on (the
+/// latitudes and the longitude difference, each exact) and the signs that undo the reduction.
+/// Problems of the same canonical form (mirror images, a shift in longitude) have solutions of
+/// the same bits but for those signs.
+struct CanonicalProblem {
+  double lat1, lat2;     ///< (degrees) -90 <= lat1 <= -0, lat1 <= lat2 <= -lat1
+  double lon12, lon12s;  ///< the longitude difference, 0 <= lon12 <= 180, exactly lon12 + lon12s (degrees)
+  int lonsign, swapp, latsign;
+};
+
+/// (lat1, lon1) to (lat2, lon2) (degrees) as a CanonicalProblem.
+QTMV_HD inline CanonicalProblem canonical_problem(double lat1, double lon1, double lat2, double lon2) {
   // Longitude difference, exactly as lon12 + lon12s, made non-negative.
   double lon12s;
   double lon12 = ang_diff(lon1, lon2, &lon12s);
   int lonsign = sign_bit(lon12) ? -1 : 1;
   lon12 *= lonsign;
   lon12s *= lonsign;
-  const double lam12 = lon12 * grid::kDegree;
-  double slam12, clam12;
-  sincos_deg_reduced(lon12, lon12s, true, &slam12, &clam12);
-  lon12s = (kHalfTurn - lon12) - lon12s;  // the supplementary longitude difference
-
   // Latitudes this close to the equator count as on it.
   lat1 = ang_round(lat_fix(lat1));
   lat2 = ang_round(lat_fix(lat2));
@@ -261,6 +266,17 @@ QTMV_HD inline CanonicalEnds canonical_ends(const Ellipsoid& e, double lat1, dou
   const int latsign = sign_bit(lat1) ? 1 : -1;
   lat1 *= latsign;
   lat2 *= latsign;
+  return {lat1, lat2, lon12, lon12s, lonsign, swapp, latsign};
+}
+
+/// A canonical problem's ends, with their reduced latitudes.
+QTMV_HD inline CanonicalEnds canonical_ends(const Ellipsoid& e, const CanonicalProblem& p) {
+  const double lon12 = p.lon12;
+  const double lam12 = lon12 * grid::kDegree;
+  double slam12, clam12;
+  sincos_deg_reduced(lon12, p.lon12s, true, &slam12, &clam12);
+  const double lon12s = (kHalfTurn - lon12) - p.lon12s;  // the supplementary longitude difference
+  const double lat1 = p.lat1, lat2 = p.lat2;
 
   // Reduced latitudes; cbet = +tiny at the poles.
   double sbet1, cbet1, sbet2, cbet2;
@@ -280,7 +296,7 @@ QTMV_HD inline CanonicalEnds canonical_ends(const Ellipsoid& e, double lat1, dou
   }
   const double dn1 = ::sqrt(1 + e.ep2 * sq(sbet1));
   const double dn2 = ::sqrt(1 + e.ep2 * sq(sbet2));
-  return {lam12, slam12, clam12, lon12s, lat1, sbet1, cbet1, sbet2, cbet2, dn1, dn2, lonsign, swapp, latsign};
+  return {lam12, slam12, clam12, lon12s, lat1, sbet1, cbet1, sbet2, cbet2, dn1, dn2, p.lonsign, p.swapp, p.latsign};
 }
 
 /// The geodesic between canonical ends: its distance s12x (metres), its azimuths at both ends,
@@ -401,8 +417,8 @@ QTMV_HD inline void general_line(const Ellipsoid& e, const CanonicalEnds& ends, 
   }
 }
 
-/// The area S12 (square metres) between the line and the equator, with the canonical form's
-/// signs undone.
+/// The area S12 (square metres) between the line and the equator, of the canonical problem
+/// (the signs not applied).
 QTMV_HD inline double inverse_area(const Ellipsoid& e, const CanonicalEnds& ends, const InverseLine& line) {
   const double sbet1 = ends.sbet1, cbet1 = ends.cbet1, sbet2 = ends.sbet2, cbet2 = ends.cbet2;
   const double salp1 = line.salp1, calp1 = line.calp1, salp2 = line.salp2, calp2 = line.calp2;
@@ -447,19 +463,26 @@ QTMV_HD inline double inverse_area(const Ellipsoid& e, const CanonicalEnds& ends
     alp12 = det_atan2(salp12, calp12);
   }
   area += e.c2 * alp12;
-  area *= ends.swapp * ends.lonsign * ends.latsign;
-  return area;
+  return area;  // of the canonical problem: CanonicalProblem's signs still to apply
 }
 
 }  // namespace detail
 
-/// Inverse geodesic problem between (lat1, lon1) and (lat2, lon2) (degrees, |lat| <= 90, any
-/// longitude): the distance s12 (metres) and the area S12 (square metres) between the
-/// geodesic and the equator, as GeographicLib's Geodesic::GenInverse with DISTANCE | AREA.
-QTMV_HD inline InverseSolution geodesic_inverse(const Ellipsoid& e, double lat1, double lon1, double lat2,
-                                                double lon2) {
+using detail::CanonicalProblem;
+using detail::canonical_problem;
+
+/// The solution of a canonical problem before its signs: the distance, and the area as
+/// inverse_area leaves it.
+struct CanonicalSolution {
+  double s12;   ///< (metres)
+  double area;  ///< (square metres) of the canonical problem
+};
+
+/// Solves a canonical problem (GeographicLib's Geodesic::GenInverse with DISTANCE | AREA, from
+/// its canonical form on).
+QTMV_HD inline CanonicalSolution solve_canonical(const Ellipsoid& e, const CanonicalProblem& p) {
   using namespace detail;
-  const CanonicalEnds ends = canonical_ends(e, lat1, lon1, lat2, lon2);
+  const CanonicalEnds ends = canonical_ends(e, p);
   InverseLine line;
   line.meridian = ends.lat1 == -kQuarterTurn || ends.slam12 == 0;
   if (line.meridian) meridian_line(e, ends, &line);
@@ -472,11 +495,24 @@ QTMV_HD inline InverseSolution geodesic_inverse(const Ellipsoid& e, double lat1,
   } else if (!line.meridian) {
     general_line(e, ends, &line);
   }
+  return {line.s12x, inverse_area(e, ends, line)};
+}
 
+/// The solution of the problem that `p` is the canonical form of: its signs applied.
+QTMV_HD inline InverseSolution signed_solution(const CanonicalProblem& p, const CanonicalSolution& c) {
   InverseSolution out{};
-  out.s12 = 0.0 + line.s12x;  // -0 to 0
-  out.S12 = inverse_area(e, ends, line) + 0.0;  // -0 to 0
+  out.s12 = 0.0 + c.s12;  // -0 to 0
+  out.S12 = c.area * (p.swapp * p.lonsign * p.latsign) + 0.0;  // -0 to 0
   return out;
+}
+
+/// Inverse geodesic problem between (lat1, lon1) and (lat2, lon2) (degrees, |lat| <= 90, any
+/// longitude): the distance s12 (metres) and the area S12 (square metres) between the
+/// geodesic and the equator, as GeographicLib's Geodesic::GenInverse with DISTANCE | AREA.
+QTMV_HD inline InverseSolution geodesic_inverse(const Ellipsoid& e, double lat1, double lon1, double lat2,
+                                                double lon2) {
+  const CanonicalProblem p = canonical_problem(lat1, lon1, lat2, lon2);
+  return signed_solution(p, solve_canonical(e, p));
 }
 
 }  // namespace qtmv::measure

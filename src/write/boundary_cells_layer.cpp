@@ -6,6 +6,7 @@
 #include <ogrsf_frmts.h>
 
 #include "write/vector_layer_writers.hpp"
+#include "write/work_ahead.hpp"
 
 namespace qtmv::write {
 
@@ -21,15 +22,31 @@ void write_boundary_cells(VectorDatasetWriter& w, const LayerInput& in, double w
   }
   w.begin_features();
   CellRows rows(w, layer, fields);
+  // Blocks of outline cells, the boundary cells' polygons made on all cores on a helper thread
+  // while this one writes the block before.
+  const label::OutlineCells& cells = in.outlines.cells;
+  const auto make = [&](std::size_t first, std::size_t last) {
+    std::vector<grid::Code> codes;
+    for (std::size_t k = first; k < last; ++k) {
+      if (cells[k].boundary) codes.push_back(cells[k].code);
+    }
+    return rows.make(std::move(codes), level);
+  };
   std::uint64_t done = 0;
-  for (const label::OutlineCell& cell : in.outlines.cells) {
-    if (!cell.boundary) continue;
-    const auto site = static_cast<std::size_t>(cell.site);
-    const RowValue values[] = {RowValue::of(static_cast<std::int64_t>(cell.code)), fid_value(in.table.sites[site].fid),
-                               in.composite() ? in.layer_of(site) : RowValue{}};
-    rows.add(cell.code, level, values);
-    if (++done % kProgressEvery == 0) w.layer_progress(static_cast<double>(done), static_cast<double>(count));
-  }
+  const auto write = [&](std::size_t first, std::size_t last, const CellPolygons& block) {
+    std::size_t row = 0;
+    for (std::size_t k = first; k < last; ++k) {
+      const label::OutlineCell& cell = cells[k];
+      if (!cell.boundary) continue;
+      const auto site = static_cast<std::size_t>(cell.site);
+      const RowValue values[] = {RowValue::of(static_cast<std::int64_t>(cell.code)), fid_value(in.table.sites[site].fid),
+                                 in.composite() ? in.layer_of(site) : RowValue{}};
+      rows.add(block, row++, values);
+      if (++done % kProgressEvery == 0) w.layer_progress(static_cast<double>(done), static_cast<double>(count));
+    }
+    rows.end_block();
+  };
+  work_ahead(cells.size(), kCellBlock, make, write);
   rows.finish();
   w.end_layer();
 }

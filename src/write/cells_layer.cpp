@@ -8,6 +8,7 @@
 #include <ogrsf_frmts.h>
 
 #include "write/vector_layer_writers.hpp"
+#include "write/work_ahead.hpp"
 
 namespace qtmv::write {
 
@@ -33,22 +34,33 @@ void write_cells(VectorDatasetWriter& w, const LayerInput& in, double work) {
   Code next = 0;
   in.cell_tiles([&](const CellTile& tile) {
     if (tile.first != next) throw std::logic_error("write_vector: the cells layer's tiles are not in code order");
-    for (std::uint64_t k = 0; k < tile.count; ++k) {
-      const Code code = tile.first + k;
-      const std::int32_t site = tile.site[k];
-      if (site < 0 || site >= in.site_count) {
-        throw std::invalid_argument("write_vector: label " + std::to_string(site) + " of cell " + std::to_string(code) +
-                                    " is not a site id (0 to " + std::to_string(in.site_count - 1) + ")");
+    // Blocks of the tile's cells, their polygons made on all cores on a helper thread while
+    // this one writes the block before.
+    const auto make = [&](std::size_t first, std::size_t last) {
+      std::vector<Code> codes(last - first);
+      for (std::size_t k = first; k < last; ++k) codes[k - first] = tile.first + k;
+      return rows.make(std::move(codes), level);
+    };
+    const auto write = [&](std::size_t first, std::size_t last, const CellPolygons& block) {
+      for (std::size_t k = first; k < last; ++k) {
+        const Code code = tile.first + k;
+        const std::int32_t site = tile.site[k];
+        if (site < 0 || site >= in.site_count) {
+          throw std::invalid_argument("write_vector: label " + std::to_string(site) + " of cell " + std::to_string(code) +
+                                      " is not a site id (0 to " + std::to_string(in.site_count - 1) + ")");
+        }
+        const RowValue values[] = {
+            RowValue::of(static_cast<std::int64_t>(code)),
+            fid_value(in.table.sites[static_cast<std::size_t>(site)].fid),
+            tile.distance_m ? RowValue::of(static_cast<double>(tile.distance_m[k])) : RowValue{},
+            RowValue::of(std::int64_t{tile.boundary[k] != 0 ? 1 : 0}),
+            in.composite() ? in.layer_of(static_cast<std::size_t>(site)) : RowValue{}};
+        rows.add(block, k - first, values);
+        if ((code + 1) % kProgressEvery == 0) w.layer_progress(static_cast<double>(code + 1), static_cast<double>(cells));
       }
-      const RowValue values[] = {
-          RowValue::of(static_cast<std::int64_t>(code)),
-          fid_value(in.table.sites[static_cast<std::size_t>(site)].fid),
-          tile.distance_m ? RowValue::of(static_cast<double>(tile.distance_m[k])) : RowValue{},
-          RowValue::of(std::int64_t{tile.boundary[k] != 0 ? 1 : 0}),
-          in.composite() ? in.layer_of(static_cast<std::size_t>(site)) : RowValue{}};
-      rows.add(code, level, values);
-      if ((code + 1) % kProgressEvery == 0) w.layer_progress(static_cast<double>(code + 1), static_cast<double>(cells));
-    }
+      rows.end_block();
+    };
+    work_ahead(static_cast<std::size_t>(tile.count), kCellBlock, make, write);
     next = tile.first + tile.count;
   });
   if (next != cells) throw std::logic_error("write_vector: the cells layer's tiles end before the last cell");

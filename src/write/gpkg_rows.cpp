@@ -19,6 +19,8 @@ constexpr std::size_t kRowsPerStatement = 64;  // rows of one INSERT (fewer when
 constexpr std::uint32_t kSrsId = 4326;
 constexpr std::size_t kHeaderBytes = 8, kEnvelopeBytes = 32;  // "GP", version, flags, srs_id; 4 doubles
 
+constexpr bool kLittleEndianHost = __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__;
+
 /// Little-endian stores, whatever the host's order.
 unsigned char* put_u32(unsigned char* out, std::uint32_t v) {
   for (int k = 0; k < 4; ++k) *out++ = static_cast<unsigned char>(v >> (8 * k));
@@ -48,9 +50,16 @@ void GpkgGeometry::points(const grid::LonLat* p, std::size_t n, bool closed) {
   const std::size_t at = bytes_.size();
   bytes_.resize(at + 4 + 16 * count);
   unsigned char* out = put_u32(bytes_.data() + at, static_cast<std::uint32_t>(count));
-  for (std::size_t k = 0; k < count; ++k) {
-    const grid::LonLat& q = p[k < n ? k : 0];
-    out = put_f64(put_f64(out, q.lon), q.lat);
+  static_assert(sizeof(grid::LonLat) == 16, "a point is two doubles, lon then lat");
+  if (kLittleEndianHost) {
+    // The blob's order is the host's: the points as they lie, the ring closed by the first.
+    std::memcpy(out, p, 16 * n);
+    if (count > n) std::memcpy(out + 16 * n, p, 16);
+  } else {
+    for (std::size_t k = 0; k < count; ++k) {
+      const grid::LonLat& q = p[k < n ? k : 0];
+      out = put_f64(put_f64(out, q.lon), q.lat);
+    }
   }
   if (n == 0) return;
   GpkgEnvelope box{false, p[0].lon, p[0].lon, p[0].lat, p[0].lat};
@@ -181,11 +190,10 @@ void GpkgRows::exec(const std::string& sql) {
   if (sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, nullptr) != SQLITE_OK) fail("cannot run '" + sql + "'");
 }
 
-void GpkgRows::add(const GpkgGeometry& geometry, const RowValue* values) {
-  blobs_.insert(blobs_.end(), geometry.data(), geometry.data() + geometry.size());
-  geometries_.push_back({blobs_.size(), geometry.envelope()});
+void GpkgRows::add(const GpkgBlob& geometry, const RowValue* values) {
+  geometries_.push_back(geometry);
   values_.insert(values_.end(), values, values + (columns_ - 1));
-  extent_.add(geometry.envelope());
+  extent_.add(geometry.envelope);
   if (geometries_.size() == insert_.rows()) flush();
 }
 
@@ -200,11 +208,9 @@ void GpkgRows::flush() {
   sqlite3_stmt* statement = insert_.prepare(pending);
 
   int parameter = 1, rc = SQLITE_OK;
-  std::size_t start = 0;
   for (std::size_t r = 0; r < pending && rc == SQLITE_OK; ++r) {
-    const std::size_t end = geometries_[r].end;
-    rc = sqlite3_bind_blob(statement, parameter++, blobs_.data() + start, static_cast<int>(end - start), SQLITE_STATIC);
-    start = end;
+    const GpkgBlob& blob = geometries_[r];
+    rc = sqlite3_bind_blob(statement, parameter++, blob.data, static_cast<int>(blob.size), SQLITE_STATIC);
     for (std::size_t c = 0; c + 1 < columns_ && rc == SQLITE_OK; ++c) {
       const RowValue& v = values_[r * (columns_ - 1) + c];
       rc = v.kind == RowValue::Kind::integer ? sqlite3_bind_int64(statement, parameter, v.integer)
@@ -225,7 +231,6 @@ void GpkgRows::flush() {
     }
   }
   rows_ += pending;
-  blobs_.clear();
   geometries_.clear();
   values_.clear();
 }

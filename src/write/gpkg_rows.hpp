@@ -70,6 +70,13 @@ struct GpkgEnvelope {
   }
 };
 
+/// A geometry's GeoPackage blob made ahead (GpkgGeometry::blob, or a block's), and its envelope.
+struct GpkgBlob {
+  const unsigned char* data = nullptr;
+  std::size_t size = 0;
+  GpkgEnvelope envelope;
+};
+
 /// A geometry as the GeoPackage blob GDAL's GPkgGeometryFromOGR makes for a 2D geometry in
 /// EPSG:4326: "GP", version 0, flags (little-endian, and an xy envelope or, for an empty geometry,
 /// the empty bit and no envelope), srs_id 4326, the envelope (min x, max x, min y, max y), then
@@ -93,6 +100,8 @@ class GpkgGeometry {
   std::size_t size() const { return bytes_.size(); }
   /// Its points' envelope (empty for an empty geometry).
   const GpkgEnvelope& envelope() const { return envelope_; }
+  /// The blob (ended), valid until the next begin().
+  GpkgBlob blob() const { return {bytes_.data(), bytes_.size(), envelope_}; }
 
  private:
   void u32(std::uint32_t v);
@@ -118,8 +127,13 @@ class GpkgRows {
   GpkgRows(const GpkgRows&) = delete;
   GpkgRows& operator=(const GpkgRows&) = delete;
 
-  /// Adds a row: its geometry (ended) and one value per field.
-  void add(const GpkgGeometry& geometry, const RowValue* values);
+  /// Adds a row: its geometry's blob and one value per field. The blob is not copied: it must
+  /// stay as it is until the next flush() (or finish()), which the caller makes before it lets
+  /// a block of blobs go; rows are also written, 64 at a time, as they come.
+  void add(const GpkgBlob& geometry, const RowValue* values);
+
+  /// Writes the rows held (their blobs may go after it).
+  void flush();
 
   /// Writes the rows still held, fills the R-tree, puts GDAL's triggers back, sets the feature
   /// count, the extent and the time of the last change. Throws WriteError on an SQLite failure.
@@ -127,15 +141,9 @@ class GpkgRows {
 
  private:
   GpkgRows(sqlite3* db, std::string table, std::string insert_head, std::size_t columns);
-  void flush();
   void exec(const std::string& sql);
   [[noreturn]] void fail(const std::string& what) const;
 
-  /// A pending row's geometry: where its blob ends in blobs_, and its envelope.
-  struct PendingGeometry {
-    std::size_t end;
-    GpkgEnvelope envelope;
-  };
 
   sqlite3* db_;
   std::string table_;
@@ -143,8 +151,7 @@ class GpkgRows {
   MultiRowInsert insert_;  // up to 64 rows an INSERT, fewer for many columns (SQLite's parameter limit)
   std::string insert_failed_;  // what a failed INSERT says
   bool finished_ = false;
-  std::vector<unsigned char> blobs_;  // the pending rows' geometry blobs, one after another
-  std::vector<PendingGeometry> geometries_;
+  std::vector<GpkgBlob> geometries_;  // the pending rows' geometries (the caller's blobs)
   std::vector<RowValue> values_;  // the pending rows' attributes
   std::uint64_t rows_ = 0;
   GpkgEnvelope extent_;  // of every row written

@@ -4,7 +4,11 @@
 #include <cmath>
 #include <cstring>
 #include <memory>
+#include <utility>
 
+#include "common/openmp_threads.hpp"
+#include "common/parallel_sort.hpp"
+#include "common/radix_sort.hpp"
 #include "write/sqlite_statement.hpp"
 
 namespace qtmv::write {
@@ -42,6 +46,29 @@ struct Node {
   std::size_t first, count;
 };
 
+/// Sorts items[first, last) by centre (centre_x or centre_y), ties by id: through an array of
+/// the centres and places, so that a comparison reads 16 bytes and computes nothing.
+template <class Centre>
+void sort_by_centre(std::vector<Box>& items, std::size_t first, std::size_t last, Centre centre, bool parallel) {
+  struct Keyed {
+    double centre;
+    std::size_t place;
+  };
+  std::vector<Keyed> keyed(last - first);
+  for (std::size_t k = first; k < last; ++k) keyed[k - first] = {centre(items[k]), k};
+  const auto less = [&items](const Keyed& a, const Keyed& b) {
+    return a.centre < b.centre || (a.centre == b.centre && items[a.place].id < items[b.place].id);
+  };
+  if (parallel) {
+    parallel_sort(keyed.begin(), keyed.end(), less);
+  } else {
+    std::sort(keyed.begin(), keyed.end(), less);
+  }
+  std::vector<Box> sorted(last - first);
+  for (std::size_t k = 0; k < keyed.size(); ++k) sorted[k] = items[keyed[k].place];
+  std::copy(sorted.begin(), sorted.end(), items.begin() + static_cast<std::ptrdiff_t>(first));
+}
+
 /// Packs `items` into nodes of up to `capacity` (Sort-Tile-Recursive: vertical slices by the
 /// boxes' centres in x, each sorted in y and cut into full nodes). Reorders `items` so that each
 /// node's children are a run; ties are broken by id, so the packing is deterministic.
@@ -49,30 +76,34 @@ std::vector<Node> pack(std::vector<Box>& items, std::size_t capacity) {
   const std::size_t nodes = (items.size() + capacity - 1) / capacity;
   const auto slices = static_cast<std::size_t>(std::ceil(std::sqrt(static_cast<double>(nodes))));
   const std::size_t per_slice = slices * capacity;
-  const auto by = [](auto centre) {
-    return [centre](const Box& a, const Box& b) {
-      const double ca = centre(a), cb = centre(b);
-      return ca < cb || (ca == cb && a.id < b.id);
-    };
-  };
-  std::sort(items.begin(), items.end(), by(centre_x));
+  // Ids are unique, so both orders are total: the same packing on any number of threads.
+  sort_by_centre(items, 0, items.size(), centre_x, true);
+  const std::size_t slice_count = (items.size() + per_slice - 1) / per_slice;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(thread_count(0))
+  for (std::int64_t slice = 0; slice < static_cast<std::int64_t>(slice_count); ++slice) {
+    const std::size_t first = static_cast<std::size_t>(slice) * per_slice;
+    sort_by_centre(items, first, std::min(items.size(), first + per_slice), centre_y, false);
+  }
+  // Full nodes, each slice's from its start: node k of slice s covers its items from s * per_slice.
   std::vector<Node> out;
   out.reserve(nodes);
   for (std::size_t slice = 0; slice < items.size(); slice += per_slice) {
-    const auto end = items.begin() + static_cast<std::ptrdiff_t>(std::min(items.size(), slice + per_slice));
-    std::sort(items.begin() + static_cast<std::ptrdiff_t>(slice), end, by(centre_y));
-    for (std::size_t first = slice; first < static_cast<std::size_t>(end - items.begin()); first += capacity) {
-      const std::size_t count = std::min(capacity, static_cast<std::size_t>(end - items.begin()) - first);
-      Box box = items[first];
-      for (std::size_t k = first + 1; k < first + count; ++k) {
-        box.min_x = std::min(box.min_x, items[k].min_x);
-        box.max_x = std::max(box.max_x, items[k].max_x);
-        box.min_y = std::min(box.min_y, items[k].min_y);
-        box.max_y = std::max(box.max_y, items[k].max_y);
-      }
-      box.id = static_cast<std::int64_t>(out.size());
-      out.push_back({box, first, count});
+    const std::size_t end = std::min(items.size(), slice + per_slice);
+    for (std::size_t first = slice; first < end; first += capacity) {
+      out.push_back({items[first], first, std::min(capacity, end - first)});
     }
+  }
+#pragma omp parallel for schedule(static) num_threads(thread_count(0))
+  for (std::int64_t k = 0; k < static_cast<std::int64_t>(out.size()); ++k) {
+    Node& node = out[static_cast<std::size_t>(k)];
+    Box& box = node.box;
+    for (std::size_t c = node.first + 1; c < node.first + node.count; ++c) {
+      box.min_x = std::min(box.min_x, items[c].min_x);
+      box.max_x = std::max(box.max_x, items[c].max_x);
+      box.min_y = std::min(box.min_y, items[c].min_y);
+      box.max_y = std::max(box.max_y, items[c].max_y);
+    }
+    box.id = k;
   }
   return out;
 }
@@ -178,7 +209,11 @@ void bulk_load_rtree(sqlite3* db, const std::string& name, std::vector<RTreeEntr
   Statement root(db, "UPDATE " + node_table + " SET data = ?1 WHERE nodeno = 1");
   Statement node(db, "INSERT INTO " + node_table + " (nodeno, data) VALUES (?1, ?2)");
   PairInserter parent(db, parent_table, "nodeno, parentnode", "write a node's parent in " + where);
-  PairInserter rowid(db, rowid_table, "rowid, nodeno", "write a row's leaf in " + where);
+  // Each row's leaf, written in rowid order after the nodes: appended to the rowid table's
+  // B-tree, where the leaves' order (by place) would insert all over it, a page read and a page
+  // written back per row once the table outgrows SQLite's page cache.
+  std::vector<std::pair<std::int64_t, std::int64_t>> leaf_of;
+  leaf_of.reserve(items.size());
   const std::string write_node = "write a node of " + where;
   std::vector<unsigned char> blob(node_size);
   for (std::size_t l = levels.size(); l-- > 0;) {
@@ -191,7 +226,7 @@ void bulk_load_rtree(sqlite3* db, const std::string& name, std::vector<RTreeEntr
       for (std::size_t c = n.first; c < n.first + n.count; ++c) {
         if (l == 0) {
           out = put_cell(out, items[c].id, items[c]);
-          rowid.add(items[c].id, nodeno);
+          leaf_of.emplace_back(items[c].id, nodeno);
         } else {
           const std::int64_t child = first[l - 1] + static_cast<std::int64_t>(c);
           out = put_cell(out, child, levels[l - 1][c].box);
@@ -206,8 +241,17 @@ void bulk_load_rtree(sqlite3* db, const std::string& name, std::vector<RTreeEntr
       if (nodeno == 1 && sqlite3_changes(db) != 1) throw WriteError(where + ": no root node");
     }
   }
-  rowid.flush();
   parent.flush();
+  const auto [lowest, highest] = std::minmax_element(leaf_of.begin(), leaf_of.end());
+  if (lowest->first >= 0) {  // GeoPackage's FIDs: a radix sort on their bits
+    radix_sort(leaf_of, bits_for(static_cast<std::uint64_t>(highest->first)),
+               [](const std::pair<std::int64_t, std::int64_t>& row) { return static_cast<std::uint64_t>(row.first); });
+  } else {
+    parallel_sort(leaf_of.begin(), leaf_of.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  }
+  PairInserter rowid(db, rowid_table, "rowid, nodeno", "write a row's leaf in " + where);
+  for (const auto& [id, leaf] : leaf_of) rowid.add(id, leaf);
+  rowid.flush();
 }
 
 }  // namespace qtmv::write

@@ -4,9 +4,11 @@
 // Why: SQLite's R-tree takes one entry at a time (choosing a leaf, splitting, reinserting), about
 // 18 us a row measured alone; GDAL 3.6 fills a new layer's R-tree that way (on a background
 // thread, copied in when the dataset closes), which was 1.8 s of closing the 135 233 regions of a
-// level 15 run (bench/RESULTS.md). Packing the sorted entries into full nodes (Sort-Tile-Recursive)
-// and writing the nodes takes 1 to 2.5 us a row (mostly the rowid table's rows), and gives a
-// tree as good for queries.
+// level 15 run (bench/RESULTS.md). Packing the sorted entries into full nodes (Sort-Tile-Recursive,
+// the sorts on all cores) and writing the nodes takes about 0.5 us a row, mostly the rowid
+// table's rows, which go in in rowid order: appended to its B-tree (in the leaves' order they
+// landed all over it, and a million rows took 7 s once the table outgrew SQLite's page cache of a
+// GeoPackage's 64 KiB pages). It gives a tree as good for queries.
 //
 // Layout (SQLite's ext/rtree file format, the same in every SQLite 3): the virtual table `name`
 // keeps its nodes in `name_node(nodeno, data)`, node 1 being the root. A node's data is a blob of

@@ -7,6 +7,7 @@
 #include "common/first_exception.hpp"
 #include "common/openmp_threads.hpp"
 #include "common/radix_sort.hpp"
+#include "measure/edge_solver.hpp"
 #include "write/region_measures.hpp"
 #include "write/region_tracer.hpp"
 
@@ -78,12 +79,15 @@ PairLines link_pair(const EdgeRef* begin, const EdgeRef* end, int level, const s
   segments.reserve(static_cast<std::size_t>(end - begin));
   PairLines out;
   std::uint64_t units = measured ? *measured : 0;
+  // The thread's recent geodesics: a pair's edges along a parallel are one problem.
+  thread_local measure::EdgeSolver::Recent recent;
+  static const measure::Ellipsoid wgs84 = measure::wgs84_ellipsoid();
   for (const EdgeRef* e = begin; e != end; ++e) {
     LonLat ring[grid::kMaxPolygonCorners];
     const int corners = grid::cell_polygon(grid::cell_of(e->edge >> 2, level), level, ring);
     const int k = static_cast<int>(e->edge & 3u);
     const Segment& s = segments.emplace_back(Segment{ring[k], ring[(k + 1) % corners]});
-    if (!measured || on_cut(s.from, s.to)) units += length_units(geodesic_length(s.from, s.to));
+    if (!measured || on_cut(s.from, s.to)) units += static_cast<std::uint64_t>(recent.units(wgs84, {s.from, s.to}).length);
   }
   out.length_m = static_cast<double>(units) * kLengthUnit;
   std::sort(segments.begin(), segments.end(), [](const Segment& a, const Segment& b) {

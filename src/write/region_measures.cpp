@@ -155,7 +155,7 @@ class SumCache : public RegionEdgeObserver::Local {
   }
   void solve_pending() {
     units_.resize(ends_.size());
-    shared_.solver.solve(ends_.data(), ends_.size(), units_.data());
+    shared_.solver.solve(ends_.data(), ends_.size(), units_.data(), &recent_);
     for (std::size_t k = 0; k < pending_.size(); ++k) {
       const auto [site, other] = pending_[k];
       const EdgeTerms t = edge_terms(ends_[k].from, ends_[k].to, units_[k], sines_);
@@ -192,6 +192,7 @@ class SumCache : public RegionEdgeObserver::Local {
   std::vector<Sides> pending_;  // the edges not solved yet: their sites, and their ends
   std::vector<measure::EdgeEnds> ends_;
   std::vector<measure::EdgeUnits> units_;
+  measure::EdgeSolver::Recent recent_;  // the thread's last solutions, from batch to batch
   LatitudeSines sines_;
 };
 
@@ -243,20 +244,22 @@ std::vector<PairLength> RegionAreaSums::pair_lengths() const {
 
 std::vector<double> region_areas(const label::Outlines& outlines, int cuda_device) {
   const label::OutlineCells& cells = outlines.cells;
-  const auto n = static_cast<std::int64_t>(cells.size());
   RegionAreaSums sums(outlines.site_count, false, cuda_device);
   FirstException failure;
+  const OctantSteps steps(outlines);  // the mirror images of an edge one after another
 #pragma omp parallel num_threads(thread_count(0))
   {
     std::unique_ptr<RegionEdgeObserver::Local> cache;
-    label::NearSearch search;
+    label::NearSearch search[8];
     failure.run([&] { cache = sums.local(); });
-#pragma omp for schedule(dynamic, 4096)
-    for (std::int64_t k = 0; k < n; ++k) {
+#pragma omp for schedule(dynamic, 1)
+    for (std::int64_t step = 0; step < static_cast<std::int64_t>(steps.count()); ++step) {
       failure.run([&] {
-        const std::int32_t site = cells[static_cast<std::size_t>(k)].site;
-        visit_region_edges(outlines, static_cast<std::size_t>(k), search,
-                           [&](int, const LonLat& from, const LonLat& to, std::int32_t other) { cache->edge(site, from, to, other); });
+        steps.visit(static_cast<std::size_t>(step), search, [&](std::size_t k, label::NearSearch& near) {
+          const std::int32_t site = cells[k].site;
+          visit_region_edges(outlines, k, near,
+                             [&](int, const LonLat& from, const LonLat& to, std::int32_t other) { cache->edge(site, from, to, other); });
+        });
       });
     }
     failure.run([&] { cache->finish(); });

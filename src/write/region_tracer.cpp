@@ -30,8 +30,7 @@ double clockwise_angle(double dx, double dy, double tx, double ty) {
 /// Drops vertices in the middle of straight runs along a meridian (exactly equal longitudes),
 /// and along a parallel (equal latitudes) unless `parallels` says to keep those: rows of cells
 /// make long runs of them.
-std::vector<LonLat> drop_straight_runs(const std::vector<LonLat>& ring, RingVertices parallels) {
-  const std::size_t n = ring.size();
+std::vector<LonLat> drop_straight_runs(const LonLat* ring, std::size_t n, RingVertices parallels) {
   std::vector<LonLat> out;
   out.reserve(n);
   for (std::size_t k = 0; k < n; ++k) {
@@ -55,13 +54,14 @@ struct WalkStep {
 /// Cuts a closed walk that passes a vertex more than once into simple rings. Where a region
 /// meets itself at a vertex, no pairing of the edges there suits every case: lobes that touch
 /// at a point, a hole that touches its shell, holes that touch each other. Each loop cut off
-/// here is a shell (counter-clockwise) or a hole (clockwise) of its own. `position` (indexed by
-/// vertex id, all kNone) is scratch, left all kNone again.
+/// here is a shell (counter-clockwise) or a hole (clockwise) of its own: loop(points, count) for
+/// each, in the order cut, the rest of the walk last. `position` (indexed by vertex id, all
+/// kNone) is scratch, left all kNone again; so is `stack` and `points`.
 constexpr std::size_t kNone = ~std::size_t{0};
-std::vector<std::vector<LonLat>> split_at_repeated_vertices(const std::vector<WalkStep>& walk,
-                                                            std::vector<std::size_t>& position) {
-  std::vector<std::vector<LonLat>> rings;
-  std::vector<WalkStep> stack;
+template <class Loop>
+void split_at_repeated_vertices(const std::vector<WalkStep>& walk, std::vector<std::size_t>& position,
+                                std::vector<WalkStep>& stack, std::vector<LonLat>& points, const Loop& loop) {
+  stack.clear();
   for (const WalkStep& step : walk) {
     const std::size_t first = position[step.vertex];
     if (first == kNone) {
@@ -70,17 +70,18 @@ std::vector<std::vector<LonLat>> split_at_repeated_vertices(const std::vector<Wa
       continue;
     }
     // The walk came back to this vertex: the stretch since its first visit is a closed loop.
-    std::vector<LonLat>& ring = rings.emplace_back();
-    for (std::size_t k = first; k < stack.size(); ++k) ring.push_back(stack[k].point);
+    points.clear();
+    for (std::size_t k = first; k < stack.size(); ++k) points.push_back(stack[k].point);
     for (std::size_t k = first + 1; k < stack.size(); ++k) position[stack[k].vertex] = kNone;
     stack.resize(first + 1);
+    loop(points.data(), points.size());
   }
-  std::vector<LonLat>& last = rings.emplace_back();
+  points.clear();
   for (const WalkStep& step : stack) {
-    last.push_back(step.point);
+    points.push_back(step.point);
     position[step.vertex] = kNone;
   }
-  return rings;
+  loop(points.data(), points.size());
 }
 
 /// Even-odd test of a point against a ring that does not pass through it.
@@ -111,16 +112,30 @@ struct Box {
   }
 };
 
+/// A tracing thread's buffers, kept from one region to the next (a region allocates only its own
+/// rings).
+struct TraceScratch {
+  std::vector<RegionTracer::CellEdges> cells;
+  std::vector<Edge> edges;
+  std::vector<std::size_t> table, next, position;
+  std::vector<char> used;
+  std::vector<WalkStep> walk, stack;
+  std::vector<LonLat> points;
+};
+
 /// The edges leaving each point of a site's edges: a hash of the points (exact bits; a shared
 /// vertex is computed to the same bits from every cell around it), each point's edges chained
 /// in the order given. A point's first edge is its vertex's id.
 class EdgesFrom {
  public:
-  EdgesFrom(const Edge* edges, std::size_t count) : edges_(edges), next_(count, kNone) {
+  /// `table` and `next`: the caller's buffers, reused.
+  EdgesFrom(const Edge* edges, std::size_t count, std::vector<std::size_t>& table, std::vector<std::size_t>& next)
+      : edges_(edges), table_(table), next_(next) {
     std::size_t size = 16;
     while (size < 2 * count) size <<= 1;
     mask_ = size - 1;
     table_.assign(size, kNone);
+    next_.assign(count, kNone);
     for (std::size_t k = 0; k < count; ++k) {
       std::size_t h = hash(edges[k].from) & mask_;
       while (table_[h] != kNone && !same_point(edges[table_[h]].from, edges[k].from)) h = (h + 1) & mask_;
@@ -159,14 +174,16 @@ class EdgesFrom {
   }
   const Edge* edges_;
   std::size_t mask_ = 0;
-  std::vector<std::size_t> table_, next_;
+  std::vector<std::size_t>& table_;
+  std::vector<std::size_t>& next_;
 };
 
 /// Links one site's boundary edges into rings and groups them into polygons. The edges come in
 /// an order that does not depend on the threads (their cells' code order), and so do the rings.
-Region link_rings(const Edge* edges, std::size_t count, RingVertices parallels) {
-  std::vector<char> used(count, 0);
-  const EdgesFrom from(edges, count);
+Region link_rings(const Edge* edges, std::size_t count, RingVertices parallels, TraceScratch& scratch) {
+  std::vector<char>& used = scratch.used;
+  used.assign(count, 0);
+  const EdgesFrom from(edges, count, scratch.table, scratch.next);
   const auto next_edge = [&](std::size_t e, std::size_t first) {
     const LonLat at = edges[e].to;
     std::size_t best = kNone;
@@ -191,9 +208,15 @@ Region link_rings(const Edge* edges, std::size_t count, RingVertices parallels) 
     return best;
   };
 
-  std::vector<std::size_t> position(count, kNone);
+  std::vector<std::size_t>& position = scratch.position;
+  position.assign(count, kNone);
   std::vector<std::vector<LonLat>> shells, holes;
-  std::vector<WalkStep> walk;
+  std::vector<WalkStep>& walk = scratch.walk;
+  const auto keep = [&](const LonLat* points, std::size_t n) {
+    std::vector<LonLat> simple = drop_straight_runs(points, n, parallels);
+    if (simple.size() < 3) return;
+    (planar_ring_area(simple) > 0 ? shells : holes).push_back(std::move(simple));
+  };
   for (std::size_t start = 0; start < count; ++start) {
     if (used[start]) continue;
     walk.clear();
@@ -205,11 +228,7 @@ Region link_rings(const Edge* edges, std::size_t count, RingVertices parallels) 
       vertex = from.first(edges[e].to);
       e = next_edge(e, vertex);
     }
-    for (std::vector<LonLat>& simple : split_at_repeated_vertices(walk, position)) {
-      simple = drop_straight_runs(simple, parallels);
-      if (simple.size() < 3) continue;
-      (planar_ring_area(simple) > 0 ? shells : holes).push_back(std::move(simple));
-    }
+    split_at_repeated_vertices(walk, position, scratch.stack, scratch.points, keep);
   }
 
   Region region(shells.size());
@@ -274,6 +293,23 @@ double planar_ring_area(const std::vector<LonLat>& ring) {
   return 0.5 * twice;
 }
 
+OctantSteps::OctantSteps(const label::Outlines& outlines) {
+  // Steps of at least 1024 cells of an octant, at most 1024 of them: tasks enough for any
+  // team, few enough to cost nothing.
+  const Code per_octant = grid::cells_per_octant(outlines.level);
+  steps_ = static_cast<std::size_t>(std::clamp<Code>(per_octant / 1024, 1, 1024));
+  bounds_.resize(8 * (steps_ + 1));
+  const label::OutlineCells& cells = outlines.cells;
+  for (std::size_t octant = 0; octant < 8; ++octant) {
+    for (std::size_t j = 0; j <= steps_; ++j) {
+      const Code code = octant * per_octant + per_octant / steps_ * j + (j == steps_ ? per_octant % steps_ : 0);
+      bounds_[octant * (steps_ + 1) + j] = static_cast<std::size_t>(
+          std::lower_bound(cells.begin(), cells.end(), code, [](const label::OutlineCell& c, Code v) { return c.code < v; }) -
+          cells.begin());
+    }
+  }
+}
+
 RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertices,
                            const std::function<void(double)>& step_done, RegionEdgeObserver* observer)
     : level_(outlines.level), vertices_(vertices) {
@@ -283,32 +319,34 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertice
   const int level = outlines.level;
   grid::require_level(level);
   const label::OutlineCells& cells = outlines.cells;
-  const auto n = static_cast<std::int64_t>(cells.size());
 
   // The outline cells with region edges, each thread's in a list of its own: the cells' indices
   // in the outlines here (so that bucketing reads each cell's site and code in order).
   const int team = thread_count(0);
   std::vector<CellEdgesList> parts(static_cast<std::size_t>(team));
   FirstException failure;
+  const OctantSteps steps(outlines);
 #pragma omp parallel num_threads(team)
   {
     CellEdgesList& local = parts[static_cast<std::size_t>(thread_index())];
     std::unique_ptr<RegionEdgeObserver::Local> seen;
-    label::NearSearch search;
+    label::NearSearch search[8];
     failure.run([&] {
       if (observer) seen = observer->local();
     });
-#pragma omp for schedule(dynamic, 4096)  // boundary cells, with their geodesics to solve, come in clusters
-    for (std::int64_t k = 0; k < n; ++k) {
+#pragma omp for schedule(dynamic, 1)  // boundary cells, with their geodesics to solve, come in clusters
+    for (std::int64_t step = 0; step < static_cast<std::int64_t>(steps.count()); ++step) {
       failure.run([&] {
-        const std::int32_t site = cells[static_cast<std::size_t>(k)].site;
-        CellEdges mask = 0;
-        const auto add = [&](int e, const LonLat& from, const LonLat& to, std::int32_t other) {
-          mask |= CellEdges{1} << e;
-          if (seen) seen->edge(site, from, to, other);
-        };
-        visit_region_edges(outlines, static_cast<std::size_t>(k), search, add);
-        if (mask != 0) local.push_back(static_cast<CellEdges>(k) << kEdgeMaskBits | mask);
+        steps.visit(static_cast<std::size_t>(step), search, [&](std::size_t k, label::NearSearch& near) {
+          const std::int32_t site = cells[k].site;
+          CellEdges mask = 0;
+          const auto add = [&](int e, const LonLat& from, const LonLat& to, std::int32_t other) {
+            mask |= CellEdges{1} << e;
+            if (seen) seen->edge(site, from, to, other);
+          };
+          visit_region_edges(outlines, k, near, add);
+          if (mask != 0) local.push_back(static_cast<CellEdges>(k) << kEdgeMaskBits | mask);
+        });
       });
     }
     failure.run([&] {
@@ -358,11 +396,12 @@ Region RegionTracer::trace(std::int32_t site) const {
   const auto s = static_cast<std::size_t>(site);
   // The site's edges drawn again from its cells, in code order (so that the rings do not depend
   // on the order the threads listed the cells in).
-  std::vector<CellEdges> cells(cells_.begin() + static_cast<std::ptrdiff_t>(start_[s]),
-                               cells_.begin() + static_cast<std::ptrdiff_t>(start_[s + 1]));
+  thread_local TraceScratch scratch;
+  std::vector<CellEdges>& cells = scratch.cells;
+  cells.assign(cells_.begin() + static_cast<std::ptrdiff_t>(start_[s]), cells_.begin() + static_cast<std::ptrdiff_t>(start_[s + 1]));
   std::sort(cells.begin(), cells.end());
-  std::vector<Edge> edges;
-  edges.reserve(2 * cells.size());
+  std::vector<Edge>& edges = scratch.edges;
+  edges.clear();
   for (const CellEdges entry : cells) {
     LonLat ring[grid::kMaxPolygonCorners];
     const int corners = grid::cell_polygon(grid::cell_of(entry >> kEdgeMaskBits, level_), level_, ring);
@@ -370,7 +409,7 @@ Region RegionTracer::trace(std::int32_t site) const {
       if (entry >> e & 1) edges.push_back({ring[e], ring[(e + 1) % corners]});
     }
   }
-  return link_rings(edges.data(), edges.size(), vertices_);
+  return link_rings(edges.data(), edges.size(), vertices_, scratch);
 }
 
 std::vector<Region> trace_regions(const label::Outlines& outlines, const std::function<void(double)>& step_done) {

@@ -173,6 +173,29 @@ void visit_region_edges(const label::Outlines& outlines, std::size_t k, label::N
   }
 }
 
+/// The outline cells in steps for the threads of a pass over them (the regions' edges and their
+/// geodesics): step j is the j-th stretch of rows of each of the 8 octants, one octant after
+/// another, so that a thread meets an edge's mirror images in the other octants (the same
+/// geodesic problem: measure::EdgeSolver::Recent) soon after the edge.
+class OctantSteps {
+ public:
+  explicit OctantSteps(const label::Outlines& outlines);
+  std::size_t count() const { return steps_; }
+  /// Calls visit(k, search) for each outline cell k of step `step`, octant by octant in code
+  /// order, `search[octant]` the calling thread's for that octant's cells.
+  template <class Visit>
+  void visit(std::size_t step, label::NearSearch (&search)[8], const Visit& visit) const {
+    for (std::size_t octant = 0; octant < 8; ++octant) {
+      const std::size_t* at = bounds_.data() + octant * (steps_ + 1) + step;
+      for (std::size_t k = at[0]; k < at[1]; ++k) visit(k, search[octant]);
+    }
+  }
+
+ private:
+  std::size_t steps_;
+  std::vector<std::size_t> bounds_;  // octant o's step j: outline cells [bounds_[o (steps_ + 1) + j], the next)
+};
+
 /// Exact equality and a strict order of lon/lat points (degrees): the grid computes a shared
 /// vertex to the same bits from every cell around it.
 inline bool same_point(const LonLat& a, const LonLat& b) { return a.lon == b.lon && a.lat == b.lat; }

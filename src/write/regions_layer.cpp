@@ -1,5 +1,6 @@
-// The regions layer (vector_writer.hpp): one MultiPolygon per site, traced and measured a block
-// at a time on all cores while the block before is written.
+// The regions layer (vector_writer.hpp): one MultiPolygon per site, traced and encoded (a
+// GeoPackage blob, or an OGR geometry) a block at a time on all cores while the block before is
+// written.
 #include <algorithm>
 #include <chrono>
 #include <cstdint>
@@ -176,11 +177,11 @@ RowValue source_value(const OGRFeature* feature, int sf) {
   }
 }
 
-/// A block of regions traced ahead of writing: their rings for OGR features, or their GeoPackage
-/// blobs for direct rows.
+/// A block of regions traced ahead of writing: their GeoPackage blobs for direct rows, or their
+/// OGR geometries (null for an empty region) for OGR features.
 struct TracedRegions {
-  std::vector<Region> regions;
   std::vector<GpkgGeometry> geometries;
+  std::vector<std::unique_ptr<OGRMultiPolygon>> features;
 };
 
 /// The regions layer's fields as made: the source's, then ours.
@@ -328,17 +329,21 @@ void write_regions(VectorDatasetWriter& w, const LayerInput& in, double work, st
   const auto link = [&](std::size_t first, std::size_t last) {
     const auto start = std::chrono::steady_clock::now();
     TracedRegions block;
-    block.regions.resize(last - first);
-    if (direct) block.geometries.resize(last - first);
+    if (direct) {
+      block.geometries.resize(last - first);
+    } else {
+      block.features.resize(last - first);
+    }
     FirstException failure;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(thread_count(0))
+#pragma omp parallel for schedule(dynamic, 1) num_threads(ahead_threads())
     for (std::int64_t s = static_cast<std::int64_t>(first); s < static_cast<std::int64_t>(last); ++s) {
       failure.run([&] {
-        Region& region = block.regions[static_cast<std::size_t>(s) - first];
-        region = tracer.trace(static_cast<std::int32_t>(s));
+        const Region region = tracer.trace(static_cast<std::int32_t>(s));
+        const std::size_t k = static_cast<std::size_t>(s) - first;
         if (direct) {
-          region_geometry(region, block.geometries[static_cast<std::size_t>(s) - first]);
-          region = {};
+          region_geometry(region, block.geometries[k]);
+        } else if (!region.empty()) {
+          block.features[k].reset(make_multipolygon(region));
         }
       });
     }
@@ -353,7 +358,7 @@ void write_regions(VectorDatasetWriter& w, const LayerInput& in, double work, st
   // A row's values in the order of row_fields: the source's (direct rows only; OGR copies them
   // itself), then ours.
   std::vector<RowValue> values(row_fields.size());
-  const auto write = [&](std::size_t first, std::size_t last, const TracedRegions& block) {
+  const auto write = [&](std::size_t first, std::size_t last, TracedRegions& block) {
     for (std::size_t s = first; s < last; ++s) {
       const sites::SiteRecord& site = in.table.sites[s];
       std::size_t v = fields.written.size();
@@ -364,10 +369,11 @@ void write_regions(VectorDatasetWriter& w, const LayerInput& in, double work, st
       if (direct) {
         const std::vector<int>& index = fields.source_index[site.layer];
         for (std::size_t u = 0; u < fields.written.size(); ++u) values[u] = source_value(site.attributes.get(), index[u]);
-        w.write(*direct, block.geometries[s - first], values.data());
+        w.write(*direct, block.geometries[s - first].blob(), values.data());
         continue;
       }
-      const bool empty = block.regions[s - first].empty();
+      std::unique_ptr<OGRMultiPolygon>& geometry = block.features[s - first];
+      const bool empty = geometry == nullptr;
       if (empty && empty_rows == EmptyRows::left_out) {
         left_out.add(site.fid);
         continue;
@@ -386,9 +392,11 @@ void write_regions(VectorDatasetWriter& w, const LayerInput& in, double work, st
       }
       for (std::size_t k = fields.written.size(); k < row_fields.size(); ++k) set_value(*feature, row_fields[k], values[k]);
       // Empty for a site without cells; null where the driver keeps nulls but not empties.
-      if (!empty || empty_rows == EmptyRows::empty) feature->SetGeometryDirectly(make_multipolygon(block.regions[s - first]));
+      if (empty && empty_rows == EmptyRows::empty) geometry = std::make_unique<OGRMultiPolygon>();
+      if (geometry) feature->SetGeometryDirectly(geometry.release());
       w.write(*feature);
     }
+    if (direct) w.guard([&] { direct->flush(); });  // before the block's blobs go
     w.layer_progress(0.4 + 0.6 * static_cast<double>(last) / static_cast<double>(in.site_count), 1.0);
   };
   work_ahead(static_cast<std::size_t>(in.site_count), kRegionBlock, link, write);

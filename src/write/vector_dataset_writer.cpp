@@ -7,6 +7,9 @@
 #include <cpl_error.h>
 
 #include "common/config_option.hpp"
+#include "common/first_exception.hpp"
+#include "common/openmp_threads.hpp"
+#include "write/work_ahead.hpp"
 
 namespace qtmv::write {
 
@@ -193,7 +196,7 @@ std::unique_ptr<GpkgRows> VectorDatasetWriter::direct_rows(const std::vector<int
   return rows;
 }
 
-void VectorDatasetWriter::write(GpkgRows& rows, const GpkgGeometry& geometry, const RowValue* values) {
+void VectorDatasetWriter::write(GpkgRows& rows, const GpkgBlob& geometry, const RowValue* values) {
   guard([&] { rows.add(geometry, values); });
   count_row();
 }
@@ -265,19 +268,61 @@ CellRows::CellRows(VectorDatasetWriter& w, OGRLayer* layer, std::vector<int> fie
   if (!direct_) feature_ = cell_feature(layer);
 }
 
-void CellRows::add(Code code, int level, const RowValue* values) {
-  LonLat ring[grid::kMaxPolygonCorners];
-  const int n = grid::cell_polygon(grid::cell_of(code, level), level, ring);
+CellPolygons CellRows::make(std::vector<Code> codes, int level) const {
+  CellPolygons block;
+  const std::size_t n = codes.size();
+  const bool direct = direct_ != nullptr;
+  if (direct) {
+    block.blobs.resize(n * CellPolygons::kBlobStride);
+    block.blob_sizes.resize(n);
+    block.envelopes.resize(n);
+  } else {
+    block.rings.resize(n * grid::kMaxPolygonCorners);
+    block.corners.resize(n);
+  }
+  block.codes = std::move(codes);
+  FirstException failure;
+#pragma omp parallel num_threads(ahead_threads())
+  {
+    GpkgGeometry polygon;
+#pragma omp for schedule(static)
+    for (std::int64_t i = 0; i < static_cast<std::int64_t>(n); ++i) {
+      failure.run([&] {
+        const auto k = static_cast<std::size_t>(i);
+        LonLat ring[grid::kMaxPolygonCorners];
+        const int corners = grid::cell_polygon(grid::cell_of(block.codes[k], level), level, ring);
+        if (!direct) {
+          std::copy(ring, ring + corners, block.rings.begin() + static_cast<std::ptrdiff_t>(k * grid::kMaxPolygonCorners));
+          block.corners[k] = static_cast<std::uint8_t>(corners);
+          return;
+        }
+        polygon.begin(GpkgGeometry::kPolygon, 1);
+        polygon.ring(ring, static_cast<std::size_t>(corners));
+        polygon.end();
+        std::copy(polygon.data(), polygon.data() + polygon.size(),
+                  block.blobs.begin() + static_cast<std::ptrdiff_t>(k * CellPolygons::kBlobStride));
+        block.blob_sizes[k] = static_cast<std::uint32_t>(polygon.size());
+        block.envelopes[k] = polygon.envelope();
+      });
+    }
+  }
+  failure.rethrow();
+  return block;
+}
+
+void CellRows::add(const CellPolygons& block, std::size_t k, const RowValue* values) {
   if (direct_) {
-    direct_polygon_.begin(GpkgGeometry::kPolygon, 1);
-    direct_polygon_.ring(ring, static_cast<std::size_t>(n));
-    direct_polygon_.end();
-    w_.write(*direct_, direct_polygon_, values);
+    const GpkgBlob blob{block.blobs.data() + k * CellPolygons::kBlobStride, block.blob_sizes[k], block.envelopes[k]};
+    w_.write(*direct_, blob, values);
     return;
   }
-  set_ring(*feature_, ring, n);
-  for (std::size_t k = 0; k < fields_.size(); ++k) set_value(*feature_, fields_[k], values[k]);
+  set_ring(*feature_, block.rings.data() + k * grid::kMaxPolygonCorners, block.corners[k]);
+  for (std::size_t f = 0; f < fields_.size(); ++f) set_value(*feature_, fields_[f], values[f]);
   w_.write(*feature_);
+}
+
+void CellRows::end_block() {
+  if (direct_) w_.guard([&] { direct_->flush(); });
 }
 
 void CellRows::finish() {

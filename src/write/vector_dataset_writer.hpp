@@ -13,6 +13,7 @@
 #include <ogr_spatialref.h>
 #include <ogrsf_frmts.h>
 
+#include "common/default_init_allocator.hpp"
 #include "gdal/error_capture.hpp"
 #include "grid/qtm.hpp"
 #include "sites/site_table.hpp"
@@ -89,7 +90,7 @@ class VectorDatasetWriter {
   std::unique_ptr<GpkgRows> direct_rows(const std::vector<int>& fields);
 
   /// Adds a row to `rows` (direct rows of the current layer) and books it.
-  void write(GpkgRows& rows, const GpkgGeometry& geometry, const RowValue* values);
+  void write(GpkgRows& rows, const GpkgBlob& geometry, const RowValue* values);
 
   /// Runs `work` (direct rows), its WriteError named as our own failures are.
   template <class Work>
@@ -136,14 +137,35 @@ class VectorDatasetWriter {
   double total_work_, work_done_ = 0, layer_work_ = 0, layer_done_ = 0;
 };
 
+/// A block of cells' polygons made ahead of their rows (CellRows::make, on all cores), in the
+/// form the rows take: GeoPackage blobs for direct rows, else the rings for OGR features.
+struct CellPolygons {
+  /// The largest cell's blob (bytes): a pole cell's ring of 4 corners, closed.
+  static constexpr std::size_t kBlobStride = 8 + 32 + 9 + 4 + 16 * (grid::kMaxPolygonCorners + 1);
+
+  std::vector<grid::Code> codes;           ///< the cells, in the order of their rows
+  DefaultInitVector<unsigned char> blobs;  ///< direct rows: cell k's blob at k * kBlobStride
+  std::vector<std::uint32_t> blob_sizes;   ///< direct rows
+  std::vector<GpkgEnvelope> envelopes;     ///< direct rows
+  std::vector<grid::LonLat> rings;         ///< OGR: cell k's ring at k * kMaxPolygonCorners
+  std::vector<std::uint8_t> corners;       ///< OGR: its corners
+};
+
 /// Where a per-cell layer's polygons go: straight into its GeoPackage table (GpkgRows), or
 /// else through OGR, one reused feature at a time. Values come in the order of `fields`.
 class CellRows {
  public:
   CellRows(VectorDatasetWriter& w, OGRLayer* layer, std::vector<int> fields);
 
-  /// Adds the polygon of cell `code` of QTM level `level`, with its values.
-  void add(grid::Code code, int level, const RowValue* values);
+  /// The polygons of cells `codes` of QTM level `level` (on all cores; callable from a helper
+  /// thread while this one writes the rows of the block before).
+  CellPolygons make(std::vector<grid::Code> codes, int level) const;
+
+  /// Adds the row of cell k of `block`, with its values.
+  void add(const CellPolygons& block, std::size_t k, const RowValue* values);
+
+  /// After the block's last add(), before the block goes: writes the rows that point at it.
+  void end_block();
 
   /// After the last add(), before the layer ends.
   void finish();
@@ -152,7 +174,6 @@ class CellRows {
   VectorDatasetWriter& w_;
   std::vector<int> fields_;
   std::unique_ptr<GpkgRows> direct_;
-  GpkgGeometry direct_polygon_;  // the cell's blob, for direct rows
   FeaturePtr feature_;
 };
 

@@ -17,6 +17,9 @@
 
 namespace qtmv::write {
 
+/// Cells whose polygons a per-cell layer (boundary_cells, cells) makes at once ahead of writing.
+constexpr std::size_t kCellBlock = std::size_t{1} << 16;
+
 /// What every layer writer reads: the labelled level, the sites and the options it needs.
 struct LayerInput {
   const label::Outlines& outlines;

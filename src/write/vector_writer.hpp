@@ -38,7 +38,7 @@
 //
 // GeoPackage: boundary_cells and cells (millions of polygons at the finer levels) are created
 // without a spatial index (SPATIAL_INDEX=NO) unless options.layer_options names SPATIAL_INDEX:
-// even filled at once (gpkg_rtree.hpp), an R-tree costs 1 to 2.5 us a row, more than the row.
+// even filled at once (gpkg_rtree.hpp), an R-tree costs about 0.5 us a row, most of a row's own.
 // The index can be added later with `ogrinfo out.gpkg -sql "SELECT CreateSpatialIndex('boundary_cells','geom')"`.
 // regions and voronoi_edges keep GDAL's default (an R-tree). Every layer's rows go straight into
 // its GeoPackage table (gpkg_rows.hpp) and its R-tree is packed at the end: the same rows as OGR

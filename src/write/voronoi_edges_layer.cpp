@@ -1,6 +1,6 @@
 // The voronoi_edges layer (vector_writer.hpp): one MultiLineString per pair of neighbouring
-// sites, linked and measured a block of pairs at a time on all cores while the block before is
-// written.
+// sites, linked, measured and encoded (a GeoPackage blob, or an OGR geometry) a block of pairs at
+// a time on all cores while the block before is written.
 #include <algorithm>
 #include <cstdint>
 #include <memory>
@@ -21,12 +21,24 @@ namespace {
 
 constexpr std::size_t kEdgePairBlock = 4096;  // voronoi_edges pairs measured at once
 
-/// A pair's lines linked ahead of writing, and their GeoPackage blob for direct rows (the lines
-/// then dropped).
+/// A pair's lines linked and measured ahead of writing: their GeoPackage blob for direct rows,
+/// else their OGR geometry.
 struct MeasuredPair {
-  PairLines lines;
+  double length_m = 0;
   GpkgGeometry geometry;
+  std::unique_ptr<OGRMultiLineString> feature;
 };
+
+OGRMultiLineString* make_multilinestring(const PairLines& lines) {
+  auto* multi = new OGRMultiLineString;
+  for (const auto& line : lines.lines) {
+    auto* ls = new OGRLineString;
+    ls->setNumPoints(static_cast<int>(line.size()), FALSE);
+    for (std::size_t k = 0; k < line.size(); ++k) ls->setPoint(static_cast<int>(k), line[k].lon, line[k].lat);
+    multi->addGeometryDirectly(ls);
+  }
+  return multi;
+}
 
 }  // namespace
 
@@ -66,7 +78,7 @@ void write_voronoi_edges(VectorDatasetWriter& w, const LayerInput& in, double wo
   const auto measure = [&](std::size_t first, std::size_t last) {
     std::vector<MeasuredPair> block(last - first);
     FirstException failure;
-#pragma omp parallel for schedule(dynamic, 16) num_threads(thread_count(0))
+#pragma omp parallel for schedule(dynamic, 16) num_threads(ahead_threads())
     for (std::int64_t p = static_cast<std::int64_t>(first); p < static_cast<std::int64_t>(last); ++p) {
       failure.run([&] {
         MeasuredPair& out = block[static_cast<std::size_t>(p) - first];
@@ -77,43 +89,39 @@ void write_voronoi_edges(VectorDatasetWriter& w, const LayerInput& in, double wo
                                            [](const PairLength& m, std::uint64_t k) { return m.key < k; });
           if (it != measured->end() && it->key == key) units = it->units;
         }
-        out.lines = link_pair(edges.data() + pair_start[p], edges.data() + pair_start[p + 1], level,
-                              measured ? &units : nullptr);
+        const PairLines lines = link_pair(edges.data() + pair_start[p], edges.data() + pair_start[p + 1], level,
+                                          measured ? &units : nullptr);
+        out.length_m = lines.length_m;
         if (direct) {
-          out.geometry.begin(GpkgGeometry::kMultiLineString, static_cast<std::uint32_t>(out.lines.lines.size()));
-          for (const auto& line : out.lines.lines) out.geometry.line(line.data(), line.size());
+          out.geometry.begin(GpkgGeometry::kMultiLineString, static_cast<std::uint32_t>(lines.lines.size()));
+          for (const auto& line : lines.lines) out.geometry.line(line.data(), line.size());
           out.geometry.end();
-          out.lines.lines = {};
+        } else {
+          out.feature.reset(make_multilinestring(lines));
         }
       });
     }
     failure.rethrow();
     return block;
   };
-  const auto write = [&](std::size_t first, std::size_t last, const std::vector<MeasuredPair>& block) {
+  const auto write = [&](std::size_t first, std::size_t last, std::vector<MeasuredPair>& block) {
     for (std::size_t p = first; p < last; ++p) {
-      const PairLines& lines = block[p - first].lines;
+      MeasuredPair& pair = block[p - first];
       const std::uint64_t key = edges[pair_start[p]].key;
       const auto a = static_cast<std::size_t>(key >> 32), b = static_cast<std::size_t>(key & 0xffffffffu);
       // In the order of row_fields (layer_a, layer_b only for composite sites).
       const RowValue values[] = {fid_value(in.table.sites[a].fid), fid_value(in.table.sites[b].fid),
-                                 RowValue::of(lines.length_m), in.composite() ? in.layer_of(a) : RowValue{},
+                                 RowValue::of(pair.length_m), in.composite() ? in.layer_of(a) : RowValue{},
                                  in.composite() ? in.layer_of(b) : RowValue{}};
       if (direct) {
-        w.write(*direct, block[p - first].geometry, values);
+        w.write(*direct, pair.geometry.blob(), values);
         continue;
       }
-      auto* multi = new OGRMultiLineString;
-      for (const auto& line : lines.lines) {
-        auto* ls = new OGRLineString;
-        ls->setNumPoints(static_cast<int>(line.size()), FALSE);
-        for (std::size_t k = 0; k < line.size(); ++k) ls->setPoint(static_cast<int>(k), line[k].lon, line[k].lat);
-        multi->addGeometryDirectly(ls);
-      }
-      feature->SetGeometryDirectly(multi);
+      feature->SetGeometryDirectly(pair.feature.release());
       for (std::size_t k = 0; k < row_fields.size(); ++k) set_value(*feature, row_fields[k], values[k]);
       w.write(*feature);
     }
+    if (direct) w.guard([&] { direct->flush(); });  // before the block's blobs go
     w.layer_progress(0.2 + 0.8 * static_cast<double>(last) / static_cast<double>(pairs), 1.0);
   };
   work_ahead(pairs, kEdgePairBlock, measure, write);

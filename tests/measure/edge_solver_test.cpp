@@ -2,6 +2,7 @@
 // is skipped), batches of any size, several threads at once.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -113,6 +114,39 @@ TEST(EdgeSolver, EdgesBothWaysRoundCancel) {
         ASSERT_GT(units[k].length, 0) << "level " << level << ", edge " << k;
       }
     }
+  }
+}
+
+TEST(EdgeSolver, RecentSolutionsAreEachEdgesOwnBits) {
+  // An edge whose canonical problem a thread solved before takes that solution: the bits of
+  // solving it afresh. The cell edges of level 7 in code order, both ways round, then their
+  // mirror images (latitudes negated, longitudes negated, shifted by 90 degrees), then random
+  // lines, through one Recent from batch to batch (some slots taken by other problems meanwhile).
+  std::vector<EdgeEnds> edges = cell_edges(7);
+  const std::size_t cells = edges.size();
+  for (std::size_t k = 0; k < cells; k += 7) {
+    const EdgeEnds e = edges[k];  // a copy: the pushes move the vector
+    edges.push_back({{e.from.lon, -e.from.lat}, {e.to.lon, -e.to.lat}});
+    edges.push_back({{-e.from.lon, e.from.lat}, {-e.to.lon, e.to.lat}});
+    const auto shifted = [](double lon) { return lon + 90 > 180 ? lon - 270 : lon + 90; };
+    edges.push_back({{shifted(e.from.lon), e.from.lat}, {shifted(e.to.lon), e.to.lat}});
+  }
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> lon(-180, 180), lat(-90, 90);
+  for (int n = 0; n < 20000; ++n) edges.push_back({{lon(rng), lat(rng)}, {lon(rng), lat(rng)}});
+  edges.push_back({{0, 0}, {0, 0}});
+  edges.push_back({{-0.0, 0}, {0, -0.0}});
+  edges.push_back({{180, 0}, {-180, 0}});
+  const EdgeSolver cpu(-1);
+  EdgeSolver::Recent recent;
+  const Ellipsoid wgs84 = wgs84_ellipsoid();
+  std::vector<EdgeUnits> got(edges.size());
+  for (std::size_t at = 0; at < edges.size(); at += EdgeSolver::kBatchEdges) {
+    const std::size_t n = std::min(EdgeSolver::kBatchEdges, edges.size() - at);
+    cpu.solve(edges.data() + at, n, got.data() + at, &recent);
+  }
+  for (std::size_t k = 0; k < edges.size(); ++k) {
+    ASSERT_TRUE(same_bits(got[k], edge_units(wgs84, edges[k]))) << "edge " << k;
   }
 }
 

@@ -19,6 +19,7 @@
 
 #include "../test_temp_dir.hpp"
 #include "geodesic_reference.hpp"
+#include "sqlite_rows.hpp"
 #include "grid/qtm.hpp"
 #include "label/synthetic_sites.hpp"
 #include "label/label_cuda.hpp"
@@ -623,34 +624,8 @@ std::vector<std::string> gpkg_dump(const std::string& path) {
   sqlite3* db = nullptr;
   EXPECT_EQ(sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READONLY, nullptr), SQLITE_OK) << path;
   const auto query = [&](const std::string& sql) {
-    sqlite3_stmt* st = nullptr;
-    EXPECT_EQ(sqlite3_prepare_v2(db, sql.c_str(), -1, &st, nullptr), SQLITE_OK) << sql << ": " << sqlite3_errmsg(db);
-    while (st && sqlite3_step(st) == SQLITE_ROW) {
-      std::string row = sql.substr(0, 40) + ":";
-      for (int c = 0; c < sqlite3_column_count(st); ++c) {
-        char text[64];
-        switch (sqlite3_column_type(st, c)) {
-          case SQLITE_NULL: row += " null"; break;
-          case SQLITE_INTEGER: row += " i" + std::to_string(sqlite3_column_int64(st, c)); break;
-          case SQLITE_FLOAT:
-            std::snprintf(text, sizeof text, " r%.17g", sqlite3_column_double(st, c));
-            row += text;
-            break;
-          case SQLITE_BLOB: {
-            const auto* bytes = static_cast<const unsigned char*>(sqlite3_column_blob(st, c));
-            row += " x";
-            for (int k = 0; k < sqlite3_column_bytes(st, c); ++k) {
-              std::snprintf(text, sizeof text, "%02x", bytes[k]);
-              row += text;
-            }
-            break;
-          }
-          default: row += std::string(" t") + reinterpret_cast<const char*>(sqlite3_column_text(st, c));
-        }
-      }
-      out.push_back(row);
-    }
-    sqlite3_finalize(st);
+    const std::vector<std::string> rows = test::sqlite_rows(db, sql, sql.substr(0, 40) + ":");
+    out.insert(out.end(), rows.begin(), rows.end());
   };
   query("SELECT * FROM gpkg_contents ORDER BY table_name");
   query("SELECT * FROM gpkg_ogr_contents ORDER BY table_name");

@@ -2,11 +2,11 @@
 // median of several runs.
 //
 //   sites_bench [--level L] [--points N] [--repeat R] [--threads T] [--edges lonlat|geodesic]
-//               [--s_srs SRS] [--sql SQL] [--makevalid] [--oo NAME=VALUE]... [LINES_DATASET [LAYER]]
+//               [--s_srs SRS] [--sql SQL] [--makevalid] [--messages] [--oo NAME=VALUE]... [LINES_DATASET [LAYER]]
 //
 // --threads T: threads that trace and fill the sites (0, the default: all).
 // --s_srs, --sql, --makevalid, --oo NAME=VALUE: as qtmvoronoi's -s_srs, -sql, -makevalid, -oo
-// (a CSV's -oo X_POSSIBLE_NAMES=lon, say). The digest printed covers every array, the site table's
+// (a CSV's -oo X_POSSIBLE_NAMES=lon, say); --messages prints the reader's messages (stderr). The digest printed covers every array, the site table's
 // counts, the summary's counts and the messages: the same for any thread count, and from build to
 // build while the reader's output stays the same.
 //
@@ -105,7 +105,8 @@ std::uint64_t digest_of(const qtmv::sites::SiteSet& set, const std::vector<std::
 
 double median_seconds(const std::string& path, qtmv::sites::ReadOptions options, int repeat,
                       qtmv::sites::ReadSummary* summary, std::size_t* pieces, std::size_t* site_cells,
-                      std::size_t* fixed_cells, std::size_t* fixed_nodes, std::uint64_t* digest) {
+                      std::size_t* fixed_cells, std::size_t* fixed_nodes, std::uint64_t* digest,
+                      bool print_messages) {
   std::vector<double> seconds;
   for (int r = 0; r < repeat; ++r) {
     std::vector<std::string> messages;
@@ -119,6 +120,9 @@ double median_seconds(const std::string& path, qtmv::sites::ReadOptions options,
     *fixed_cells = set.geometry.fixed_cells.size();
     *fixed_nodes = set.geometry.fixed_nodes.size();
     *digest = digest_of(set, messages);
+    if (print_messages) {
+      for (const std::string& m : messages) std::fprintf(stderr, "%s\n", m.c_str());
+    }
   }
   std::sort(seconds.begin(), seconds.end());
   return seconds[seconds.size() / 2];
@@ -131,6 +135,7 @@ int main(int argc, char** argv) {
   options.level = 12;
   int points = 135000, repeat = 5;
   std::string lines, layer;
+  bool print_messages = false;
   for (int k = 1; k < argc; ++k) {
     const std::string a = argv[k];
     if (a == "--level" && k + 1 < argc) options.level = std::atoi(argv[++k]);
@@ -141,6 +146,7 @@ int main(int argc, char** argv) {
     else if (a == "--s_srs" && k + 1 < argc) options.source_srs = argv[++k];
     else if (a == "--sql" && k + 1 < argc) options.sql = argv[++k];
     else if (a == "--makevalid") options.make_valid = true;
+    else if (a == "--messages") print_messages = true;
     else if (a == "--oo" && k + 1 < argc) options.open_options.push_back(argv[++k]);
     else if (lines.empty()) lines = a;
     else layer = a;
@@ -152,7 +158,7 @@ int main(int argc, char** argv) {
     if (points > 0) {
       const std::string path = make_points(points);
       const double s =
-          median_seconds(path, options, repeat, &summary, &pieces, &site_cells, &fixed_cells, &fixed_nodes, &digest);
+          median_seconds(path, options, repeat, &summary, &pieces, &site_cells, &fixed_cells, &fixed_nodes, &digest, print_messages);
       std::printf("points     level %d: %llu sites, %zu site cells: median %.3f s of %d runs\n", options.level,
                   static_cast<unsigned long long>(summary.sites), site_cells, s, repeat);
       VSIUnlink(path.c_str());
@@ -160,7 +166,7 @@ int main(int argc, char** argv) {
     if (!lines.empty()) {
       if (!layer.empty()) options.layers = {layer};
       const double s =
-          median_seconds(lines, options, repeat, &summary, &pieces, &site_cells, &fixed_cells, &fixed_nodes, &digest);
+          median_seconds(lines, options, repeat, &summary, &pieces, &site_cells, &fixed_cells, &fixed_nodes, &digest, print_messages);
       std::printf("dataset    level %d, %d thread(s): %llu sites, %zu pieces, %zu site cells, %zu fixed cells, %zu "
                   "fixed nodes: median %.3f s of %d runs; digest %016llx\n",
                   options.level, options.threads, static_cast<unsigned long long>(summary.sites), pieces, site_cells,

@@ -15,13 +15,13 @@ constexpr std::size_t kCopyUnit = std::size_t{1} << 16;
 constexpr std::size_t kMoveBytesPerThread = std::size_t{1} << 22;
 
 /// Sizes `array` to `size` elements, the new ones uninitialised; when it must move, it takes
-/// half again as much room as it needs (appends to come), its contents copied on all threads.
+/// twice the room it had (appends to come), its contents copied on all threads.
 template <class T>
 void grow(label::SiteArray<T>& array, std::size_t size, int threads) {
   static_assert(std::is_trivially_copyable<T>::value, "copied as bytes");
   if (size > array.capacity()) {
     label::SiteArray<T> bigger;
-    bigger.reserve(std::max(size + size / 2, 2 * array.capacity()));
+    bigger.reserve(std::max(size, 2 * array.capacity()));
     bigger.resize(array.size());
     const std::size_t bytes = array.size() * sizeof(T);
     const auto pieces = static_cast<std::int64_t>(std::min<std::size_t>(

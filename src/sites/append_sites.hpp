@@ -16,7 +16,7 @@ class SiteAppend {
  public:
   /// Plans appending `batch`'s built slices to `out`, each job's site as the job's site id and
   /// its pieces' indices moved past the pieces before them: out's arrays are sized (grown by
-  /// half again or more, their contents copied on up to `threads` threads when they move) and
+  /// twofold or more, their contents copied on up to `threads` threads when they move) and
   /// its site count set. `out` and `batch` must stay until the copies are done.
   void plan(SiteGeometry& out, const SiteBatch& batch, int threads);
   /// The units of the copy (each worth a thread).

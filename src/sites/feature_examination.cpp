@@ -125,9 +125,17 @@ void examine(PendingFeature& pending, FeatureParts& parts, const Examination& ex
     pending.skip_reason = "empty geometry";
     return;
   }
-  if (pending.geometry->hasCurveGeometry()) pending.geometry.reset(pending.geometry->getLinearGeometry());
+  if (pending.geometry->hasCurveGeometry()) {
+    std::unique_ptr<OGRGeometry> linear(pending.geometry->getLinearGeometry());
+    if (!linear) {
+      pending.skip = Skip::type;
+      pending.skip_reason = std::string("cannot linearise ") + OGRGeometryTypeToName(pending.geometry->getGeometryType());
+      return;
+    }
+    pending.geometry = std::move(linear);
+  }
   parts.polygons = 0;
-  if (!pending.geometry || !gather_parts(*pending.geometry, parts, pending.skip_reason)) {
+  if (!gather_parts(*pending.geometry, parts, pending.skip_reason)) {
     parts.truncate(part_begin, point_begin);
     pending.skip = Skip::type;
     return;

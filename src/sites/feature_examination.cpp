@@ -5,15 +5,20 @@
 #include <sstream>
 #include <utility>
 
-#include "common/first_exception.hpp"
+#include "common/openmp_threads.hpp"
+#include "sites/site_options.hpp"
 
 namespace qtmv::sites {
 
 namespace {
 
-/// Features read before they are examined on all threads: work for every thread, memory bounded.
-constexpr std::size_t kChunkFeatures = 1024;
+/// Features read in a chunk: work for every thread between two steps of the read (a step's
+/// threads meet at its end), memory bounded (a few chunks are held at once).
+constexpr std::size_t kChunkFeatures = std::size_t{1} << 16;
 constexpr std::size_t kChunkVertices = std::size_t{1} << 20;
+/// Features examined as one unit of work: worth a thread, and many of them per chunk.
+constexpr std::size_t kBlockFeatures = 1024;
+constexpr std::size_t kBlockVertices = std::size_t{1} << 16;
 
 }  // namespace
 
@@ -40,70 +45,197 @@ std::string format_coordinate(double x, double y) {
   return s.str();
 }
 
-void examine(PendingFeature& pending, const CoordinateRange& range, const PolygonValidityCheck& validity) {
-  if (pending.skip != PendingFeature::Skip::none) return;  // found while reading
-  if (!gather_parts(*pending.geometry, pending.parts, pending.skip_reason)) {
-    pending.skip = PendingFeature::Skip::type;
+Skip to_lonlat(grid::LonLat* points, std::size_t count, OGRCoordinateTransformation* transform,
+               gdal::ErrorCapture& errors, LonLatScratch& scratch, std::string& reason) {
+  if (transform) {
+    scratch.x.resize(count);
+    scratch.y.resize(count);
+    scratch.ok.assign(count, FALSE);
+    for (std::size_t k = 0; k < count; ++k) {
+      scratch.x[k] = points[k].lon;
+      scratch.y[k] = points[k].lat;
+    }
+    errors.take();  // the messages of this transformation only
+    transform->Transform(static_cast<int>(count), scratch.x.data(), scratch.y.data(), nullptr, scratch.ok.data());
+    for (std::size_t k = 0; k < count; ++k) {
+      if (!scratch.ok[k] || !std::isfinite(scratch.x[k]) || !std::isfinite(scratch.y[k])) {
+        reason = with_gdal_message("coordinate " + format_coordinate(points[k].lon, points[k].lat) +
+                                       " fails to transform to WGS84",
+                                   errors.take());
+        return Skip::transform;
+      }
+    }
+  }
+  for (std::size_t k = 0; k < count; ++k) {
+    const double lon = transform ? scratch.x[k] : points[k].lon;
+    double lat = transform ? scratch.y[k] : points[k].lat;
+    if (std::fabs(lat) > 90.0) {
+      if (std::fabs(lat) > 90.0 + 1e-9) {
+        reason = std::string("latitude beyond +-90") + (transform ? " after transformation" : "") + " at " +
+                 format_coordinate(lon, lat);
+        return Skip::coordinate;
+      }
+      lat = lat > 0 ? 90.0 : -90.0;  // rounding in the transformation
+    }
+    points[k] = {lon, lat};
+  }
+  return Skip::none;
+}
+
+ThreadTransforms::ThreadTransforms(const OGRCoordinateTransformation* layer, int threads)
+    : any_(layer != nullptr), copies_(layer ? static_cast<std::size_t>(threads) : 0, nullptr),
+      tried_(copies_.size(), 0) {
+  if (layer) {
+    gdal::ErrorCapture quiet;  // without copies, the reader's thread transforms the features
+    original_ = layer->Clone();
+  }
+}
+
+// Deleted, not given to DestroyCT: OGR would keep them for the next transformation made between
+// the same CRSs, with the failures they have counted (the messages stop after 20), in place of
+// the layer's, which reported the failures.
+ThreadTransforms::~ThreadTransforms() {
+  for (OGRCoordinateTransformation* copy : copies_) delete copy;
+  delete original_;
+}
+
+OGRCoordinateTransformation* ThreadTransforms::of_this_thread() {
+  if (!original_) return nullptr;
+  const auto k = static_cast<std::size_t>(thread_index());
+  if (!tried_[k]) {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    gdal::ErrorCapture quiet;
+    copies_[k] = original_->Clone();
+    tried_[k] = 1;
+  }
+  return copies_[k];
+}
+
+namespace {
+
+/// Finds what `pending` is made of and whether it is read (its parts appended to `parts`, the
+/// block's), on any thread: changes only `pending` and `parts`.
+void examine(PendingFeature& pending, FeatureParts& parts, const Examination& examination,
+             OGRCoordinateTransformation* transform, gdal::ErrorCapture& errors, LonLatScratch& scratch) {
+  const std::size_t part_begin = parts.parts.size(), point_begin = parts.points.size();
+  pending.part_begin = pending.part_end = part_begin;
+  if (pending.skip != Skip::none) return;  // found while reading
+  if (pending.geometry->IsEmpty()) {
+    pending.skip = Skip::empty;
+    pending.skip_reason = "empty geometry";
     return;
   }
-  if (pending.parts.parts.empty()) {
-    pending.skip = PendingFeature::Skip::empty;
+  if (pending.geometry->hasCurveGeometry()) {
+    std::unique_ptr<OGRGeometry> linear(pending.geometry->getLinearGeometry());
+    if (!linear) {
+      pending.skip = Skip::type;
+      pending.skip_reason = std::string("cannot linearise ") + OGRGeometryTypeToName(pending.geometry->getGeometryType());
+      return;
+    }
+    pending.geometry = std::move(linear);
+  }
+  parts.polygons = 0;
+  if (!gather_parts(*pending.geometry, parts, pending.skip_reason)) {
+    parts.truncate(part_begin, point_begin);
+    pending.skip = Skip::type;
+    return;
+  }
+  if (parts.parts.size() == part_begin) {
+    pending.skip = Skip::empty;
     pending.skip_reason = "empty geometry";
     return;
   }
   // Checked before PROJ sees them (GDAL 3.6 hangs on EPSG:3857 coordinates near +-1e20).
-  for (std::size_t k = 0; k < pending.parts.x.size(); ++k) {
-    const double x = pending.parts.x[k], y = pending.parts.y[k];
+  const CoordinateRange& range = examination.range;
+  for (std::size_t k = point_begin; k < parts.points.size(); ++k) {
+    const double x = parts.points[k].lon, y = parts.points[k].lat;
     if (!std::isfinite(x) || !std::isfinite(y)) {
-      pending.skip = PendingFeature::Skip::coordinate;
+      pending.skip = Skip::coordinate;
       pending.skip_reason = "NaN or infinite coordinate " + format_coordinate(x, y);
-      return;
-    }
-    if (std::fabs(x) > range.limit_x || std::fabs(y) > range.limit_y) {
-      pending.skip = PendingFeature::Skip::coordinate;
+    } else if (std::fabs(x) > range.limit_x || std::fabs(y) > range.limit_y) {
+      pending.skip = Skip::coordinate;
       pending.skip_reason = "coordinate " + format_coordinate(x, y) + " beyond " + range.describe + " of its CRS";
+    }
+    if (pending.skip != Skip::none) {
+      parts.truncate(part_begin, point_begin);
       return;
     }
   }
-  pending.problem = validity.problem_of(*pending.geometry);
+  pending.problem = examination.validity.problem_of(*pending.geometry);
+  pending.part_end = parts.parts.size();
+  if (examination.transforms.any() && !transform) {
+    pending.late_skip = Skip::transform;  // no copy of the transformation here: the reader's thread does it
+    return;
+  }
+  pending.late_skip = to_lonlat(parts.points.data() + point_begin, parts.points.size() - point_begin, transform,
+                                errors, scratch, pending.late_reason);
 }
 
+}  // namespace
+
 void FeatureChunk::add(OGRFeatureUniquePtr feature, gdal::ErrorCapture& errors) {
-  PendingFeature& pending = features_.emplace_back();
+  if (count_ == features_.size()) features_.emplace_back();
+  PendingFeature& pending = features_[count_++];
   pending.fid = feature->GetFID();
+  pending.vertices = 0;
+  pending.skip = pending.late_skip = Skip::none;
+  pending.skip_reason.clear();
+  pending.late_reason.clear();
+  pending.problem.reset();
   // A driver that cannot decode one feature (a corrupt geometry blob, say) reports it while
   // reading that feature: skip it with GDAL's reason instead of failing the whole read.
   if (errors.failed()) {
-    pending.skip = PendingFeature::Skip::unreadable;
+    pending.skip = Skip::unreadable;
     pending.skip_reason = "unreadable feature (GDAL: " + errors.take() + ")";
   } else {
     pending.geometry.reset(feature->StealGeometry());
-    if (!pending.geometry || pending.geometry->IsEmpty()) {
-      pending.skip = PendingFeature::Skip::empty;
+    if (!pending.geometry) {
+      pending.skip = Skip::empty;
       pending.skip_reason = "empty geometry";
-    } else if (pending.geometry->hasCurveGeometry()) {
-      pending.geometry.reset(pending.geometry->getLinearGeometry());
+    } else {
+      pending.vertices = point_count(*pending.geometry);
     }
   }
   pending.feature = std::move(feature);
-  if (pending.geometry) vertices_ += point_count(*pending.geometry);
-}
-
-bool FeatureChunk::full() const { return features_.size() >= kChunkFeatures || vertices_ >= kChunkVertices; }
-
-void FeatureChunk::examine_all(const CoordinateRange& range, const PolygonValidityCheck& validity, int threads) {
-  const auto n = static_cast<std::int64_t>(features_.size());
-  FirstException failure;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
-  for (std::int64_t k = 0; k < n; ++k) {
-    failure.run([&] { examine(features_[static_cast<std::size_t>(k)], range, validity); });
+  vertices_ += pending.vertices;
+  // Blocks of about equal work, each examined by one thread.
+  if (block_count_ == 0 || blocks_[block_count_ - 1].last - blocks_[block_count_ - 1].first >= kBlockFeatures ||
+      blocks_[block_count_ - 1].vertices >= kBlockVertices) {
+    if (block_count_ == blocks_.size()) blocks_.emplace_back();
+    Block& block = blocks_[block_count_++];
+    block.first = block.last = count_ - 1;
+    block.vertices = 0;
   }
-  failure.rethrow();
+  Block& block = blocks_[block_count_ - 1];
+  block.last = count_;
+  block.vertices += pending.vertices;
+  pending.block = static_cast<std::uint32_t>(block_count_ - 1);
 }
+
+bool FeatureChunk::full() const { return count_ >= kChunkFeatures || vertices_ >= kChunkVertices; }
+
+void FeatureChunk::examine_block(std::size_t b, const Examination& examination) {
+  Block& block = blocks_[b];
+  block.parts.clear();
+  // This thread's GDAL messages (a transformation's, a curve's) kept from the other handlers: a
+  // failed transformation is reported in feature order by the reader's thread.
+  gdal::ErrorCapture errors;
+  LonLatScratch scratch;
+  OGRCoordinateTransformation* const transform = examination.transforms.of_this_thread();
+  for (std::size_t k = block.first; k < block.last; ++k) {
+    examine(features_[k], block.parts, examination, transform, errors, scratch);
+  }
+}
+
+FeatureParts& FeatureChunk::own_parts() { return own_parts_.emplace_back(); }
 
 void FeatureChunk::clear() {
-  features_.clear();
-  vertices_ = 0;
+  for (std::size_t k = 0; k < count_; ++k) {
+    features_[k].feature.reset();
+    features_[k].geometry.reset();
+  }
+  count_ = vertices_ = block_count_ = 0;
+  own_parts_.clear();
 }
 
 }  // namespace qtmv::sites

@@ -1,17 +1,21 @@
-// The features of a layer read in chunks: GDAL reads them on one thread; their parts, coordinate
-// checks and polygon validity are found on all threads (examine), for the layer's reader to
-// report and make into sites in feature order: the same messages whatever the thread count.
+// The features of a layer read in chunks: GDAL reads them on one thread (add); their parts,
+// coordinate checks, transformation to lon/lat and polygon validity are found on all threads,
+// a block of features at a time (examine_block), for the layer's reader to report and make into
+// sites in feature order: the same messages and sites whatever the thread count.
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
+#include <deque>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include <ogr_feature.h>
 #include <ogr_geometry.h>
 #include <ogr_spatialref.h>
-#include <ogr_feature.h>
 
 #include "gdal/error_capture.hpp"
 #include "sites/feature_parts.hpp"
@@ -30,40 +34,108 @@ CoordinateRange coordinate_range(const OGRSpatialReference& srs);
 /// "(x, y)" with 15 significant digits, for messages.
 std::string format_coordinate(double x, double y);
 
-/// A feature read and its geometry taken: what the checks on all threads found of it (examine),
-/// for the reader to report and build in feature order.
+/// Why a feature is skipped, and which count of the summary it adds to.
+enum class Skip { none, unreadable, empty, type, coordinate, transform };
+
+/// Arrays to_lonlat reuses from feature to feature.
+struct LonLatScratch {
+  std::vector<double> x, y;
+  std::vector<int> ok;
+};
+
+/// Turns `count` points (x in lon, y in lat, in the source CRS) into WGS84 lon/lat degrees in
+/// place: transformed by `transform` (when not null), then latitudes checked, a rounding beyond
+/// +-90 set to +-90. Returns Skip::none, or Skip::transform / Skip::coordinate with `reason`
+/// (the points are then left as they were given when the transformation failed). GDAL's messages
+/// of the transformation are taken from `errors`, a capture on the calling thread.
+Skip to_lonlat(grid::LonLat* points, std::size_t count, OGRCoordinateTransformation* transform,
+               gdal::ErrorCapture& errors, LonLatScratch& scratch, std::string& reason);
+
+/// One copy of a layer's transformation to WGS84 per thread, made on first use: OGR's
+/// transformations (and the CRSs they hold) are not for several threads at once, so the copies
+/// are made one at a time from a copy of their own.
+class ThreadTransforms {
+ public:
+  /// `layer`: the layer's transformation (null: none), copied here; `threads`: the team's size
+  /// at most.
+  ThreadTransforms(const OGRCoordinateTransformation* layer, int threads);
+  ~ThreadTransforms();
+  ThreadTransforms(const ThreadTransforms&) = delete;
+  ThreadTransforms& operator=(const ThreadTransforms&) = delete;
+  /// Whether there is a transformation at all.
+  bool any() const { return any_; }
+  /// The calling thread's copy (of an OpenMP team); null when there is none, or OGR cannot copy it.
+  OGRCoordinateTransformation* of_this_thread();
+
+ private:
+  bool any_;
+  OGRCoordinateTransformation* original_ = nullptr;  // the copies' source, used by none
+  std::mutex mutex_;  // taken once per thread and layer, to make its copy
+  std::vector<OGRCoordinateTransformation*> copies_;
+  std::vector<char> tried_;
+};
+
+/// A feature read: what the checks on all threads found of it (examine_block), for the reader to
+/// report and build in feature order.
 struct PendingFeature {
-  enum class Skip { none, unreadable, empty, type, coordinate };
   GIntBig fid = 0;
   OGRFeatureUniquePtr feature;  ///< its attributes
   std::unique_ptr<OGRGeometry> geometry;
-  FeatureParts parts;
+  std::size_t vertices = 0;     ///< point_count of its geometry (the blocks' and chunks' size)
+  /// Found before its polygons' validity is settled (reported before their warning).
   Skip skip = Skip::none;
   std::string skip_reason;
   std::optional<PolygonProblem> problem;  ///< of its polygons, as the source gives them
+  /// Found by to_lonlat (reported after the validity's warning, as the source is read): a failed
+  /// transformation is done again in feature order with the layer's own transformation, whose
+  /// messages count the failures before.
+  Skip late_skip = Skip::none;
+  std::string late_reason;
+  std::uint32_t block = 0;      ///< the block holding its parts
+  std::size_t part_begin = 0, part_end = 0;  ///< its parts, in its block's parts
 };
 
-/// A pending feature's parts, coordinate checks and polygon validity, or why it is skipped.
-/// Changes only `pending`: several threads examine a chunk's features at once.
-void examine(PendingFeature& pending, const CoordinateRange& range, const PolygonValidityCheck& validity);
+/// What examine_block needs of the layer: the checks, and the transformations to lon/lat.
+struct Examination {
+  const CoordinateRange& range;
+  const PolygonValidityCheck& validity;
+  ThreadTransforms& transforms;
+};
 
-/// Features read before they are examined on all threads.
+/// A chunk's features, read on one thread, then examined on all threads in blocks.
 class FeatureChunk {
  public:
-  /// Adds `feature` (read just now): its geometry taken and linearised, or a skip found while
-  /// reading (unreadable: a failure `errors` caught since its last take; empty).
+  /// Adds `feature` (read just now): its geometry taken, or a skip found while reading
+  /// (unreadable: a failure `errors` caught since its last take; no geometry).
   void add(OGRFeatureUniquePtr feature, gdal::ErrorCapture& errors);
   /// Whether the chunk holds enough work for every thread (memory bounded).
   bool full() const;
-  /// Examines every feature on `threads` threads (examine).
-  void examine_all(const CoordinateRange& range, const PolygonValidityCheck& validity, int threads);
-  /// The features in reading order.
-  std::vector<PendingFeature>& features() { return features_; }
+  /// The features read, in reading order.
+  std::size_t size() const { return count_; }
+  PendingFeature& feature(std::size_t k) { return features_[k]; }
+  /// The blocks the features are examined in (each a unit of work).
+  std::size_t block_count() const { return block_count_; }
+  /// Examines block `b`'s features (examine): called on any thread, once per block.
+  void examine_block(std::size_t b, const Examination& examination);
+  /// The parts of block `b` (coordinates in lon/lat once examined).
+  FeatureParts& block_parts(std::size_t b) { return blocks_[b].parts; }
+  /// A place for a feature's parts that are not its block's (repaired by -makevalid, or
+  /// transformed again): kept until the chunk is cleared.
+  FeatureParts& own_parts();
+  /// Forgets the features (their memory kept for the next chunk).
   void clear();
 
  private:
+  struct Block {
+    std::size_t first = 0, last = 0;  // features
+    std::size_t vertices = 0;
+    FeatureParts parts;
+  };
   std::vector<PendingFeature> features_;
-  std::size_t vertices_ = 0;
+  std::size_t count_ = 0, vertices_ = 0;
+  std::vector<Block> blocks_;
+  std::size_t block_count_ = 0;
+  std::deque<FeatureParts> own_parts_;
 };
 
 }  // namespace qtmv::sites

@@ -5,12 +5,21 @@ namespace qtmv::sites {
 void FeatureParts::add_curve(const OGRSimpleCurve& curve, Kind kind, int polygon) {
   const int n = curve.getNumPoints();
   if (n == 0) return;
-  const std::size_t begin = x.size();
-  for (int k = 0; k < n; ++k) {
-    x.push_back(curve.getX(k));
-    y.push_back(curve.getY(k));
-  }
-  parts.push_back({kind, begin, x.size(), polygon});
+  const std::size_t begin = points.size();
+  points.resize(begin + static_cast<std::size_t>(n));
+  for (int k = 0; k < n; ++k) points[begin + static_cast<std::size_t>(k)] = {curve.getX(k), curve.getY(k)};
+  parts.push_back({kind, begin, points.size(), polygon});
+}
+
+void FeatureParts::truncate(std::size_t part_begin, std::size_t point_begin) {
+  parts.resize(part_begin);
+  points.resize(point_begin);
+}
+
+void FeatureParts::clear() {
+  points.clear();
+  parts.clear();
+  polygons = 0;
 }
 
 bool gather_parts(const OGRGeometry& geometry, FeatureParts& out, std::string& reason) {
@@ -18,9 +27,8 @@ bool gather_parts(const OGRGeometry& geometry, FeatureParts& out, std::string& r
   switch (wkbFlatten(geometry.getGeometryType())) {
     case wkbPoint: {
       const auto& p = *geometry.toPoint();
-      out.x.push_back(p.getX());
-      out.y.push_back(p.getY());
-      out.parts.push_back({FeatureParts::kPoint, out.x.size() - 1, out.x.size(), -1});
+      out.points.push_back({p.getX(), p.getY()});
+      out.parts.push_back({FeatureParts::kPoint, out.points.size() - 1, out.points.size(), -1});
       return true;
     }
     case wkbLineString:

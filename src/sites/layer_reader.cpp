@@ -7,6 +7,7 @@
 #include <ogrsf_frmts.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -14,9 +15,12 @@
 #include <utility>
 #include <vector>
 
+#include "sites/append_sites.hpp"
+#include "sites/feature_count.hpp"
 #include "sites/feature_examination.hpp"
 #include "sites/feature_parts.hpp"
 #include "sites/polygon_validity.hpp"
+#include "sites/read_step.hpp"
 
 namespace qtmv::sites {
 
@@ -78,13 +82,20 @@ void warn_missing_dbf(const OgrSource& source, const std::string& where_from, co
 }
 
 /// The summary's count of the features skipped for `why`.
-std::uint64_t& skip_counter(ReadSummary& summary, PendingFeature::Skip why) {
+std::uint64_t& skip_counter(ReadSummary& summary, Skip why) {
   switch (why) {
-    case PendingFeature::Skip::unreadable: return summary.skipped_unreadable;
-    case PendingFeature::Skip::type: return summary.skipped_type;
-    case PendingFeature::Skip::coordinate: return summary.skipped_coordinate;
+    case Skip::unreadable: return summary.skipped_unreadable;
+    case Skip::type: return summary.skipped_type;
+    case Skip::coordinate: return summary.skipped_coordinate;
+    case Skip::transform: return summary.skipped_transform;
     default: return summary.skipped_empty;
   }
+}
+
+/// Adds `seconds` to `total` (from any thread of a step).
+void add_time(double& total, double seconds) {
+#pragma omp atomic
+  total += seconds;
 }
 
 /// One layer's reading, its filter set: the per-layer state, from its CRS to its last batch.
@@ -96,10 +107,21 @@ class LayerReader {
   void read();
 
  private:
-  void read_features();
-  void settle_chunk();
-  void settle(PendingFeature& pending);
-  bool to_lonlat(GIntBig fid, FeatureParts& parts);
+  /// A chunk of features on its way: read, examined, settled, built, appended.
+  struct Slot {
+    FeatureChunk chunk;
+    SiteBatch batch;
+    SiteAppend append;
+  };
+  /// A chunk is read while the one before is examined, the one before that settled, and so on:
+  /// a slot for each.
+  static constexpr std::size_t kSlots = 5;
+
+  bool step(std::size_t r, std::size_t& chunks);
+  void read_chunk(FeatureChunk& chunk);
+  void settle_chunk(Slot& slot);
+  void settle(FeatureChunk& chunk, std::size_t k, SiteBatch& batch);
+  bool to_lonlat(GIntBig fid, grid::LonLat* points, std::size_t count);
   void skip(GIntBig fid, const std::string& reason, std::uint64_t& counter);
   void finish();
 
@@ -114,14 +136,18 @@ class LayerReader {
   const LayerCrs crs_;
   const std::uint32_t layer_index_;  // the layer's source in the site table
   PolygonValidityCheck validity_;
-  const GIntBig feature_count_;
-  // Features are read in chunks: GDAL reads them on this thread; their parts, coordinate checks
-  // and polygon validity are found on all threads; then, in feature order, they are reported and
-  // become sites: the same messages and sites whatever the thread count.
-  FeatureChunk chunk_;
-  SiteBatch batch_;
-  std::vector<grid::LonLat> lonlat_;
-  std::vector<int> transformed_ok_;
+  FeatureCount feature_count_;
+  ThreadTransforms transforms_;
+  // GDAL reads the features on this thread, which reports them and makes them jobs in feature
+  // order; their parts, coordinate checks, transformation and polygon validity are found, and
+  // their sites built and appended, on all threads: the same messages and sites whatever the
+  // thread count.
+  std::array<Slot, kSlots> slots_;
+  bool read_all_ = false;
+  bool reserved_ = false;  // the site table's room for the layer's features, once they are counted
+  LonLatScratch scratch_;
+  FidList wrapped_;
+  GIntBig wrapped_fid_ = -1;  // the last feature named in `wrapped_`
 };
 
 LayerReader::LayerReader(const OgrSource& source, std::size_t layer_number, std::string where_from,
@@ -141,115 +167,183 @@ LayerReader::LayerReader(const OgrSource& source, std::size_t layer_number, std:
       crs_(layer_crs(*layer_, where_from_, options, errors, wgs84)),
       layer_index_(totals.out.table.add_source(layer_->GetLayerDefn(), source.name, source.layers[layer_number].name)),
       validity_(options, crs_.source, where_from_),
-      feature_count_(layer_->GetFeatureCount(FALSE)),
-      batch_(totals.builders, totals.out.geometry, totals.times) {}
+      feature_count_(source, layer_number, options, totals.builders.threads()),
+      transforms_(crs_.transform.get(), totals.builders.threads()) {}
 
 void LayerReader::read() {
-  read_features();
+  errors_.take();
+  layer_->ResetReading();
+  std::size_t chunks = 0;  // chunks read so far
+  for (std::size_t r = 0; step(r, chunks); ++r) {
+  }
   finish();
 }
 
-void LayerReader::read_features() {
-  errors_.take();
-  layer_->ResetReading();
-  for (OGRFeatureUniquePtr feature(layer_->GetNextFeature()); feature; feature.reset(layer_->GetNextFeature())) {
-    ++summary_.features;
-    if (options_.progress && feature_count_ > 0 && summary_.features % 256 == 0 &&
-        !options_.progress((static_cast<double>(layer_number_) +
-                            std::min(1.0, static_cast<double>(summary_.features - features_before_) / feature_count_)) /
-                               static_cast<double>(layer_count_),
-                           "reading sites")) {
-      throw Interrupted();
+// Step r reads chunk r on this thread and settles chunk r - 2, while the team examines chunk
+// r - 1, builds chunk r - 3 and appends chunk r - 4; after the step this thread names the
+// features -wrap auto changed and plans the next append (the arrays sized), in feature order.
+bool LayerReader::step(std::size_t r, std::size_t& chunks) {
+  const auto at = [&](std::size_t back) { return r >= back && r - back < chunks ? &slots_[(r - back) % kSlots] : nullptr; };
+  Slot* const reading = read_all_ ? nullptr : &slots_[r % kSlots];
+  Slot *const examined = at(1), *const settled = at(2), *const built = at(3), *const appended = at(4);
+  if (!reading && !examined && !settled && !built && !appended) return false;
+  const std::size_t builds = built ? built->batch.slice_count() : 0;
+  const std::size_t examines = examined ? examined->chunk.block_count() : 0;
+  const std::size_t copies = appended ? appended->append.unit_count() : 0;
+  const int threads = totals_.builders.threads();
+  ReadTimes& times = totals_.times;
+  const Examination examination{crs_.range, validity_, transforms_};
+  auto share_end = std::chrono::steady_clock::now();
+  run_step(
+      threads, builds + examines + copies,
+      [&] {
+        const auto start = share_end;
+        if (reading) read_chunk(reading->chunk);
+        const auto read_end = std::chrono::steady_clock::now();
+        if (settled) settle_chunk(*settled);
+        share_end = std::chrono::steady_clock::now();
+        times.read_s += std::chrono::duration<double>(read_end - start).count();
+        times.settled_s += std::chrono::duration<double>(share_end - read_end).count();
+      },
+      [&](std::size_t u) {
+        const auto start = std::chrono::steady_clock::now();
+        if (u < builds) {
+          built->batch.build_slice(u, totals_.builders, times);
+          add_time(times.built_s, seconds_since(start));
+        } else if (u < builds + examines) {
+          examined->chunk.examine_block(u - builds, examination);
+          add_time(times.examined_s, seconds_since(start));
+        } else {
+          appended->append.copy(u - builds - examines);
+          add_time(times.appended_s, seconds_since(start));
+        }
+      });
+  if (reading && reading->chunk.size() > 0) ++chunks;
+  const auto step_end = std::chrono::steady_clock::now();
+  if (built) {
+    built->batch.name_wrapped(wrapped_, wrapped_fid_);
+    built->append.plan(totals_.out.geometry, built->batch, threads);
+  }
+  if (appended) {
+    appended->batch.clear();
+    appended->chunk.clear();
+  }
+  times.appended_s += seconds_since(step_end);
+  times.rasterise += std::chrono::steady_clock::now() - share_end;  // what the reading did not hide
+  return true;
+}
+
+/// Reads the next chunk of features (this thread: GDAL's messages are caught here).
+void LayerReader::read_chunk(FeatureChunk& chunk) {
+  if (!reserved_) {
+    if (const GIntBig count = feature_count_.get(); count > 0) {
+      totals_.out.table.sites.reserve(totals_.out.table.sites.size() + static_cast<std::size_t>(count));
+      reserved_ = true;
     }
-    chunk_.add(std::move(feature), errors_);
-    if (chunk_.full()) settle_chunk();
   }
-  settle_chunk();
-  batch_.build();
-}
-
-void LayerReader::settle_chunk() {
-  const auto examine_start = std::chrono::steady_clock::now();
-  chunk_.examine_all(crs_.range, validity_, totals_.builders.threads());
-  totals_.times.examined_s += seconds_since(examine_start);
-  for (PendingFeature& pending : chunk_.features()) settle(pending);
-  chunk_.clear();
-}
-
-/// Reports a pending feature, or makes it a site whose jobs wait in the batch.
-void LayerReader::settle(PendingFeature& pending) {
-  const GIntBig fid = pending.fid;
-  if (pending.skip != PendingFeature::Skip::none) {
-    skip(fid, pending.skip_reason, skip_counter(summary_, pending.skip));
-    return;
-  }
-  FeatureParts& parts = pending.parts;
-  std::unique_ptr<OGRGeometry>& geometry = pending.geometry;
-  // Invalid polygons are named (or repaired, -makevalid) as the source gives them.
-  if (validity_.settle(fid, geometry, pending.problem)) {
-    parts = FeatureParts{};
-    std::string reason;
-    if (!gather_parts(*geometry, parts, reason) || parts.parts.empty()) {
-      skip(fid, "nothing left after -makevalid", summary_.skipped_empty);
+  while (!chunk.full()) {
+    OGRFeatureUniquePtr feature(layer_->GetNextFeature());
+    if (!feature) {
+      read_all_ = true;
       return;
     }
+    ++summary_.features;
+    if (options_.progress && summary_.features % 256 == 0) {
+      // The layer's start while its count is not known (yet): a stop is still asked for.
+      const GIntBig count = feature_count_.get();
+      const double done = count > 0 ? std::min(1.0, static_cast<double>(summary_.features - features_before_) / count) : 0.0;
+      if (!options_.progress((static_cast<double>(layer_number_) + done) / static_cast<double>(layer_count_),
+                             "reading sites")) {
+        throw Interrupted();
+      }
+    }
+    chunk.add(std::move(feature), errors_);
   }
-  if (!to_lonlat(fid, parts)) return;
+}
 
-  // --- one site, built with the next batch ---
+void LayerReader::settle_chunk(Slot& slot) {
+  const std::size_t n = slot.chunk.size();
+  for (std::size_t k = 0; k < n; ++k) {
+    // GDAL made the features long before (a chunk ago): their memory is fetched ahead of the
+    // geometry's release, which waited on it (a third of the settling of a million points).
+    if (k + 8 < n) {
+      __builtin_prefetch(slot.chunk.feature(k + 8).geometry.get());
+      __builtin_prefetch(slot.chunk.feature(k + 8).feature.get());
+    }
+    settle(slot.chunk, k, slot.batch);
+  }
+  slot.batch.plan_slices();
+}
+
+/// Reports an examined feature, or makes it a site whose jobs wait in the batch.
+void LayerReader::settle(FeatureChunk& chunk, std::size_t k, SiteBatch& batch) {
+  PendingFeature& pending = chunk.feature(k);
+  const GIntBig fid = pending.fid;
+  const auto release = [&pending] {  // its geometry's memory back before the next
+    pending.geometry.reset();
+    pending.feature.reset();
+  };
+  if (pending.skip != Skip::none) {
+    skip(fid, pending.skip_reason, skip_counter(summary_, pending.skip));
+    release();
+    return;
+  }
+  FeatureParts* parts = &chunk.block_parts(pending.block);
+  std::size_t part_begin = pending.part_begin, part_end = pending.part_end;
+  // Invalid polygons are named (or repaired, -makevalid) as the source gives them.
+  if (validity_.settle(fid, pending.geometry, pending.problem)) {
+    parts = &chunk.own_parts();
+    std::string reason;
+    if (!gather_parts(*pending.geometry, *parts, reason) || parts->parts.empty()) {
+      skip(fid, "nothing left after -makevalid", summary_.skipped_empty);
+      release();
+      return;
+    }
+    part_begin = 0;
+    part_end = parts->parts.size();
+    if (!to_lonlat(fid, parts->points.data(), parts->points.size())) {
+      release();
+      return;
+    }
+  } else if (pending.late_skip == Skip::transform) {
+    // Transformed again here, in feature order: the transformation's messages count the failures.
+    const std::size_t first = parts->parts[part_begin].begin, last = parts->parts[part_end - 1].end;
+    if (!to_lonlat(fid, parts->points.data() + first, last - first)) {
+      release();
+      return;
+    }
+  } else if (pending.late_skip != Skip::none) {
+    skip(fid, pending.late_reason, skip_counter(summary_, pending.late_skip));
+    release();
+    return;
+  }
+
+  // --- one site, built with its batch ---
   SiteRecord record;
   record.fid = fid;
   record.layer = layer_index_;
-  for (const FeatureParts::Part& part : parts.parts) {
-    record.kind |= part.kind == FeatureParts::kPoint ? kPointSite : part.kind == FeatureParts::kLine ? kLineSite
-                                                                                                     : kPolygonSite;
+  for (std::size_t p = part_begin; p < part_end; ++p) {
+    const FeatureParts::Kind kind = parts->parts[p].kind;
+    record.kind |= kind == FeatureParts::kPoint ? kPointSite : kind == FeatureParts::kLine ? kLineSite : kPolygonSite;
   }
   record.attributes.reset(pending.feature.release());
-  totals_.out.table.sites.push_back(std::move(record));
+  SiteTable& table = totals_.out.table;
+  const auto site = static_cast<std::int32_t>(table.sites.size());
+  table.sites.push_back(std::move(record));
   ++summary_.sites;
-  batch_.add(fid, std::move(lonlat_), std::move(parts.parts));
-  lonlat_ = {};
-  pending = PendingFeature{};  // its geometry's memory back before the next
-  if (batch_.full()) batch_.build();
+  batch.add(fid, site, *parts, part_begin, part_end);
+  release();
 }
 
-/// Transforms `parts` to WGS84 and puts them in lonlat_; false when the feature is skipped.
-bool LayerReader::to_lonlat(GIntBig fid, FeatureParts& parts) {
-  const auto& transform = crs_.transform;
-  const std::size_t n_points = parts.x.size();
-  bool usable = true;
-  if (transform) {
-    transformed_ok_.assign(n_points, FALSE);
-    gdal::ErrorCapture transform_errors;
-    const std::vector<double> x0 = parts.x, y0 = parts.y;
-    transform->Transform(static_cast<int>(n_points), parts.x.data(), parts.y.data(), nullptr,
-                         transformed_ok_.data());
-    for (std::size_t k = 0; k < n_points && usable; ++k) {
-      if (!transformed_ok_[k] || !std::isfinite(parts.x[k]) || !std::isfinite(parts.y[k])) {
-        skip(fid, with_gdal_message("coordinate " + format_coordinate(x0[k], y0[k]) + " fails to transform to WGS84",
-                                    transform_errors.take()),
-             summary_.skipped_transform);
-        usable = false;
-      }
-    }
-    if (!usable) return false;
-  }
-  lonlat_.resize(n_points);
-  for (std::size_t k = 0; k < n_points && usable; ++k) {
-    double lat = parts.y[k];
-    if (std::fabs(lat) > 90.0) {
-      if (std::fabs(lat) > 90.0 + 1e-9) {
-        skip(fid, std::string("latitude beyond +-90") + (transform ? " after transformation" : "") + " at " +
-                      format_coordinate(parts.x[k], lat),
-             summary_.skipped_coordinate);
-        usable = false;
-        break;
-      }
-      lat = lat > 0 ? 90.0 : -90.0;  // rounding in the transformation
-    }
-    lonlat_[k] = {parts.x[k], lat};
-  }
-  return usable;
+/// Transforms `count` points to WGS84 with the layer's transformation, on this thread;
+/// false when the feature is skipped.
+bool LayerReader::to_lonlat(GIntBig fid, grid::LonLat* points, std::size_t count) {
+  gdal::ErrorCapture transform_errors;
+  std::string reason;
+  const Skip why = sites::to_lonlat(points, count, crs_.transform.get(), transform_errors, scratch_, reason);
+  if (why == Skip::none) return true;
+  skip(fid, reason, skip_counter(summary_, why));
+  return false;
 }
 
 // One warning a skipped feature, the first kMostListed of them; then a count (a CSV read without
@@ -281,7 +375,7 @@ void LayerReader::finish() {
     tell(options_.messages, Severity::warning, where_from_ + ": GDAL: " + pending);
   }
   // A user must never get a silently different geometry.
-  const FidList& wrapped = batch_.wrapped();
+  const FidList& wrapped = wrapped_;
   summary_.wrapped_features += wrapped.count();
   if (wrapped.count() > 0) {
     tell(options_.messages, Severity::warning,

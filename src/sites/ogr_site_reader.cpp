@@ -53,9 +53,12 @@ void sum_up(ReadTotals& totals, const std::string& where_all, const ReadOptions&
   times.rasterise += std::chrono::steady_clock::now() - claims_start;
   if (times.time_jobs) {
     trace_printf(TraceStage::read,
-                 "%d threads: features examined %.3f s; sites built %.3f s (longest job %.3f s), "
-                 "appended %.3f s; claims %.3f s; whole read %.3f s",
-                 totals.builders.threads(), times.examined_s, times.built_s, times.longest_job_s, times.appended_s,
+                 "%d threads: features read %.3f s and settled %.3f s on the reading thread; beside it "
+                 "(thread time) examined %.3f s, sites built %.3f s (longest job %.3f s), appended %.3f s; "
+                 "not hidden by the reading %.3f s; claims %.3f s; whole read %.3f s",
+                 totals.builders.threads(), times.read_s, times.settled_s, times.examined_s, times.built_s,
+                 times.longest_job_s, times.appended_s,
+                 std::chrono::duration<double>(times.rasterise).count() - seconds_since(claims_start),
                  seconds_since(claims_start), seconds_since(read_start));
   }
   summary.rasterise_seconds = std::chrono::duration<double>(times.rasterise).count();

@@ -1,6 +1,7 @@
-// Sites are traced and filled in batches on all threads, each job (a feature, or a share of a
-// large one's parts) by one thread's builder, and appended in feature order: the same geometry
-// whatever the thread count.
+// Sites are traced and filled in batches (a chunk's features) on all threads: the jobs (a
+// feature, or a share of a large one's parts) in slices of consecutive jobs, each slice built by
+// one thread's builder into the slice's own arrays, which keep their memory from chunk to chunk;
+// then appended in feature order (append_sites): the same geometry whatever the thread count.
 #pragma once
 
 #include <cstddef>
@@ -27,8 +28,10 @@ class SiteBuilders {
   SiteBuilders(const ReadOptions& options, int threads);
   /// The threads the batches run on.
   int threads() const { return static_cast<int>(builders_.size()); }
-  /// The calling thread's builder (of an OpenMP team of threads() threads).
+  /// The calling thread's builder (of an OpenMP team of threads() threads at most).
   SiteBuilder& of_this_thread();
+  /// The level the sites are built at.
+  int level() const { return level_; }
   /// Cell pairs sharing only a vertex accepted while tracing, by every builder.
   std::uint64_t vertex_steps() const;
 
@@ -39,40 +42,49 @@ class SiteBuilders {
   std::vector<std::unique_ptr<SiteBuilder>> builders_;
 };
 
-/// A feature's site, or a share of its parts, to be traced and filled: its coordinates (lon/lat,
-/// shared by the shares) and parts.
+/// A feature's site, or a share of its parts, to be traced and filled.
 struct SiteJob {
   GIntBig fid = 0;
-  bool starts_site = true;  ///< the first share of its feature (the others add to its site)
-  std::shared_ptr<const std::vector<grid::LonLat>> lonlat;
-  std::vector<FeatureParts::Part> parts;
+  std::int32_t site = 0;     ///< its site's id
+  bool starts_site = true;   ///< the first share of its feature (the others add to its site)
+  const grid::LonLat* points = nullptr;     ///< the coordinates its parts index (lon/lat degrees)
+  const FeatureParts::Part* parts = nullptr;
+  std::size_t part_count = 0;
+  std::size_t vertices = 0;
+  std::size_t short_way_edges = 0;  ///< found by the build: edges -wrap auto joined across +-180
 };
 
-/// One layer's batches: jobs gathered in feature order, built when the batch is full and at the
-/// end of the layer, appended to the read's geometry.
+/// Consecutive jobs built by one thread into their own arrays (site ids counted from 0 there,
+/// one per job).
+struct BuiltSlice {
+  std::size_t first = 0, last = 0;  // jobs
+  SiteGeometry geometry;
+};
+
+/// One batch's jobs, gathered in feature order, then built slice by slice on any thread.
 class SiteBatch {
  public:
-  SiteBatch(SiteBuilders& builders, SiteGeometry& geometry, ReadTimes& times)
-      : builders_(builders), geometry_(geometry), times_(times) {}
-
-  /// Adds feature `fid`'s site, its lon/lat coordinates (degrees) and parts, as jobs.
-  void add(GIntBig fid, std::vector<grid::LonLat>&& lonlat, std::vector<FeatureParts::Part>&& parts);
-  /// Whether the batch holds enough work for every thread (memory bounded): build it.
-  bool full() const;
-  /// Traces and fills the batch's jobs on all threads, appends their sites in feature order and
-  /// empties the batch.
-  void build();
-  /// The features -wrap auto changed (edges joined the short way across +-180), so far.
-  const FidList& wrapped() const { return wrapped_; }
+  /// Adds site `site` of feature `fid`: its parts [part_begin, part_end) of `parts` (coordinates
+  /// in lon/lat degrees; `parts` must stay as it is until the batch is built), as jobs.
+  void add(GIntBig fid, std::int32_t site, const FeatureParts& parts, std::size_t part_begin, std::size_t part_end);
+  /// Cuts the jobs into slices (after the last add).
+  void plan_slices();
+  std::size_t slice_count() const { return slice_count_; }
+  /// Builds slice `s` with the calling thread's builder: called on any thread, once per slice.
+  void build_slice(std::size_t s, SiteBuilders& builders, ReadTimes& times);
+  /// The built slices and their jobs, for append_sites.
+  const std::vector<BuiltSlice>& slices() const { return slices_; }
+  const std::vector<SiteJob>& jobs() const { return jobs_; }
+  /// Adds the features whose edges -wrap auto joined across +-180 (after the build) to
+  /// `wrapped`, each once (`last_named`: the last feature named, from batch to batch).
+  void name_wrapped(FidList& wrapped, GIntBig& last_named) const;
+  /// Forgets the jobs (the slices' memory kept for the next batch).
+  void clear();
 
  private:
-  SiteBuilders& builders_;
-  SiteGeometry& geometry_;
-  ReadTimes& times_;
   std::vector<SiteJob> jobs_;
-  std::size_t vertices_ = 0;
-  FidList wrapped_;
-  GIntBig wrapped_fid_ = -1;  // the last feature named in `wrapped_`
+  std::vector<BuiltSlice> slices_;  // the first slice_count_ in use
+  std::size_t slice_count_ = 0;
 };
 
 }  // namespace qtmv::sites

@@ -60,18 +60,36 @@ SiteCellCounts resolve_claims(SiteGeometry& g, DistanceRule rule) {
     bool operator==(const SiteCode& o) const { return site == o.site && code == o.code; }
   };
   const auto n = static_cast<std::int64_t>(g.site_cells.size());
+  const int threads = thread_count(0);
   std::vector<SiteCode, DefaultInitAllocator<SiteCode>> site_codes(g.site_cells.size());  // filled on all cores
-#pragma omp parallel for schedule(static) num_threads(thread_count(0))
+#pragma omp parallel for schedule(static) num_threads(threads)
   for (std::int64_t k = 0; k < n; ++k) site_codes[k] = {g.site_cells[k].site, g.site_cells[k].code};
-  sort_by_pair(site_codes, [](const SiteCode& c) { return static_cast<std::uint32_t>(c.site); }, [](const SiteCode& c) { return c.code; });
+  // Read in site order, each site's cells by code: sorted already but for shared features and
+  // the cell rule.
+  const auto by_site_code = [](const SiteCode& a, const SiteCode& b) {
+    return a.site != b.site ? a.site < b.site : a.code < b.code;
+  };
+  if (!std::is_sorted(site_codes.begin(), site_codes.end(), by_site_code)) {
+    sort_by_pair(site_codes, [](const SiteCode& c) { return static_cast<std::uint32_t>(c.site); }, [](const SiteCode& c) { return c.code; });
+  }
   site_codes.erase(std::unique(site_codes.begin(), site_codes.end()), site_codes.end());
-  for (const auto& [site, code] : site_codes) {
+  // Whether another site's interior holds each (looked up on all cores, when there are interiors).
+  const auto m = static_cast<std::int64_t>(site_codes.size());
+  std::vector<unsigned char, DefaultInitAllocator<unsigned char>> own(held.empty() ? 0 : site_codes.size());
+  if (!held.empty()) {
+#pragma omp parallel for schedule(static) num_threads(threads)
+    for (std::int64_t k = 0; k < m; ++k) {
+      const auto [site, code] = site_codes[k];
+      const std::uint64_t key = grid::quadtree_key(grid::cell_of(code, g.level), g.level);
+      auto r = std::upper_bound(held.begin(), held.end(), key,
+                                [](std::uint64_t x, const grid::KeyRange& range) { return x < range.first; });
+      own[k] = r == held.begin() || (r - 1)->last < key || (r - 1)->owner == site;
+    }
+  }
+  for (std::size_t k = 0; k < site_codes.size(); ++k) {
+    const std::int32_t site = site_codes[k].site;
     ++counts.site_cells[site];
-    if (counts.has_own_cell[site]) continue;
-    const std::uint64_t key = grid::quadtree_key(grid::cell_of(code, g.level), g.level);
-    auto r = std::upper_bound(held.begin(), held.end(), key,
-                              [](std::uint64_t k, const grid::KeyRange& range) { return k < range.first; });
-    if (r == held.begin() || (r - 1)->last < key || (r - 1)->owner == site) counts.has_own_cell[site] = true;
+    if (held.empty() || own[k]) counts.has_own_cell[site] = true;
   }
   return counts;
 }

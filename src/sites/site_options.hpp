@@ -57,8 +57,9 @@ struct ReadOptions : SourceOptions {
   /// Warn about sites left with no cell of their own by the claims. A caller that labels the
   /// grid afterwards turns this off and reports the final count itself.
   bool warn_sites_without_cell = true;
-  /// Threads that trace and fill the sites (features are read, checked and transformed in
-  /// order on the calling thread); 0: all (OpenMP's default). The result is the same for any.
+  /// Threads of the read, the calling thread among them (it reads the features with GDAL and
+  /// reports them in feature order; the others check, transform, trace and fill them beside
+  /// it); 0: all (OpenMP's default). The result is the same for any.
   int threads = 0;
   ProgressFunc progress;         ///< may be empty
   MessageSink messages;          ///< may be empty (messages are then dropped)

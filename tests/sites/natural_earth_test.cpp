@@ -153,34 +153,7 @@ TEST(NaturalEarth, OneThreadAndSeveralReadTheSame) {
     const SiteGeometry& a = got[0].geometry;
     const SiteGeometry& b = got[1].geometry;
     SCOPED_TRACE(source == 0 ? "polygons" : source == 1 ? "lines" : "large multipolygon");
-    ASSERT_EQ(a.site_count, b.site_count);
-    ASSERT_EQ(a.pieces.size(), b.pieces.size());
-    std::size_t differ = 0;
-    for (std::size_t k = 0; k < a.pieces.size(); ++k) {
-      const SitePiece &p = a.pieces[k], &q = b.pieces[k];
-      differ += p.site != q.site || std::memcmp(&p.a, &q.a, sizeof p.a) != 0 || std::memcmp(&p.b, &q.b, sizeof p.b) != 0;
-    }
-    EXPECT_EQ(differ, 0u) << "pieces differ";
-    ASSERT_EQ(a.site_cells.size(), b.site_cells.size());
-    differ = 0;
-    for (std::size_t k = 0; k < a.site_cells.size(); ++k) {
-      const SiteCell &p = a.site_cells[k], &q = b.site_cells[k];
-      differ += p.code != q.code || p.site != q.site || p.piece_begin != q.piece_begin || p.piece_end != q.piece_end;
-    }
-    EXPECT_EQ(differ, 0u) << "site cells differ";
-    ASSERT_EQ(a.fixed_cells.size(), b.fixed_cells.size());
-    differ = 0;
-    for (std::size_t k = 0; k < a.fixed_cells.size(); ++k) {
-      differ += a.fixed_cells[k].code != b.fixed_cells[k].code || a.fixed_cells[k].site != b.fixed_cells[k].site;
-    }
-    EXPECT_EQ(differ, 0u) << "fixed cells differ";
-    ASSERT_EQ(a.fixed_nodes.size(), b.fixed_nodes.size());
-    differ = 0;
-    for (std::size_t k = 0; k < a.fixed_nodes.size(); ++k) {
-      const FixedNode &p = a.fixed_nodes[k], &q = b.fixed_nodes[k];
-      differ += p.code != q.code || p.level != q.level || p.site != q.site;
-    }
-    EXPECT_EQ(differ, 0u) << "fixed nodes differ";
+    test::expect_same_geometry(a, b);
     EXPECT_EQ(as_lines, a.fixed_cells.empty() && a.fixed_nodes.empty());
     ASSERT_EQ(got[0].table.sites.size(), got[1].table.sites.size());
     for (std::size_t s = 0; s < got[0].table.sites.size(); ++s) {

@@ -13,6 +13,7 @@
 #include <ogrsf_frmts.h>
 
 #include <algorithm>
+#include <cstring>
 #include <map>
 #include <memory>
 #include <set>
@@ -146,6 +147,39 @@ inline std::set<grid::Code> geos_inside(const OGRGeometry& polygon, int level) {
   }
   OGRDestroyPreparedGeometry(prepared);
   return out;
+}
+
+/// Expects two reads' geometries the same, every array element by element (the pieces' ends bit
+/// for bit).
+inline void expect_same_geometry(const SiteGeometry& a, const SiteGeometry& b) {
+  ASSERT_EQ(a.site_count, b.site_count);
+  ASSERT_EQ(a.pieces.size(), b.pieces.size());
+  std::size_t differ = 0;
+  for (std::size_t k = 0; k < a.pieces.size(); ++k) {
+    const SitePiece &p = a.pieces[k], &q = b.pieces[k];
+    differ += p.site != q.site || std::memcmp(&p.a, &q.a, sizeof p.a) != 0 || std::memcmp(&p.b, &q.b, sizeof p.b) != 0;
+  }
+  EXPECT_EQ(differ, 0u) << "pieces differ";
+  ASSERT_EQ(a.site_cells.size(), b.site_cells.size());
+  differ = 0;
+  for (std::size_t k = 0; k < a.site_cells.size(); ++k) {
+    const SiteCell &p = a.site_cells[k], &q = b.site_cells[k];
+    differ += p.code != q.code || p.site != q.site || p.piece_begin != q.piece_begin || p.piece_end != q.piece_end;
+  }
+  EXPECT_EQ(differ, 0u) << "site cells differ";
+  ASSERT_EQ(a.fixed_cells.size(), b.fixed_cells.size());
+  differ = 0;
+  for (std::size_t k = 0; k < a.fixed_cells.size(); ++k) {
+    differ += a.fixed_cells[k].code != b.fixed_cells[k].code || a.fixed_cells[k].site != b.fixed_cells[k].site;
+  }
+  EXPECT_EQ(differ, 0u) << "fixed cells differ";
+  ASSERT_EQ(a.fixed_nodes.size(), b.fixed_nodes.size());
+  differ = 0;
+  for (std::size_t k = 0; k < a.fixed_nodes.size(); ++k) {
+    const FixedNode &p = a.fixed_nodes[k], &q = b.fixed_nodes[k];
+    differ += p.code != q.code || p.level != q.level || p.site != q.site;
+  }
+  EXPECT_EQ(differ, 0u) << "fixed nodes differ";
 }
 
 inline std::unique_ptr<OGRGeometry> from_wkt(const std::string& wkt) {

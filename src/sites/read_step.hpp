@@ -1,0 +1,36 @@
+// A step of the read: the reading thread's share of it (GDAL's reads and the reports in feature
+// order, on the calling thread, where GDAL's messages are caught and the caller's callbacks
+// run) beside units of work that the team's threads take first come first served, the reading
+// thread too once its share is done. A step's team has no more threads than it has units (and
+// the reading thread), so that more threads never cost more than the work is worth.
+#pragma once
+
+#include <algorithm>
+#include <atomic>
+#include <cstddef>
+
+#include "common/first_exception.hpp"
+#include "common/openmp_threads.hpp"
+
+namespace qtmv::sites {
+
+/// Runs share() on the calling thread and unit(u) for u in [0, units) on up to `threads`
+/// threads (the calling thread among them), each unit once; an exception from either comes out
+/// of here (the first one; the units not started by then are left).
+template <class Share, class Unit>
+void run_step(int threads, std::size_t units, const Share& share, const Unit& unit) {
+  FirstException failure;
+  const int team = static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(std::max(threads, 1)), units + 1));
+  std::atomic<std::size_t> next{0};
+#pragma omp parallel num_threads(team) if (team > 1)
+  {
+    if (thread_index() == 0) failure.run(share);
+    for (std::size_t u = next.fetch_add(1, std::memory_order_relaxed); u < units;
+         u = next.fetch_add(1, std::memory_order_relaxed)) {
+      failure.run([&] { unit(u); });
+    }
+  }
+  failure.rethrow();
+}
+
+}  // namespace qtmv::sites

@@ -185,6 +185,7 @@ class TreeBuilder {
               RadiusStretches& stretches, KeptList& kept, PointBins* bins) const {
     const PartLists& from = parent_part(p);
     const std::int32_t* loose = from.loose.data() + p.parent.loose_at;
+    const std::size_t loose_at = kept.loose->size();
     double min_ub2 = kChord2Infinity;
     s.lb2.resize(p.parent.loose);
     s.site.resize(p.parent.loose);
@@ -219,7 +220,16 @@ class TreeBuilder {
       } else if (flat) {
         items_->flat_keep(node, s.flat, kept);
       } else {
+        const std::size_t blocks_at = kept.blocks->size();
         items_->keep(node, blocks, p.parent.length, s.filter, kept);
+        // A short list of points goes on binned (its children need not spread it out).
+        if (kept.count <= kFlatList && kept.loose->size() == loose_at &&
+            points_of_blocks(*items_, c, kept.blocks->data() + blocks_at,
+                             static_cast<std::uint32_t>(kept.blocks->size() - blocks_at), s.points)) {
+          kept.blocks->resize(blocks_at);
+          kept.count = 0;
+          binned = true;
+        }
       }
     }
     if (binned) {

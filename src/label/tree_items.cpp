@@ -41,9 +41,9 @@ std::uint64_t morton_key(const Vec3& p, int bits) {
 /// list is short (kMaxLeafList) and its items are spread over the candidates: a counting pass on
 /// their top bits leaves them nearly in order, and an insertion pass finishes (a comparison sort
 /// mispredicts half its branches on such data).
-void sort_short(const std::int32_t* a, std::size_t n, std::vector<std::uint32_t>& bucket, std::int32_t* out) {
-  constexpr int kMaxBucketBits = 7;
-  if (n > (std::size_t{1} << kMaxBucketBits)) {
+void sort_short(const std::int32_t* a, std::size_t n, std::int32_t* out) {
+  constexpr int kMaxBucketBits = 8;
+  if (n >= (std::size_t{1} << (kMaxBucketBits - 1))) {
     std::copy(a, a + n, out);
     std::sort(out, out + n);
     return;
@@ -52,9 +52,16 @@ void sort_short(const std::int32_t* a, std::size_t n, std::vector<std::uint32_t>
   for (std::size_t i = 0; i < n; ++i) top |= a[i];
   const int bucket_bits = bits_for(n);  // about two buckets an item
   const int shift = std::max(0, bits_for(static_cast<std::uint64_t>(top)) - bucket_bits);
-  bucket.assign((std::size_t{1} << bucket_bits) + 1, 0);
-  for (std::size_t i = 0; i < n; ++i) ++bucket[(a[i] >> shift) + 1];
-  for (std::size_t b = 1; b < bucket.size(); ++b) bucket[b] += bucket[b - 1];
+  const std::size_t buckets = std::size_t{1} << bucket_bits;
+  std::uint32_t bucket[std::size_t{1} << kMaxBucketBits];
+  std::fill(bucket, bucket + buckets, 0u);
+  for (std::size_t i = 0; i < n; ++i) ++bucket[a[i] >> shift];
+  std::uint32_t start = 0;  // each bucket's first place (a running sum: no chain through memory)
+  for (std::size_t b = 0; b < buckets; ++b) {
+    const std::uint32_t count = bucket[b];
+    bucket[b] = start;
+    start += count;
+  }
   for (std::size_t i = 0; i < n; ++i) out[bucket[a[i] >> shift]++] = a[i];
   for (std::size_t i = 1; i < n; ++i) {
     const std::int32_t v = out[i];
@@ -141,9 +148,7 @@ SpatialItems::SpatialItems(const std::vector<std::int32_t>& top_items, const Pie
   const auto n = static_cast<std::int64_t>(placed);
   item_.resize(placed);
   site_.resize(placed);
-  x_.resize(placed);
-  y_.resize(placed);
-  z_.resize(placed);
+  rep_.resize(placed);
   spread_.resize(placed);
   point_.resize(placed);
   std::vector<double> extent(placed);
@@ -152,9 +157,7 @@ SpatialItems::SpatialItems(const std::vector<std::int32_t>& top_items, const Pie
   for (std::int64_t k = 0; k < n; ++k) {
     const auto t = static_cast<std::int64_t>(keyed[k] & index_mask);
     item_[k] = top_items[t];
-    x_[k] = rep[t].x;
-    y_[k] = rep[t].y;
-    z_[k] = rep[t].z;
+    rep_[k] = rep[t];
     extent[k] = extent_of[t];
     site_[k] = site_of[t];
     spread_[k] = spread_of[t];
@@ -174,15 +177,16 @@ void SpatialItems::make_tiers(const std::vector<double>& extent, int threads) {
   for (std::int64_t b = 0; b < blocks; ++b) {
     const std::int64_t first = block_begin(0, b), last = block_end(0, b);
     Vec3 sum{0.0, 0.0, 0.0};
-    for (std::int64_t k = first; k < last; ++k) sum = sum + Vec3{x_[k], y_[k], z_[k]};
-    ItemBlock blk{normalised_or(sum, {x_[first], y_[first], z_[first]}), 0.0, 0.0, 0.0, site_[first], site_[first]};
+    for (std::int64_t k = first; k < last; ++k) sum = sum + rep_[k];
+    ItemBlock blk{normalised_or(sum, rep_[first]), 0.0, 0.0, 0.0, site_[first], site_[first], 1};
     for (std::int64_t k = first; k < last; ++k) {
-      const double d = sqrt(grid::chord2(blk.centre, {x_[k], y_[k], z_[k]}));
+      const double d = sqrt(grid::chord2(blk.centre, rep_[k]));
       blk.reach = std::max(blk.reach, d + extent[k]);
       blk.reach_rep = std::max(blk.reach_rep, d);
       blk.spread = std::max(blk.spread, spread_[k]);
       blk.site_min = std::min(blk.site_min, site_[k]);
       blk.site_max = std::max(blk.site_max, site_[k]);
+      blk.points &= point_[k];
     }
     blk.reach *= kReachMargin;
     blk.reach_rep *= kReachMargin;
@@ -200,7 +204,7 @@ void SpatialItems::make_tiers(const std::vector<double>& extent, int threads) {
       const std::int64_t first = b << kFanoutBits, last = std::min(below, first + 4);
       Vec3 sum{0.0, 0.0, 0.0};
       for (std::int64_t k = first; k < last; ++k) sum = sum + sub[k].centre;
-      ItemBlock blk{normalised_or(sum, sub[first].centre), 0.0, 0.0, 0.0, sub[first].site_min, sub[first].site_max};
+      ItemBlock blk{normalised_or(sum, sub[first].centre), 0.0, 0.0, 0.0, sub[first].site_min, sub[first].site_max, 1};
       for (std::int64_t k = first; k < last; ++k) {
         const double d = sqrt(grid::chord2(blk.centre, sub[k].centre));
         blk.reach = std::max(blk.reach, d + sub[k].reach);
@@ -208,6 +212,7 @@ void SpatialItems::make_tiers(const std::vector<double>& extent, int threads) {
         blk.spread = std::max(blk.spread, sub[k].spread);
         blk.site_min = std::min(blk.site_min, sub[k].site_min);
         blk.site_max = std::max(blk.site_max, sub[k].site_max);
+        blk.points &= sub[k].points;
       }
       blk.reach *= kReachMargin;
       blk.reach_rep *= kReachMargin;
@@ -278,31 +283,46 @@ void SpatialItems::add_items(std::int64_t index, std::uint8_t mask, KeptList& ou
     return;
   }
   const std::int64_t first = block_begin(0, index);
-  for (int k = 0; k < 8; ++k) {
-    if (!(mask >> k & 1)) continue;
-    out.note_sites(site_[first + k], site_[first + k]);
-    ++out.count;
+  out.count += static_cast<std::uint64_t>(__builtin_popcount(mask));
+  for (unsigned m = mask; m != 0 && !out.several_sites(); m &= m - 1) {
+    const std::int32_t site = site_[first + __builtin_ctz(m)];
+    out.note_sites(site, site);
   }
 }
 
 void SpatialItems::keep_items(const NodeBounds& node, std::int64_t index, std::uint8_t mask, KeptList& out) const {
   const std::int64_t first = block_begin(0, index);
-  std::uint8_t kept = 0;
-  for (int k = 0; k < 8; ++k) {
-    if (!(mask >> k & 1)) continue;
-    const std::int64_t pos = first + k;
-    double lb2, ub2;
-    bounds(node.centre, pos, &lb2, &ub2);
-    if (!(lb2 <= node.threshold)) continue;
-    if (!(spread_[pos] > kGroupSplit * node.radius)) {  // not splits_item: the item itself
-      kept = static_cast<std::uint8_t>(kept | (1u << k));
+  unsigned kept = 0;
+  if (tiers_[0][index].points) {
+    // Points: their bounds are their squared chords, and none is split.
+    for (int k = 0; k < 8; ++k) {
+      const Vec3& a = rep_[first + (mask >> k & 1 ? k : 0)];
+      const double dx = node.centre.x - a.x, dy = node.centre.y - a.y, dz = node.centre.z - a.z;
+      kept |= (dx * dx + dy * dy + dz * dz <= node.threshold ? 1u : 0u) << k;  // as piece_chord2
+    }
+    kept &= mask;
+    out.count += static_cast<std::uint64_t>(__builtin_popcount(kept));
+    for (unsigned m = kept; m != 0 && !out.several_sites(); m &= m - 1) {
+      const std::int32_t site = site_[first + __builtin_ctz(m)];
+      out.note_sites(site, site);
+    }
+  } else {
+    for (int k = 0; k < 8; ++k) {
+      if (!(mask >> k & 1)) continue;
+      const std::int64_t pos = first + k;
+      double lb2, ub2;
+      bounds(node.centre, pos, &lb2, &ub2);
+      if (!(lb2 <= node.threshold)) continue;
+      if (spread_[pos] > kGroupSplit * node.radius) {
+        keep_split(node, pos, out);
+        continue;
+      }
+      kept |= 1u << k;  // not splits_item: the item itself
       out.note_sites(site_[pos], site_[pos]);
       ++out.count;
-      continue;
     }
-    keep_split(node, pos, out);
   }
-  if (kept) out.blocks->push_back({static_cast<std::int32_t>(index), 0, kept});
+  if (kept) out.blocks->push_back({static_cast<std::int32_t>(index), 0, static_cast<std::uint8_t>(kept)});
 }
 
 void SpatialItems::keep_split(const NodeBounds& node, std::int64_t pos, KeptList& out) const {
@@ -314,20 +334,6 @@ void SpatialItems::keep_split(const NodeBounds& node, std::int64_t pos, KeptList
   refine_kept(node.centre, item, pieces_, groups_, node.radius, node.threshold, out.loose->data() + at);
   out.count += static_cast<std::uint64_t>(n);
   out.note_sites(site_[pos], site_[pos]);
-}
-
-template <class Visit>
-void SpatialItems::for_each_position(const ListBlock* list, std::uint32_t count, Visit visit) const {
-  for (std::uint32_t k = 0; k < count; ++k) {
-    const ListBlock& b = list[k];
-    if (b.tier > 0) {
-      const std::int64_t end = block_end(b.tier, b.index);
-      for (std::int64_t pos = block_begin(b.tier, b.index); pos < end; ++pos) visit(static_cast<std::int32_t>(pos));
-      continue;
-    }
-    const std::int32_t first = static_cast<std::int32_t>(block_begin(0, b.index));
-    for (unsigned mask = b.mask; mask != 0; mask &= mask - 1) visit(first + __builtin_ctz(mask));
-  }
 }
 
 void SpatialItems::flatten(const ListBlock* list, std::uint32_t count, std::uint32_t positions, FlatList& f) const {
@@ -343,9 +349,9 @@ void SpatialItems::flatten(const ListBlock* list, std::uint32_t count, std::uint
   for_each_position(list, count, [&](std::int32_t pos) {
     f.pos[n] = pos;
     f.site[n] = site_[pos];
-    f.x[n] = x_[pos];
-    f.y[n] = y_[pos];
-    f.z[n] = z_[pos];
+    f.x[n] = rep_[pos].x;
+    f.y[n] = rep_[pos].y;
+    f.z[n] = rep_[pos].z;
     points &= point_[pos] != 0;
     ++n;
   });
@@ -533,7 +539,7 @@ void SpatialItems::write_in_order(const ListBlock* list, const std::int32_t* poi
     std::size_t n = 0;
     each_position([&](std::int32_t pos) { items[n++] = item_[pos]; });
     std::copy(loose, loose + loose_count, items.begin() + static_cast<std::ptrdiff_t>(n));
-    sort_short(items.data(), items.size(), s.bucket, out);
+    sort_short(items.data(), items.size(), out);
     return;
   }
   auto key = [&](std::int32_t item) {

@@ -40,6 +40,7 @@ struct ItemBlock {
   double spread;          ///< the largest PieceGroup::spread of its group items (0 when none)
   std::int32_t site_min;  ///< its items' least and greatest site
   std::int32_t site_max;
+  std::int32_t points;    ///< 1: every item is a point piece
 };
 
 /// A node as its filter sees it: centre (unit vector), radius (radians, node_radius) and the
@@ -64,6 +65,8 @@ struct KeptList {
     site_min = lo < site_min ? lo : site_min;
     site_max = hi > site_max ? hi : site_max;
   }
+  /// Kept items of two sites were seen: no more sites can change one_site().
+  bool several_sites() const { return site_min < site_max; }
   /// The plain filter's "all kept items have one site" (true when none is kept), and that site.
   bool one_site() const { return count == 0 || site_min == site_max; }
   std::int32_t site() const { return count == 0 ? -1 : site_min; }
@@ -84,7 +87,6 @@ struct FilterScratch {
   std::vector<double> chord2;        ///< per list block: squared chord from the node's centre to its cap's
   std::vector<std::uint64_t> keyed;  ///< write_in_order's
   std::vector<std::int32_t> items;   ///< write_in_order's
-  std::vector<std::uint32_t> bucket;
   struct Achiever {
     Best best;
     std::int32_t item;
@@ -106,12 +108,27 @@ class SpatialItems {
 
   std::int32_t size() const { return static_cast<std::int32_t>(item_.size()); }
   const std::vector<std::int32_t>& loose() const { return loose_; }
-  /// Per position: the item, its site, its representative point's coordinates.
+  /// Per position: the item, its site, its representative point.
   const std::int32_t* items() const { return item_.data(); }
   const std::int32_t* sites() const { return site_.data(); }
-  const double* xs() const { return x_.data(); }
-  const double* ys() const { return y_.data(); }
-  const double* zs() const { return z_.data(); }
+  const Vec3* points() const { return rep_.data(); }
+  /// Per position: 1 when its item is a point piece (its bounds are its chord2 to its point).
+  const std::uint8_t* point_flags() const { return point_.data(); }
+
+  /// Calls visit(pos) for each position of `list`, in order.
+  template <class Visit>
+  void for_each_position(const ListBlock* list, std::uint32_t count, Visit visit) const {
+    for (std::uint32_t k = 0; k < count; ++k) {
+      const ListBlock& b = list[k];
+      if (b.tier > 0) {
+        const std::int64_t end = block_end(b.tier, b.index);
+        for (std::int64_t pos = block_begin(b.tier, b.index); pos < end; ++pos) visit(static_cast<std::int32_t>(pos));
+        continue;
+      }
+      const auto first = static_cast<std::int32_t>(block_begin(0, b.index));
+      for (unsigned mask = b.mask; mask != 0; mask &= mask - 1) visit(first + __builtin_ctz(mask));
+    }
+  }
   /// The whole of the positions as one list block (none when there are no positions).
   DefaultInitVector<ListBlock> whole() const;
 
@@ -163,7 +180,8 @@ class SpatialItems {
   /// item_bounds of position pos from x: the same bits.
   void bounds(const Vec3& x, std::int64_t pos, double* lb2, double* ub2) const {
     if (point_[pos]) {
-      const double dx = x.x - x_[pos], dy = x.y - y_[pos], dz = x.z - z_[pos];
+      const Vec3& a = rep_[pos];
+      const double dx = x.x - a.x, dy = x.y - a.y, dz = x.z - a.z;
       *lb2 = *ub2 = dx * dx + dy * dy + dz * dz;  // grid::chord2(x, a), as piece_chord2
       return;
     }
@@ -171,9 +189,6 @@ class SpatialItems {
     item_bounds(x, item_[pos], pieces_, groups_, lb2, ub2, &site);
   }
   void keep_split(const NodeBounds& node, std::int64_t pos, KeptList& out) const;
-  /// Calls visit(pos) for each position of `list`, in order.
-  template <class Visit>
-  void for_each_position(const ListBlock* list, std::uint32_t count, Visit visit) const;
   void nearest_in_block(const Vec3& x, int tier, std::int64_t index, std::uint8_t mask, double d2, double& best,
                         double& root) const;
   void keep_block(const NodeBounds& node, double root, int tier, std::int64_t index, std::uint8_t mask, double d2,
@@ -189,8 +204,9 @@ class SpatialItems {
   const Piece* pieces_;
   const PieceGroup* groups_;
   DefaultInitVector<std::int32_t> item_, site_;
-  DefaultInitVector<double> x_, y_, z_, spread_;
-  DefaultInitVector<std::uint8_t> point_;  ///< 1: a point piece, whose bounds are its chord2 to (x, y, z)
+  DefaultInitVector<Vec3> rep_;  ///< the representative points
+  DefaultInitVector<double> spread_;
+  DefaultInitVector<std::uint8_t> point_;  ///< 1: a point piece, whose bounds are its chord2 to its point
   std::vector<DefaultInitVector<ItemBlock>> tiers_;
   std::vector<std::int32_t> loose_;
 };

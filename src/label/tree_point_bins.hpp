@@ -33,6 +33,7 @@ struct PointScratch {
   int searched = 0;                  ///< the bins whose chord2 binned_least wrote
   DefaultInitVector<std::int32_t> pos;    ///< the node's kept points, before they are binned
   DefaultInitVector<double> kept_chord2;  ///< and their squared chords from its centre
+  DefaultInitVector<std::uint8_t> bin;    ///< emit_binned's: each kept point's bin
 };
 
 /// The least squared chord from x to the `count` points `points` (positions of `items`) binned by
@@ -49,10 +50,14 @@ void binned_keep(const SpatialItems& items, const NodeBounds& node, const std::i
 /// from the node's centre f.lb2 holds.
 void flat_points_keep(const FlatList& f, const NodeBounds& node, PointScratch& s);
 
+/// The `blocks` (count of them) that a node (centre x) kept, into s.pos and s.kept_chord2 when
+/// every item in them is a point piece (returns true), so that they can be kept binned.
+bool points_of_blocks(const SpatialItems& items, const Vec3& x, const ListBlock* blocks, std::uint32_t count,
+                      PointScratch& s);
+
 /// The points s.pos (squared chords s.kept_chord2 from the node's centre) binned about the node:
 /// appended to *out.points, their count and sites noted in out, their bins in *bins. When `bins`
 /// is null (a node that cannot have children) they are appended as they are.
-void emit_binned(const SpatialItems& items, const NodeBounds& node, const PointScratch& s, KeptList& out,
-                 PointBins* bins);
+void emit_binned(const SpatialItems& items, const NodeBounds& node, PointScratch& s, KeptList& out, PointBins* bins);
 
 }  // namespace qtmv::label

@@ -100,88 +100,81 @@ SpatialItems::SpatialItems(const std::vector<std::int32_t>& top_items, const Pie
                            int threads)
     : pieces_(pieces), groups_(groups) {
   const auto n_top = static_cast<std::int64_t>(top_items.size());
-  // The items' data in candidate order first (the pieces are read in order), then permuted.
-  DefaultInitVector<Vec3> rep(top_items.size());
-  DefaultInitVector<double> extent_of(top_items.size()), spread_of(top_items.size());
-  DefaultInitVector<std::int32_t> site_of(top_items.size());
-  DefaultInitVector<std::uint8_t> point_of(top_items.size());
+  // Keys: a Morton code of the item's point above its index among the top items (radix_sort is
+  // stable, so ties stay in candidate order). Wide items (long lines' runs) stay loose, in
+  // candidate order.
+  const int index_bits = std::max(1, bits_for(static_cast<std::uint64_t>(n_top)));
+  const int axis_bits = std::min(16, (64 - index_bits) / 3);
+  auto key = [&](std::int64_t t, bool* wide) {
+    Vec3 rep;
+    double extent;
+    item_cap(top_items[t], pieces, groups, &rep, &extent);
+    *wide = extent > kLooseExtent;
+    return (morton_key(rep, axis_bits) << index_bits) | static_cast<std::uint64_t>(t);
+  };
+  DefaultInitVector<std::uint64_t> keyed(top_items.size());
   std::int64_t wide = 0;
 #pragma omp parallel for schedule(static) num_threads(threads) reduction(+ : wide)
   for (std::int64_t t = 0; t < n_top; ++t) {
-    const std::int32_t item = top_items[t];
-    item_cap(item, pieces, groups, &rep[t], &extent_of[t]);
-    wide += extent_of[t] > kLooseExtent ? 1 : 0;
-    if (is_group_item(item)) {
-      const PieceGroup& g = groups[item_group(item)];
-      site_of[t] = g.arc.site;
-      spread_of[t] = g.spread;
-      point_of[t] = 0;
-    } else {
-      site_of[t] = pieces[item].site;
-      spread_of[t] = 0.0;
-      point_of[t] = (pieces[item].flags & kPiecePoint) ? 1 : 0;
-    }
+    bool is_wide;
+    keyed[t] = key(t, &is_wide);
+    wide += is_wide ? 1 : 0;
   }
-  // Keys: a Morton code of the point above the index of the top item (radix_sort is stable, so
-  // ties stay in candidate order). Wide items (long lines' runs) stay loose, in candidate order.
-  const int index_bits = std::max(1, bits_for(static_cast<std::uint64_t>(n_top)));
-  const int axis_bits = std::min(16, (64 - index_bits) / 3);
-  DefaultInitVector<std::uint64_t> keyed(static_cast<std::size_t>(n_top - wide));
-  auto key = [&](std::int64_t t) {
-    return (morton_key(rep[t], axis_bits) << index_bits) | static_cast<std::uint64_t>(t);
-  };
-  if (wide == 0) {
-#pragma omp parallel for schedule(static) num_threads(threads)
-    for (std::int64_t t = 0; t < n_top; ++t) keyed[t] = key(t);
-  } else {
+  if (wide > 0) {
     std::size_t placed = 0;
     for (std::int64_t t = 0; t < n_top; ++t) {
-      if (extent_of[t] > kLooseExtent) {
+      bool is_wide;
+      key(t, &is_wide);
+      if (is_wide) {
         loose_.push_back(top_items[t]);
       } else {
-        keyed[placed++] = key(t);
+        keyed[placed++] = keyed[t];
       }
     }
+    keyed.resize(placed);
   }
   radix_sort(keyed, 3 * axis_bits, [&](std::uint64_t k) { return k >> index_bits; });
-  const std::size_t placed = keyed.size();
-  const auto n = static_cast<std::int64_t>(placed);
-  item_.resize(placed);
-  site_.resize(placed);
-  rep_.resize(placed);
-  spread_.resize(placed);
-  point_.resize(placed);
-  std::vector<double> extent(placed);
-  const std::uint64_t index_mask = (std::uint64_t{1} << index_bits) - 1;
-#pragma omp parallel for schedule(static) num_threads(threads)
-  for (std::int64_t k = 0; k < n; ++k) {
-    const auto t = static_cast<std::int64_t>(keyed[k] & index_mask);
-    item_[k] = top_items[t];
-    rep_[k] = rep[t];
-    extent[k] = extent_of[t];
-    site_[k] = site_of[t];
-    spread_[k] = spread_of[t];
-    point_[k] = point_of[t];
-  }
-  make_tiers(extent, threads);
+  place(top_items, keyed, (std::uint64_t{1} << index_bits) - 1, threads);
 }
 
-void SpatialItems::make_tiers(const std::vector<double>& extent, int threads) {
-  const std::int64_t n = size();
+void SpatialItems::place(const std::vector<std::int32_t>& top_items, const DefaultInitVector<std::uint64_t>& keyed,
+                         std::uint64_t index_mask, int threads) {
+  const auto n = static_cast<std::int64_t>(keyed.size());
+  item_.resize(keyed.size());
+  site_.resize(keyed.size());
+  rep_.resize(keyed.size());
+  spread_.resize(keyed.size());
+  point_.resize(keyed.size());
   if (n == 0) return;
-  // Tier 0: blocks of 8 positions, their caps from the items.
+  // Tier 0: blocks of 8 positions, their items' data read and their caps made in one pass.
   std::int64_t blocks = (n + 7) >> kTier0Bits;
   tiers_.emplace_back(blocks);
   DefaultInitVector<ItemBlock>& base = tiers_.back();
 #pragma omp parallel for schedule(static) num_threads(threads)
   for (std::int64_t b = 0; b < blocks; ++b) {
     const std::int64_t first = block_begin(0, b), last = block_end(0, b);
+    double extent[8];
     Vec3 sum{0.0, 0.0, 0.0};
-    for (std::int64_t k = first; k < last; ++k) sum = sum + rep_[k];
+    for (std::int64_t k = first; k < last; ++k) {
+      const std::int32_t item = top_items[keyed[k] & index_mask];
+      item_[k] = item;
+      item_cap(item, pieces_, groups_, &rep_[k], &extent[k - first]);
+      if (is_group_item(item)) {
+        const PieceGroup& g = groups_[item_group(item)];
+        site_[k] = g.arc.site;
+        spread_[k] = g.spread;
+        point_[k] = 0;
+      } else {
+        site_[k] = pieces_[item].site;
+        spread_[k] = 0.0;
+        point_[k] = (pieces_[item].flags & kPiecePoint) ? 1 : 0;
+      }
+      sum = sum + rep_[k];
+    }
     ItemBlock blk{normalised_or(sum, rep_[first]), 0.0, 0.0, 0.0, site_[first], site_[first], 1};
     for (std::int64_t k = first; k < last; ++k) {
       const double d = sqrt(grid::chord2(blk.centre, rep_[k]));
-      blk.reach = std::max(blk.reach, d + extent[k]);
+      blk.reach = std::max(blk.reach, d + extent[k - first]);
       blk.reach_rep = std::max(blk.reach_rep, d);
       blk.spread = std::max(blk.spread, spread_[k]);
       blk.site_min = std::min(blk.site_min, site_[k]);

@@ -199,7 +199,10 @@ class SpatialItems {
                      FilterScratch& s) const;
   /// best_in_list's step for one item.
   void consider_item(const Vec3& x, std::int32_t item, Best& best, FilterScratch& s) const;
-  void make_tiers(const std::vector<double>& extent, int threads);
+  /// Fills the positions' arrays from the sorted keys (their low bits: the index among the top
+  /// items) and makes the blocks' caps, tier by tier.
+  void place(const std::vector<std::int32_t>& top_items, const DefaultInitVector<std::uint64_t>& keyed,
+             std::uint64_t index_mask, int threads);
 
   const Piece* pieces_;
   const PieceGroup* groups_;

@@ -1,9 +1,11 @@
-// The host's build of the pruned tree (label_tree.hpp), level by level on all cores; the device
-// build (cuda/tree_build_cuda.cu) makes the same tree with the same node rule (tree_node_rule.hpp).
+// The host's build of the pruned tree (label_tree.hpp), level by level on all cores, coarse
+// levels block by block (tree_items.hpp); the device build (cuda/tree_build_cuda.cu) makes the
+// same tree with the same node rule (tree_node_rule.hpp).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <memory>
 #include <stdexcept>
 #include <utility>
 #include <vector>
@@ -16,48 +18,81 @@
 #include "label/label_engine.hpp"
 #include "common/openmp_threads.hpp"
 #include "label/piece_groups.hpp"
+#include "label/tree_items.hpp"
+#include "label/tree_point_bins.hpp"
 #include "label/tree_node_rule.hpp"
 
 namespace qtmv::label {
 
 namespace {
 
+/// A node's candidate list in the buffers of one part of the level above: blocks of positions
+/// (tree_items.hpp) or point positions (tree_point_bins.hpp), and loose items; `items` in all.
+struct ListRef {
+  std::uint64_t at;        ///< the first block, or point
+  std::uint64_t loose_at;
+  std::uint32_t length;    ///< blocks, or points
+  std::uint32_t loose;
+  std::uint32_t items;
+  std::int32_t part;
+  std::int32_t bins;       ///< points: an internal node's PointBins in the part, or -1 (a leaf's)
+  bool points;             ///< the positions are points, binned; else blocks
+};
+
 /// A node of the level being built, with the list its parent kept (the node filters it).
 struct Pending {
   grid::Cell cell;
   std::int32_t node;
-  std::uint64_t parent_offset;
-  std::uint32_t parent_count;
+  ListRef parent;
 };
 
-/// What the filter decided for one node.
+/// What the filter decided for one node; `kept` lies in its part's buffers.
 struct Decision {
-  std::int32_t kind;        // kUniform, kInternal, or 1 for a list leaf
-  std::int32_t site;        // for kUniform
-  std::uint64_t offset;     // of its kept list in its thread's buffer
-  std::uint32_t count;      // kept candidates
-};
-
-/// An item's bounds from a node's centre, as the filter weighs them.
-struct Bounds {
-  double lb2;
-  std::int32_t site;
+  std::int32_t kind;  // kUniform, kInternal, or 1 for a list leaf
+  std::int32_t site;  // for kUniform
+  ListRef kept;
 };
 
 /// One level's filtering: each node's decision, and per part (prefix sums over the parts, parts +
-/// 1 entries) the list entries of its leaves and internal nodes and how many of each, which place
-/// their lists and children in the next level.
+/// 1 entries) the list entries of its leaves and how many internal nodes and leaves it has,
+/// which place its leaves' lists and its nodes' children in the tree.
 struct LevelFilter {
   int parts = 0;
   std::vector<std::pair<std::int64_t, std::int64_t>> chunk;  ///< each part's nodes
   DefaultInitVector<Decision> decisions;
-  std::vector<std::uint64_t> leaf_total, internal_total, internal_count, leaf_count;
+  std::vector<std::uint64_t> leaf_total, internal_count, leaf_count;
   double evaluations = 0;  ///< candidate evaluations of the level
 };
 
+/// A part's kept lists: its internal nodes' lists are their children's parent lists, read where
+/// they are (no copy) while the next level is filtered.
+struct PartLists {
+  DefaultInitVector<ListBlock> blocks;
+  DefaultInitVector<std::int32_t> loose;
+  DefaultInitVector<std::int32_t> points;
+  std::vector<PointBins> bins;
+};
+
+/// A thread's scratch.
+struct Scratch {
+  std::vector<double> lb2;         ///< the loose items' lower bounds
+  std::vector<std::int32_t> site;  ///< and sites
+  FilterScratch filter;            ///< the blocks' filter's
+  PointScratch points;             ///< the point bins' filter's
+  FlatList flat;                   ///< a short parent list spread out, for its children
+  const ListBlock* flat_of = nullptr;  ///< whose: its blocks, and how many
+  std::uint32_t flat_blocks = 0;
+};
+
+/// Lists of at most this many items are spread out item by item for their nodes' children;
+/// longer ones (the coarse levels') are filtered block by block.
+constexpr std::uint32_t kFlatList = 4096;
+
 /// The host's build, level by level: each level's nodes are filtered (filter_level: the items
 /// each keeps, and what it becomes), then the next level's nodes, lists and pending entries are
-/// laid out and filled (grow_level).
+/// laid out and filled (grow_level). The octants' items are placed in a spatial order
+/// (SpatialItems), so that a node's list is blocks of positions that nodes filter block by
+/// block; a list leaf's list is put back in the candidates' order, the plain filter's.
 class TreeBuilder {
  public:
   TreeBuilder(const std::vector<Piece>& candidates, int level, bool with_distance, int threads,
@@ -89,16 +124,26 @@ class TreeBuilder {
       t_level = now_seconds();
     }
     groups_ = tree_.groups.empty() ? nullptr : tree_.groups.data();
-    parent_lists_.assign(plan.top_items.begin(), plan.top_items.end());
-    for (int o = 0; o < grid::kOctants; ++o) {
-      pending_.push_back({grid::Cell{o, 0, 0}, o, 0, static_cast<std::uint32_t>(parent_lists_.size())});
+    items_ = std::make_unique<SpatialItems>(plan.top_items, candidates_.data(), groups_, threads_);
+    if (trace) {
+      trace_printf(TraceStage::label, "host items %9.3f ms  %d placed, %zu loose", (now_seconds() - t_level) * 1e3,
+                   items_->size(), items_->loose().size());
+      t_level = now_seconds();
     }
+    // The octants' list: every item, in one part.
+    parts_[1].resize(1);
+    parts_[1][0].blocks = items_->whole();
+    parts_[1][0].loose.assign(items_->loose().begin(), items_->loose().end());
+    const ListRef all{0, 0, static_cast<std::uint32_t>(parts_[1][0].blocks.size()),
+                      static_cast<std::uint32_t>(parts_[1][0].loose.size()),
+                      static_cast<std::uint32_t>(plan.top_items.size()), 0, -1, false};
+    for (int o = 0; o < grid::kOctants; ++o) pending_.push_back({grid::Cell{o, 0, 0}, o, all});
     // Candidate evaluations: in the build, and by the cells of list leaves afterwards.
     double weighted_candidates = 0;
     scratch_.resize(threads_);
     for (int l = 0; l <= level_ && !pending_.empty(); ++l) {
       const std::int64_t n = static_cast<std::int64_t>(pending_.size());
-      const LevelFilter filter = filter_level(l);
+      const LevelFilter& filter = filter_level(l);
       weighted_candidates += grow_level(l, filter) + filter.evaluations;
       if (trace) {
         trace_printf(TraceStage::label, "host level %2d %9.3f ms  nodes %lld entries %llu", l,
@@ -133,122 +178,207 @@ class TreeBuilder {
     return false;
   }
 
-  /// Filters the list node p (of level l, centre c) kept by its parent: appends the items it
-  /// keeps to `out` and decides what it becomes (decide_node). `bounds`: scratch.
-  Decision decide(const Pending& p, int l, const Vec3& c, std::vector<std::int32_t>& out, std::vector<Bounds>& bounds,
+  /// Filters the parent's list of p (a node of level l < L, centre c): the items it keeps go to
+  /// `kept` (item_bounds against prune_threshold, refine_kept). Returns true when they are points
+  /// kept binned (their bins in *bins), false when blocks.
+  bool filter(const Pending& p, int l, const Vec3& c, const CoverLookup& covered, Scratch& s,
+              RadiusStretches& stretches, KeptList& kept, PointBins* bins) const {
+    const PartLists& from = parent_part(p);
+    const std::int32_t* loose = from.loose.data() + p.parent.loose_at;
+    const std::size_t loose_at = kept.loose->size();
+    double min_ub2 = kChord2Infinity;
+    s.lb2.resize(p.parent.loose);
+    s.site.resize(p.parent.loose);
+    for (std::uint32_t k = 0; k < p.parent.loose; ++k) {
+      double ub2;
+      item_bounds(c, loose[k], candidates_.data(), groups_, &s.lb2[k], &ub2, &s.site[k]);
+      min_ub2 = std::min(min_ub2, ub2);
+    }
+    const double radius = node_radius(l, p.cell, stretches(l, p.cell.row));
+    bool binned = false;
+    NodeBounds node{c, radius, 0.0};
+    if (p.parent.points) {
+      const std::int32_t* points = from.points.data() + p.parent.at;
+      const PointBins& parent_bins = from.bins[p.parent.bins];
+      node.threshold = prune_threshold(binned_least(*items_, c, points, parent_bins, min_ub2, s.points), radius);
+      binned_keep(*items_, node, points, parent_bins, s.points);
+      binned = true;
+    } else {
+      const ListBlock* blocks = from.blocks.data() + p.parent.at;
+      const bool flat = p.parent.items <= kFlatList;
+      if (flat && (s.flat_of != blocks || s.flat_blocks != p.parent.length)) {
+        items_->flatten(blocks, p.parent.length, p.parent.items - p.parent.loose, s.flat);
+        s.flat_of = blocks;  // a sibling's list, spread out already, serves again
+        s.flat_blocks = p.parent.length;
+      }
+      min_ub2 = flat ? items_->flat_bounds(c, s.flat, min_ub2)
+                     : items_->least_upper_bound(c, blocks, p.parent.length, min_ub2, s.filter);
+      node.threshold = prune_threshold(min_ub2, radius);
+      if (flat && s.flat.points) {
+        flat_points_keep(s.flat, node, s.points);
+        binned = true;
+      } else if (flat) {
+        items_->flat_keep(node, s.flat, kept);
+      } else {
+        const std::size_t blocks_at = kept.blocks->size();
+        items_->keep(node, blocks, p.parent.length, s.filter, kept);
+        // A short list of points goes on binned (its children need not spread it out).
+        if (kept.count <= kFlatList && kept.loose->size() == loose_at &&
+            points_of_blocks(*items_, c, kept.blocks->data() + blocks_at,
+                             static_cast<std::uint32_t>(kept.blocks->size() - blocks_at), s.points)) {
+          kept.blocks->resize(blocks_at);
+          kept.count = 0;
+          binned = true;
+        }
+      }
+    }
+    if (binned) {
+      // A node that keeps few enough at the list level has no children (decide_node): its list
+      // needs no bins.
+      const bool leaf = l >= list_level_ && p.parent.loose == 0 && s.points.pos.size() <= kMaxLeafList &&
+                        !(covered.partly && cover_.split_partly);
+      emit_binned(*items_, node, s.points, kept, leaf ? nullptr : bins);
+      if (leaf) *bins = PointBins{{0.0, 0.0, 0.0}, -1.0, {}};  // none: decide checks
+    }
+    for (std::uint32_t k = 0; k < p.parent.loose; ++k) {
+      if (!(s.lb2[k] <= node.threshold)) continue;
+      const std::size_t at = kept.loose->size();
+      const std::int32_t n = refine_kept(c, loose[k], candidates_.data(), groups_, radius, node.threshold, nullptr);
+      if (n == 0) continue;  // none of a loose group's pieces is near the node
+      kept.loose->resize(at + static_cast<std::size_t>(n));
+      refine_kept(c, loose[k], candidates_.data(), groups_, radius, node.threshold, kept.loose->data() + at);
+      kept.count += static_cast<std::uint64_t>(n);
+      kept.note_sites(s.site[k], s.site[k]);
+    }
+    return binned;
+  }
+
+  /// Filters the parent's list of p (of level l, centre c), appending the items it keeps to
+  /// `out`, and decides what it becomes (decide_node).
+  Decision decide(const Pending& p, int l, const Vec3& c, PartLists& out, std::int32_t part, Scratch& s,
                   RadiusStretches& stretches) const {
-    const std::int32_t* list = parent_lists_.data() + p.parent_offset;
-    Decision dec{0, -1, out.size(), 0};
-    bool one_site = true;  // the kept candidates all have site dec.site
+    const std::size_t blocks_at = out.blocks.size(), points_at = out.points.size(), loose_at = out.loose.size();
+    KeptList kept{&out.blocks, &out.loose, &out.points};
+    bool one_site = true, binned = false;
+    std::int32_t site = -1;
+    PointBins bins;
     // A node all of whose cells one site claims needs no filtering (decide_node).
     const CoverLookup covered = cover_lookup(cover_, p.cell, l);
     if (l == level_ && covered.site < 0) {
       // The node is one cell of the level: its label is the best candidate at its centre,
       // settled here once rather than by every look-up.
       std::int32_t winner = -1;
-      dec.site = best_of_items(c, list, static_cast<std::int32_t>(p.parent_count), candidates_.data(), groups_,
-                               &winner).site;
-      if (with_distance_) out.push_back(winner);
+      const PartLists& from = parent_part(p);
+      site = items_->best_in_list(c, p.parent.points ? nullptr : from.blocks.data() + p.parent.at,
+                                  p.parent.points ? from.points.data() + p.parent.at : nullptr, p.parent.length,
+                                  from.loose.data() + p.parent.loose_at, p.parent.loose, s.filter,
+                                  with_distance_ ? &winner : nullptr).site;
+      if (with_distance_) {
+        out.loose.push_back(winner);
+        kept.count = 1;
+      }
     }
     if (l < level_ && covered.site < 0) {
-      bounds.resize(p.parent_count);
-      double min_ub2 = kChord2Infinity;
-      for (std::uint32_t k = 0; k < p.parent_count; ++k) {
-        double ub2;
-        item_bounds(c, list[k], candidates_.data(), groups_, &bounds[k].lb2, &ub2, &bounds[k].site);
-        min_ub2 = std::min(min_ub2, ub2);
-      }
-      const double radius = node_radius(l, p.cell, stretches(l, p.cell.row));
-      const double threshold = prune_threshold(min_ub2, radius);
-      for (std::uint32_t k = 0; k < p.parent_count; ++k) {
-        if (bounds[k].lb2 <= threshold) {
-          const std::size_t at = out.size();
-          out.resize(at + static_cast<std::size_t>(refine_kept(c, list[k], candidates_.data(), groups_, radius,
-                                                               threshold, nullptr)));
-          if (out.size() == at) continue;  // none of a loose group's pieces is near the node
-          refine_kept(c, list[k], candidates_.data(), groups_, radius, threshold, out.data() + at);
-          const std::int32_t site = bounds[k].site;
-          if (dec.site < 0) dec.site = site;
-          one_site = one_site && site == dec.site;
-        }
-      }
+      binned = filter(p, l, c, covered, s, stretches, kept, &bins);
+      one_site = kept.one_site();
+      site = kept.site();
     }
-    dec.count = static_cast<std::uint32_t>(out.size() - dec.offset);
-    const NodeDecision rule =
-        decide_node(l == level_, with_distance_, l >= list_level_, dec.count, one_site, dec.site, covered.site,
-                    covered.partly, cover_.split_partly, covered.claim_site);
+    if (kept.count > 0x7fffffffu) throw std::runtime_error("the labeller's tree: a list of 2^31 candidates");
+    Decision dec{0, -1, {binned ? points_at : blocks_at, loose_at,
+                         static_cast<std::uint32_t>(binned ? out.points.size() - points_at : out.blocks.size() - blocks_at),
+                         static_cast<std::uint32_t>(out.loose.size() - loose_at), static_cast<std::uint32_t>(kept.count),
+                         part, -1, binned}};
+    const NodeDecision rule = decide_node(l == level_, with_distance_, l >= list_level_, dec.kept.items, one_site, site,
+                                          covered.site, covered.partly, cover_.split_partly, covered.claim_site);
     dec.kind = rule.kind;
     dec.site = rule.site;
     if (dec.kind == kUniform) {
-      out.resize(dec.offset);
-      dec.count = 0;
+      out.blocks.resize(blocks_at);
+      out.points.resize(points_at);
+      out.loose.resize(loose_at);
+      dec.kept = {blocks_at, loose_at, 0, 0, 0, part, -1, false};
+    } else if (dec.kind == kInternal && binned) {
+      if (!(bins.threshold >= 0.0)) throw std::logic_error("build_tree: a node taken for a leaf has children");
+      dec.kept.bins = static_cast<std::int32_t>(out.bins.size());
+      out.bins.push_back(bins);
     }
     return dec;
   }
 
+  const PartLists& parent_part(const Pending& p) const { return (*parent_parts_)[p.parent.part]; }
+
+  Scratch& thread_scratch() {
+#ifdef _OPENMP
+    return scratch_[omp_get_thread_num()];
+#else
+    return scratch_[0];
+#endif
+  }
+
   /// Decides every pending node of level l. Its nodes are cut into parts, several per thread for
-  /// balance; a part's kept lists go to its own buffer (kept_) and are concatenated in order
-  /// afterwards.
-  LevelFilter filter_level(int l) {
+  /// balance; a part's kept lists go to its own buffers, where the next level reads them.
+  const LevelFilter& filter_level(int l) {
     const std::int64_t n = static_cast<std::int64_t>(pending_.size());
-    LevelFilter f;
+    LevelFilter& f = filter_;  // its arrays' room kept from level to level
     f.decisions.resize(pending_.size());  // each written below
     const int parts = static_cast<int>(std::min<std::int64_t>(n, std::int64_t{threads_} * 16));
     f.parts = parts;
-    if (static_cast<int>(kept_.size()) < parts) kept_.resize(parts);
-    f.leaf_total.assign(parts + 1, 0);
-    f.internal_total.assign(parts + 1, 0);
-    f.internal_count.assign(parts + 1, 0);
-    f.leaf_count.assign(parts + 1, 0);
+    // The parts' buffers of two levels before are reused (fresh pages cost the kernel's zeroing).
+    std::vector<PartLists>& kept = parts_[l & 1];
+    parent_parts_ = &parts_[(l + 1) & 1];
+    if (static_cast<int>(kept.size()) < parts) kept.resize(parts);
+    for (std::vector<std::uint64_t>* v : {&f.leaf_total, &f.internal_count, &f.leaf_count}) v->assign(parts + 1, 0);
     f.chunk.resize(parts);
+    for (Scratch& s : scratch_) s.flat_of = nullptr;
     double evaluations = 0;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(threads_) reduction(+ : evaluations)
     for (int t = 0; t < parts; ++t) {
       const std::int64_t begin = n * t / parts, end = n * (t + 1) / parts;
       f.chunk[t] = {begin, end};
-      std::vector<std::int32_t>& out = kept_[t];
-#ifdef _OPENMP
-      std::vector<Bounds>& bounds = scratch_[omp_get_thread_num()];
-#else
-      std::vector<Bounds>& bounds = scratch_[0];
-#endif
-      out.clear();
-      std::uint64_t leaf_entries = 0, internal_entries = 0, internals = 0, leaves = 0;
+      PartLists& out = kept[t];
+      Scratch& scratch = thread_scratch();
+      out.blocks.clear();
+      out.loose.clear();
+      out.points.clear();
+      out.bins.clear();
+      std::uint64_t leaf_entries = 0, internals = 0, leaves = 0;
       // A node's four children lie in two rows: their latitudes' sines and their radii's stretch
       // repeat (the same bits as cell_centre_vector and node_radius, as the device build's).
       grid::CentreVectors centres;
       RadiusStretches stretches;
       for (std::int64_t q = begin; q < end; ++q) {
         const Pending& p = pending_[q];
-        Decision dec{kUniform, 0, out.size(), 0};
+        Decision dec{kUniform, 0, {out.blocks.size(), out.loose.size(), 0, 0, 0, t, -1, false}};
         if (in_focus(p.cell, l)) {
-          evaluations += p.parent_count;
-          dec = decide(p, l, centres(p.cell, l), out, bounds, stretches);
+          evaluations += p.parent.items;
+          dec = decide(p, l, centres(p.cell, l), out, t, scratch, stretches);
         }
-        if (dec.kind == kUniform) {
-          ++leaves;
-        } else if (dec.kind == kListLeaf) {
-          leaf_entries += dec.count;
-          ++leaves;
-        } else {
-          internal_entries += dec.count;
+        if (dec.kind == kInternal) {
           ++internals;
+        } else {
+          if (dec.kind == kListLeaf) leaf_entries += dec.kept.items;
+          ++leaves;
         }
         f.decisions[q] = dec;
       }
       f.leaf_total[t + 1] = leaf_entries;
-      f.internal_total[t + 1] = internal_entries;
       f.internal_count[t + 1] = internals;
       f.leaf_count[t + 1] = leaves;
     }
     for (int t = 0; t < parts; ++t) {
       f.leaf_total[t + 1] += f.leaf_total[t];
-      f.internal_total[t + 1] += f.internal_total[t];
       f.internal_count[t + 1] += f.internal_count[t];
       f.leaf_count[t + 1] += f.leaf_count[t];
     }
     f.evaluations = evaluations;
     return f;
+  }
+
+  /// Sizes v to n entries, its old ones of no use (not copied when it grows).
+  template <class T>
+  static void reuse(DefaultInitVector<T>& v, std::size_t n) {
+    if (n > v.capacity()) v.clear();
+    v.resize(n);
   }
 
   /// Allocates the next level's nodes, lists and pending entries after level l's filter; then
@@ -266,42 +396,43 @@ class TreeBuilder {
     tree_.nodes.resize(nodes_base + 4 * n_internal);
     const std::size_t leaves_base = tree_.leaves.size();
     tree_.leaves.resize(leaves_base + f.leaf_count[parts]);
-    DefaultInitVector<std::int32_t> next_lists(f.internal_total[parts]);  // every entry written below
-    DefaultInitVector<Pending> next(4 * n_internal);
+    // Every entry written below; the array of two levels before is reused.
+    DefaultInitVector<Pending>& next = spare_pending_;
+    reuse(next, 4 * n_internal);
     double weighted = 0;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(threads_) reduction(+ : weighted)
     for (int t = 0; t < parts; ++t) {
-      {
-        std::uint64_t leaf_at = lists_base + f.leaf_total[t], internal_at = f.internal_total[t];
-        std::uint64_t rank = f.internal_count[t];
-        std::size_t leaf_rank = leaves_base + f.leaf_count[t];
-        const std::vector<std::int32_t>& out = kept_[t];
-        for (std::int64_t q = f.chunk[t].first; q < f.chunk[t].second; ++q) {
-          const Pending& p = pending_[q];
-          const Decision& dec = f.decisions[q];
-          TreeNode& node = tree_.nodes[p.node];
-          if (dec.kind != kInternal) tree_.leaves[leaf_rank++] = {p.cell, l, p.node};
-          if (dec.kind == kUniform) {
-            node = {kUniform, dec.site};
-          } else if (dec.kind == kListLeaf) {
-            node = {static_cast<std::int32_t>(dec.count), static_cast<std::int32_t>(leaf_at)};
-            std::copy(out.begin() + dec.offset, out.begin() + dec.offset + dec.count, tree_.lists.begin() + leaf_at);
-            leaf_at += dec.count;
-            weighted += dec.count * cells_below;
-          } else {
-            const std::int32_t first_child = static_cast<std::int32_t>(nodes_base + 4 * rank);
-            node = {kInternal, first_child};
-            std::copy(out.begin() + dec.offset, out.begin() + dec.offset + dec.count, next_lists.begin() + internal_at);
-            grid::Cell kids[4];
-            grid::children(p.cell, kids);
-            for (int k = 0; k < 4; ++k) next[4 * rank + k] = {kids[k], first_child + k, internal_at, dec.count};
-            internal_at += dec.count;
-            ++rank;
-          }
+      std::uint64_t leaf_at = lists_base + f.leaf_total[t];
+      std::uint64_t rank = f.internal_count[t];
+      std::size_t leaf_rank = leaves_base + f.leaf_count[t];
+      const PartLists& out = parts_[l & 1][t];
+      Scratch& scratch = thread_scratch();
+      for (std::int64_t q = f.chunk[t].first; q < f.chunk[t].second; ++q) {
+        const Pending& p = pending_[q];
+        const Decision& dec = f.decisions[q];
+        const ListRef& kept = dec.kept;
+        TreeNode& node = tree_.nodes[p.node];
+        if (dec.kind != kInternal) tree_.leaves[leaf_rank++] = {p.cell, l, p.node};
+        if (dec.kind == kUniform) {
+          node = {kUniform, dec.site};
+        } else if (dec.kind == kListLeaf) {
+          node = {static_cast<std::int32_t>(kept.items), static_cast<std::int32_t>(leaf_at)};
+          items_->write_in_order(kept.points ? nullptr : out.blocks.data() + kept.at,
+                                 kept.points ? out.points.data() + kept.at : nullptr, kept.length,
+                                 kept.items - kept.loose, out.loose.data() + kept.loose_at, kept.loose, scratch.filter,
+                                 tree_.lists.data() + leaf_at);
+          leaf_at += kept.items;
+          weighted += kept.items * cells_below;
+        } else {
+          const std::int32_t first_child = static_cast<std::int32_t>(nodes_base + 4 * rank);
+          node = {kInternal, first_child};
+          grid::Cell kids[4];
+          grid::children(p.cell, kids);
+          for (int k = 0; k < 4; ++k) next[4 * rank + k] = {kids[k], first_child + k, kept};
+          ++rank;
         }
       }
     }
-    parent_lists_.swap(next_lists);
     pending_.swap(next);
     return weighted;
   }
@@ -316,10 +447,15 @@ class TreeBuilder {
   const CoverView cover_;
   Tree tree_;
   const PieceGroup* groups_ = nullptr;
-  DefaultInitVector<std::int32_t> parent_lists_;  ///< the lists the pending nodes' parents kept
+  std::unique_ptr<SpatialItems> items_;           ///< the octants' items in a spatial order
+  LevelFilter filter_;                            ///< the level's decisions
   DefaultInitVector<Pending> pending_;            ///< the nodes of the level being built
-  std::vector<std::vector<std::int32_t>> kept_;   ///< per part: the lists its nodes keep
-  std::vector<std::vector<Bounds>> scratch_;      ///< per thread: decide's bounds
+  DefaultInitVector<Pending> spare_pending_;      ///< the array of the level before, for the next
+  /// Per part, the lists its nodes keep: level l's in parts_[l & 1], read by level l + 1 (the
+  /// octants' list in parts_[1]).
+  std::vector<PartLists> parts_[2];
+  const std::vector<PartLists>* parent_parts_ = nullptr;
+  std::vector<Scratch> scratch_;                  ///< per thread
 };
 
 }  // namespace

@@ -316,25 +316,7 @@ SiteGeometry exact_ties(int level) {
 }
 
 SiteGeometry arcs(int level, int n, double max_degrees, std::uint64_t seed) {
-  SiteGeometry g;
-  g.level = level;
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> lon(-180, 180), z(-1, 1), len(0.5, max_degrees), dir(0, 360);
-  for (int k = 0; k < n; ++k) {
-    const double lo = lon(rng), la = std::asin(z(rng)) / grid::kDegree;
-    // End point: go `len` degrees from (lo, la) in a random direction (small-angle approximation
-    // is fine: any end point will do).
-    const double d = len(rng), az = dir(rng) * grid::kDegree;
-    double la2 = la + d * std::cos(az);
-    la2 = std::max(-89.9, std::min(89.9, la2));
-    const double lo2 = lo + d * std::sin(az) / std::max(0.1, std::cos(la * grid::kDegree));
-    add_arc(g, lo, la, grid::normalise_lon(lo2), la2, k);
-  }
-  // An arc across the dateline, one over a pole, and a point site.
-  add_arc(g, 175, 5, -170, -3, n);
-  add_arc(g, 10, 85, -170, 87, n + 1);
-  add_point(g, 60, -30, n + 2);
-  return g;
+  return test::random_arcs(level, n, max_degrees, seed);
 }
 
 /// A "polygon": the cells below one level-2 cell are fixed to a site, with its triangle's edges

@@ -1,7 +1,7 @@
 // Line sites that exercise the line runs' groups (piece_groups.hpp), for the labeller's tests:
-// wiggly polylines (random walks of arcs), a site of two separate lines, a zigzag that turns back
-// on itself, a polyline longer than 60 degrees, a straight arc, a line duplicated under a lower
-// site id (exact ties), fixed cells and points.
+// random arcs; wiggly polylines (random walks of arcs), a site of two separate lines, a zigzag
+// that turns back on itself, a polyline longer than 60 degrees, a straight arc, a line duplicated
+// under a lower site id (exact ties), fixed cells and points.
 #pragma once
 
 #include <algorithm>
@@ -47,6 +47,30 @@ inline SiteGeometry wiggly_sites(int level, std::uint64_t seed) {
     add_arc(g, 140 + (k % 2) * 3, -20 + 0.3 * k, 140 + ((k + 1) % 2) * 3, -20 + 0.3 * (k + 1), 12);
   }
   walk(13, 12, 5, 8);
+  return g;
+}
+
+/// n random arcs of 0.5 to max_degrees, an arc across the dateline, one over a pole, and a point
+/// site.
+inline SiteGeometry random_arcs(int level, int n, double max_degrees, std::uint64_t seed) {
+  SiteGeometry g;
+  g.level = level;
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> lon(-180, 180), z(-1, 1), len(0.5, max_degrees), dir(0, 360);
+  for (int k = 0; k < n; ++k) {
+    const double lo = lon(rng), la = std::asin(z(rng)) / grid::kDegree;
+    // End point: go `len` degrees from (lo, la) in a random direction (small-angle approximation
+    // is fine: any end point will do).
+    const double d = len(rng), az = dir(rng) * grid::kDegree;
+    double la2 = la + d * std::cos(az);
+    la2 = std::max(-89.9, std::min(89.9, la2));
+    const double lo2 = lo + d * std::sin(az) / std::max(0.1, std::cos(la * grid::kDegree));
+    add_arc(g, lo, la, grid::normalise_lon(lo2), la2, k);
+  }
+  // An arc across the dateline, one over a pole, and a point site.
+  add_arc(g, 175, 5, -170, -3, n);
+  add_arc(g, 10, 85, -170, 87, n + 1);
+  add_point(g, 60, -30, n + 2);
   return g;
 }
 

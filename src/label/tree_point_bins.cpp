@@ -1,0 +1,157 @@
+// Point lists binned about their owner (tree_point_bins.hpp).
+#include "label/tree_point_bins.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace qtmv::label {
+
+namespace {
+
+/// Margins of the bins' tests: a chord far above the rounding of the chords compared, and a
+/// relative one on a bin's edge (its index is a rounded product).
+constexpr double kBinMargin = 1e-12;
+constexpr double kEdgeMargin = 1.0 - 1e-9;
+
+/// True when every point of bin b lies farther than `reach` (chord) from a centre within `delta`
+/// of the bins' centre: the bin's inner edge lies beyond reach + delta.
+bool bin_beyond(const PointBins& bins, int b, double delta, double reach) {
+  const double edge2 = bins.threshold * static_cast<double>(b) / kPointBins * kEdgeMargin;
+  const double r = reach + delta + kBinMargin;
+  return edge2 > r * r;
+}
+
+double centre_delta(const PointBins& bins, const Vec3& x) { return sqrt(grid::chord2(x, bins.centre)) + kBinMargin; }
+
+/// Notes the sites of n points in out: the first and the first other one (the node then has
+/// several: their least and greatest are apart), or the one site of all.
+void note_points_sites(const SpatialItems& items, const std::int32_t* pos, std::size_t n, KeptList& out) {
+  if (n == 0) return;
+  const std::int32_t* site = items.sites();
+  const std::int32_t first = site[pos[0]];
+  for (std::size_t k = 1; k < n; ++k) {
+    if (site[pos[k]] != first) {
+      out.note_sites(std::min(first, site[pos[k]]), std::max(first, site[pos[k]]));
+      return;
+    }
+  }
+  out.note_sites(first, first);
+}
+
+}  // namespace
+
+double binned_least(const SpatialItems& items, const Vec3& x, const std::int32_t* points, const PointBins& bins,
+                    double best, PointScratch& s) {
+  const double delta = centre_delta(bins, x);
+  const Vec3* rep = items.points();
+  s.chord2.resize(bins.first[kPointBins]);
+  int b = 0;
+  for (; b < kPointBins; ++b) {
+    if (best < kChord2Infinity && bin_beyond(bins, b, delta, sqrt(best))) break;
+    for (std::uint32_t k = bins.first[b]; k < bins.first[b + 1]; ++k) {
+      const std::int32_t pos = points[k];
+      const double dx = x.x - rep[pos].x, dy = x.y - rep[pos].y, dz = x.z - rep[pos].z;
+      const double d2 = dx * dx + dy * dy + dz * dz;  // grid::chord2(x, a), as piece_chord2
+      s.chord2[k] = d2;
+      best = d2 < best ? d2 : best;
+    }
+  }
+  s.searched = b;
+  return best;
+}
+
+void binned_keep(const SpatialItems& items, const NodeBounds& node, const std::int32_t* points, const PointBins& bins,
+                 PointScratch& s) {
+  const Vec3& x = node.centre;
+  const double delta = centre_delta(bins, x);
+  const double reach = sqrt(node.threshold);
+  const Vec3* rep = items.points();
+  s.pos.resize(bins.first[kPointBins]);
+  s.kept_chord2.resize(bins.first[kPointBins]);
+  std::size_t m = 0;
+  for (int b = 0; b < kPointBins; ++b) {
+    if (bin_beyond(bins, b, delta, reach)) break;  // and every bin after it
+    const std::uint32_t begin = bins.first[b], end = bins.first[b + 1];
+    if (b >= s.searched) {
+      for (std::uint32_t k = begin; k < end; ++k) {
+        const std::int32_t pos = points[k];
+        const double dx = x.x - rep[pos].x, dy = x.y - rep[pos].y, dz = x.z - rep[pos].z;
+        s.chord2[k] = dx * dx + dy * dy + dz * dz;
+      }
+    }
+    // Without branches: a point's entry is written and kept only when within the threshold.
+    for (std::uint32_t k = begin; k < end; ++k) {
+      s.pos[m] = points[k];
+      s.kept_chord2[m] = s.chord2[k];
+      m += s.chord2[k] <= node.threshold ? 1 : 0;
+    }
+  }
+  s.pos.resize(m);
+  s.kept_chord2.resize(m);
+}
+
+void flat_points_keep(const FlatList& f, const NodeBounds& node, PointScratch& s) {
+  const std::size_t n = f.pos.size();
+  s.pos.resize(n);
+  s.kept_chord2.resize(n);
+  std::size_t m = 0;
+  for (std::size_t k = 0; k < n; ++k) {
+    s.pos[m] = f.pos[k];
+    s.kept_chord2[m] = f.lb2[k];
+    m += f.lb2[k] <= node.threshold ? 1 : 0;
+  }
+  s.pos.resize(m);
+  s.kept_chord2.resize(m);
+}
+
+bool points_of_blocks(const SpatialItems& items, const Vec3& x, const ListBlock* blocks, std::uint32_t count,
+                      PointScratch& s) {
+  const std::uint8_t* point = items.point_flags();
+  const Vec3* rep = items.points();
+  s.pos.clear();
+  s.kept_chord2.clear();
+  bool points = true;
+  items.for_each_position(blocks, count, [&](std::int32_t pos) {
+    points = points && point[pos] != 0;
+    const double dx = x.x - rep[pos].x, dy = x.y - rep[pos].y, dz = x.z - rep[pos].z;
+    s.pos.push_back(pos);
+    s.kept_chord2.push_back(dx * dx + dy * dy + dz * dz);  // grid::chord2(x, a), as piece_chord2
+  });
+  return points;
+}
+
+void emit_binned(const SpatialItems& items, const NodeBounds& node, PointScratch& s, KeptList& out, PointBins* bins) {
+  const std::size_t n = s.pos.size();
+  const std::size_t at = out.points->size();
+  out.points->resize(at + n);
+  std::int32_t* dest = out.points->data() + at;
+  out.count += n;
+  note_points_sites(items, s.pos.data(), n, out);
+  if (!bins) {
+    std::copy(s.pos.begin(), s.pos.begin() + static_cast<std::ptrdiff_t>(n), dest);
+    return;
+  }
+  bins->centre = node.centre;
+  bins->threshold = node.threshold;
+  std::uint32_t* first = bins->first;
+  const double scale = kPointBins / node.threshold;
+  s.bin.resize(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    const int b = static_cast<int>(s.kept_chord2[k] * scale);
+    s.bin[k] = static_cast<std::uint8_t>(b < kPointBins - 1 ? b : kPointBins - 1);
+  }
+  // Two counts a bin, of the even and the odd points: fewer increments of one counter in a row.
+  std::uint32_t count[2][kPointBins] = {};
+  for (std::size_t k = 0; k < n; ++k) ++count[k & 1][s.bin[k]];
+  first[0] = 0;
+  for (int b = 0; b < kPointBins; ++b) first[b + 1] = first[b] + count[0][b] + count[1][b];
+  // The even points of a bin, then its odd ones: two chains of increments, as in the counts.
+  std::uint32_t next[2][kPointBins];
+  for (int b = 0; b < kPointBins; ++b) {
+    next[0][b] = first[b];
+    next[1][b] = first[b] + count[0][b];
+  }
+  for (std::size_t k = 0; k < n; ++k) dest[next[k & 1][s.bin[k]]++] = s.pos[k];
+}
+
+}  // namespace qtmv::label

@@ -45,45 +45,81 @@ QTMV_HD inline double normalise_lon(double lon) {
   return lon;
 }
 
+/// The cells along one parallel (latitude, degrees, in [-90, 90]) at a level: lonlat_to_code's
+/// steps that depend on the latitude alone (the row, and where the row's squares are cut), done
+/// once, and then code(lon) for each longitude. A raster's row of pixel centres is one parallel;
+/// along a run of longitudes of one quadrant, column(local_lon(q, lon)) is all that changes.
+class ParallelCells {
+ public:
+  QTMV_HD ParallelCells(double lat, int level) : level_(level), north_(lat >= 0.0) {
+    const double lat_local = fabs(lat);
+    v_ = (90.0 - lat_local) / 90.0;
+    rows_ = static_cast<double>(rows_per_octant(level));
+    const double vI = v_ * rows_;
+    row_ = static_cast<std::uint64_t>(floor(vI));
+    if (row_ > rows_per_octant(level) - 1) row_ = rows_per_octant(level) - 1;
+    fv_ = vI - static_cast<double>(row_);
+  }
+
+  /// The row (0 .. 2^level - 1) of the parallel's cells in their octant.
+  QTMV_HD std::uint64_t row() const { return row_; }
+  /// Whether the parallel's cells lie in the northern octants (0..3), else the southern (4..7).
+  QTMV_HD bool north() const { return north_; }
+  /// The octant of the parallel's cells in quadrant q (0..3, quadrant_of).
+  QTMV_HD int octant(int q) const { return north_ ? q : q + 4; }
+
+  /// The quadrant (0..3: the northern octant) of a longitude in [-180, 180) (degrees).
+  QTMV_HD static int quadrant_of(double lon) { return lon >= 0.0 ? (lon < 90.0 ? 0 : 1) : (lon < -90.0 ? 2 : 3); }
+
+  /// The octant's local longitude (degrees, 0..90) of longitude lon in [-180, 180) of quadrant q
+  /// on this parallel's side of the equator.
+  QTMV_HD double local_lon(int q, double lon) const {
+    if (north_) {
+      const double offset[4] = {0.0, -90.0, 180.0, 90.0};
+      return lon + offset[q];
+    }
+    const double base[4] = {90.0, 180.0, -90.0, 0.0};
+    return base[q] - lon;
+  }
+
+  /// The column (0 .. 2 row) of the cell at local longitude lon_local (degrees, from local_lon).
+  QTMV_HD std::uint64_t column(double lon_local) const {
+    const double w = (lon_local / 90.0) * v_;
+    // The square [a, a+1] x [i, i+1] of the plane; wI >= 0 (lon_local and v are), where
+    // truncation is floor: no call of floor per point.
+    const double wI = w * rows_;
+    std::uint64_t a = static_cast<std::uint64_t>(wI);
+    if (a > row_) a = row_;
+    // Which half of the square: up when fw <= fv.
+    const double fw = wI - static_cast<double>(a);
+    std::uint64_t j = fw <= fv_ ? 2 * a : 2 * a + 1;
+    if (j > 2 * row_) j = 2 * row_;
+    return j;
+  }
+
+  /// The cell holding (lon, lat): lon any finite value (degrees). kInvalidCode for a NaN or
+  /// infinite longitude.
+  QTMV_HD Code code(double lon) const {
+    if (!(lon - lon == 0.0)) return kInvalidCode;
+    lon = normalise_lon(lon);
+    const int q = quadrant_of(lon);
+    const std::uint64_t j = column(local_lon(q, lon));
+    return code_of({octant(q), static_cast<std::uint32_t>(row_), static_cast<std::uint32_t>(j)}, level_);
+  }
+
+ private:
+  int level_;
+  bool north_;
+  double v_, rows_, fv_;
+  std::uint64_t row_;
+};
+
 /// The cell that contains the point (lon, lat) (degrees), exactly the steps of the spec in
 /// double precision. Longitude may be any finite value; latitude must lie in [-90, 90].
 /// Gives kInvalidCode for a NaN or infinite coordinate, a latitude beyond +-90 or a bad level.
 QTMV_HD inline Code lonlat_to_code(double lon, double lat, int level) {
   if (!is_valid_level(level) || !(lat >= -90.0 && lat <= 90.0) || !(lon - lon == 0.0)) return kInvalidCode;
-  lon = normalise_lon(lon);
-  // 1. Octant, local longitude and latitude, planar coordinates.
-  int octant;
-  double lon_local;
-  if (lon >= 0.0) {
-    octant = lon < 90.0 ? 0 : 1;
-  } else {
-    octant = lon < -90.0 ? 2 : 3;
-  }
-  if (lat >= 0.0) {
-    const double offset[4] = {0.0, -90.0, 180.0, 90.0};
-    lon_local = lon + offset[octant];
-  } else {
-    const double base[4] = {90.0, 180.0, -90.0, 0.0};
-    lon_local = base[octant] - lon;
-    octant += 4;
-  }
-  const double lat_local = fabs(lat);
-  const double v = (90.0 - lat_local) / 90.0;
-  const double w = (lon_local / 90.0) * v;
-  // 2. Row and the square [a, a+1] x [i, i+1] of the plane.
-  const double rows = static_cast<double>(rows_per_octant(level));
-  const double vI = v * rows;
-  const double wI = w * rows;
-  std::uint64_t i = static_cast<std::uint64_t>(floor(vI));
-  if (i > rows_per_octant(level) - 1) i = rows_per_octant(level) - 1;
-  std::uint64_t a = static_cast<std::uint64_t>(floor(wI));
-  if (a > i) a = i;
-  // 3. Which half of the square: up when fw <= fv.
-  const double fw = wI - static_cast<double>(a);
-  const double fv = vI - static_cast<double>(i);
-  std::uint64_t j = fw <= fv ? 2 * a : 2 * a + 1;
-  if (j > 2 * i) j = 2 * i;
-  return code_of({octant, static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(j)}, level);
+  return ParallelCells(lat, level).code(lon);
 }
 
 /// Centre of a cell (degrees): the centroid of its planar triangle mapped back to the sphere.

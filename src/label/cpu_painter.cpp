@@ -122,22 +122,54 @@ class LeafOrder {
 
 }  // namespace
 
+LeafRows::LeafRows(const Tree& tree) : level_(tree.level) {
+  for (std::size_t q = 0; q < tree.leaves.size(); ++q) {
+    const TreeLeaf& leaf = tree.leaves[q];
+    entries_[leaf.level][leaf.cell.octant].push_back({leaf.cell.row, static_cast<std::int64_t>(q)});
+  }
+  for (auto& level : entries_) {
+    for (auto& octant : level) {
+      std::sort(octant.begin(), octant.end(),
+                [](const Entry& a, const Entry& b) { return a.row != b.row ? a.row < b.row : a.leaf < b.leaf; });
+    }
+  }
+}
+
+void LeafRows::meeting(grid::Code first, std::uint64_t count, std::vector<std::int64_t>& out) const {
+  out.clear();
+  if (count == 0) return;
+  const grid::Cell a = grid::cell_of(first, level_), b = grid::cell_of(first + count - 1, level_);
+  for (int o = a.octant; o <= b.octant; ++o) {
+    const std::uint64_t r0 = o == a.octant ? a.row : 0;
+    const std::uint64_t r1 = o == b.octant ? b.row : grid::rows_per_octant(level_) - 1;
+    for (int l = 0; l <= level_; ++l) {
+      const std::vector<Entry>& entries = entries_[l][o];
+      const int k = level_ - l;  // the rows of level l hold 2^k rows of the level each
+      const auto from = std::lower_bound(entries.begin(), entries.end(), r0 >> k,
+                                         [](const Entry& e, std::uint64_t row) { return e.row < row; });
+      for (auto e = from; e != entries.end() && e->row <= r1 >> k; ++e) out.push_back(e->leaf);
+    }
+  }
+  std::sort(out.begin(), out.end());
+}
+
 /// The CPU's hier pass over [first, first + count): every leaf paints its cells, row run by row
 /// run (a uniform leaf writes its site; a list leaf tests its candidates per cell), then the
 /// boundary flags come from the labels.
 void cpu_tree_range(const Tree& tree, const TreeView& tv, grid::Code first, std::uint64_t count,
-                    std::int32_t* site, float* metres, std::uint8_t* boundary, int threads) {
+                    std::int32_t* site, float* metres, std::uint8_t* boundary, int threads, const LeafRows* rows_of) {
   const int level = tree.level;
   const std::uint64_t end_code = first + count;
-  const std::int64_t leaves = static_cast<std::int64_t>(tree.leaves.size());
+  std::vector<std::int64_t> meeting;  // the leaves to look at, when rows_of picks them
+  if (rows_of) rows_of->meeting(first, count, meeting);
+  const std::int64_t leaves = static_cast<std::int64_t>(rows_of ? meeting.size() : tree.leaves.size());
 #pragma omp parallel num_threads(threads)
   {
   LeafOrder order;  // the list leaf's, per thread
   grid::CentreVectors centres;
 #pragma omp for schedule(dynamic, 16)
-  for (std::int64_t q = 0; q < leaves; ++q) {
-    const TreeLeaf& leaf = tree.leaves[q];
-    const TreeNode node = tree.nodes[leaf.node];
+  for (std::int64_t m = 0; m < leaves; ++m) {
+    const TreeLeaf& leaf = tree.leaves[rows_of ? meeting[m] : m];
     const int k = level - leaf.level;
     const bool up = grid::is_up(leaf.cell);
     const std::uint64_t rows = std::uint64_t{1} << k;
@@ -145,6 +177,7 @@ void cpu_tree_range(const Tree& tree, const TreeView& tv, grid::Code first, std:
     if (grid::row_codes_below(leaf.cell, k, rows - 1, level).last < first || grid::row_codes_below(leaf.cell, k, 0, level).first >= end_code) {
       continue;
     }
+    const TreeNode node = tree.nodes[leaf.node];
     bool ordered = false;  // order made for this leaf
     for (std::uint64_t r = 0; r < rows; ++r) {
       const grid::RowCodes codes = grid::row_codes_below(leaf.cell, k, r, level);

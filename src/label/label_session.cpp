@@ -35,6 +35,7 @@ struct LabelSession::Impl {
   std::vector<Piece> candidates;
   Tree tree;
   TreeView view{};
+  std::unique_ptr<LeafRows> leaf_rows;  ///< the host tree's leaves by rows, for the painter
   LabelStats stats;
   std::unique_ptr<cuda::Labeller> gpu;  ///< ranges on the GPU when set
   std::uint64_t gpu_cells = 0;
@@ -51,6 +52,7 @@ struct LabelSession::Impl {
     tree = build_tree(candidates, level, with_distance, threads,
                       [&](double fraction) { report_progress(progress, fraction, "prepare"); }, &cover);
     view = tree.view(candidates.data());
+    leaf_rows = std::make_unique<LeafRows>(tree);
     stats.tree_nodes = tree.nodes.size();
     stats.tree_list_entries = tree.lists.size();
     stats.mean_candidates = tree.mean_candidates;
@@ -149,7 +151,7 @@ void LabelSession::label_range(grid::Code first, std::uint64_t count, std::int32
     }
     return;
   }
-  cpu_tree_range(s.tree, s.view, first, count, site, distance_m, boundary, s.threads);
+  cpu_tree_range(s.tree, s.view, first, count, site, distance_m, boundary, s.threads, s.leaf_rows.get());
 }
 
 void LabelSession::label_codes(const grid::Code* codes, std::size_t count, std::int32_t* site, float* distance_m,

@@ -19,6 +19,7 @@
 #include "grid/qtm_code_ranges.hpp"
 #include "pipeline/tile_product.hpp"
 #include "write/output_size.hpp"
+#include "write/raster_bands.hpp"
 #include "write/raster_writer.hpp"
 #include "write/vector_writer.hpp"
 
@@ -207,6 +208,9 @@ RunPlan plan_run(const std::string& destination, const VoronoiOptions& options) 
   RunPlan plan = plan_level(options);
   if (options.tile_count > 0) throw VoronoiError("-tile: a tile job is planned by plan_tile_job");
   plan.format = choose_output_format(destination, options.format, options.kind);
+  if (!plan.format.raster && !options.raster.bands.empty()) {
+    throw VoronoiError("-bands is for raster output; " + plan.format.driver + " output is vector: use -layers");
+  }
   if (!options.merge.empty()) {
     if (plan.format.raster) {
       throw VoronoiError("-merge joins tile products into vector output; " + plan.format.driver +
@@ -239,6 +243,7 @@ RunPlan plan_run(const std::string& destination, const VoronoiOptions& options) 
     try {
       write::raster_size(plan.level, plan.raster);  // -tr, -ts and -raster checked as the writer will
       write::check_raster_data_type(plan.raster.data_type);
+      write::raster_bands(plan.raster, true);  // each band once
     } catch (const write::WriteError& e) {
       throw VoronoiError(e.what());
     }
@@ -256,7 +261,13 @@ RunPlan plan_run(const std::string& destination, const VoronoiOptions& options) 
     check_vector_destination(destination, plan);
   }
 
-  plan_labeller(plan, options, plan.format.raster || plan.cells_layer);
+  // A raster's labels: only those of its bands (no distances without the distance band).
+  const bool raster_distance = plan.format.raster && (plan.raster.bands.empty() ||
+                                                      write::has_band(plan.raster.bands, write::RasterBand::distance));
+  plan_labeller(plan, options, raster_distance || plan.cells_layer);
+  if (plan.format.raster) {
+    plan.label.want_boundary = plan.raster.bands.empty() || write::has_band(plan.raster.bands, write::RasterBand::boundary);
+  }
   check_run_memory(plan, options.memory_limit_bytes, 0);
 
   // An output its file system cannot hold fails now, not after the work (GDAL's GeoTIFF driver
@@ -283,6 +294,10 @@ RunPlan plan_tile_job(const std::string& destination, const VoronoiOptions& opti
     // part1.gpkg would be a tile product under a GeoPackage's name: GIS software cannot read it.
     throw VoronoiError("-tile: '" + destination + "': a tile job writes a tile product, which only -merge reads: " +
                        "name it with " + kTileProductExtension + ", and give the output's name to the -merge run");
+  }
+  if (!options.raster.bands.empty()) {
+    // As the tool refuses every output option of a tile job; -merge writes vector output only.
+    throw VoronoiError("-bands: a tile job writes a tile product, not a raster; a raster is written by a whole run");
   }
   plan.tile_index = options.tile_index;
   plan.tile_count = options.tile_count;

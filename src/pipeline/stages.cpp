@@ -135,9 +135,8 @@ LabelledLevel label_stage(sites::SiteSet& sites, const VoronoiOptions& options, 
     if (plan.format.raster) {
       // A raster's labels come strip by strip from the session as it is written (which sites
       // got a cell is known then, from the pixels).
-      label::LabelOptions session_options = label_options;
-      session_options.want_distance = true;
-      session_options.want_boundary = true;
+      // Its bands' labels only (run_plan): without the distance band, a tree without distances.
+      const label::LabelOptions& session_options = label_options;
       out.session = std::make_unique<label::LabelSession>(sites.geometry.input(), session_options);
       stats = out.session->stats();
     } else {

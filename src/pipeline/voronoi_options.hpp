@@ -38,7 +38,7 @@ struct VoronoiOptions {
   /// -layers forces vector output, -raster raster output.
   OutputKind kind = OutputKind::automatic;
   write::VectorLayers vector;  ///< -layers, -dsco, -lco
-  write::RasterGrid raster;    ///< -raster, -tr (degrees), -ts (pixels), -co
+  write::RasterGrid raster;    ///< -raster, -tr (degrees), -ts (pixels), -ot, -co, -bands
   bool overwrite = false;      ///< replace an existing destination
   /// Refuse, before any work, an output larger than the free space of its directory
   /// (write/output_size.hpp); the GDAL configuration option CHECK_DISK_FREE_SPACE=NO also

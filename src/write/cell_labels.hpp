@@ -127,6 +127,10 @@ struct VectorOptions : VectorLayers {
   MessageSink messages;  ///< may be empty
 };
 
+/// A band of a raster output (-bands): the FID of the cell's site, its boundary flag (0/1), its
+/// distance to the site (metres).
+enum class RasterBand { fid, boundary, distance };
+
 /// What a raster output holds: the options a caller of the pipeline gives.
 struct RasterGrid {
   enum class Layout {
@@ -140,6 +144,9 @@ struct RasterGrid {
   /// (any case); empty: the default of raster_writer.hpp.
   std::string data_type;
   std::vector<std::string> creation_options;  ///< -co NAME=VALUE
+  /// -bands: the bands written, in this order, each once (write/raster_bands.hpp); empty: fid,
+  /// boundary and distance (distance only where the labels have distances).
+  std::vector<RasterBand> bands;
 };
 
 /// Raster output (any GDAL raster driver with Create or CreateCopy).

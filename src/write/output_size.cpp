@@ -14,17 +14,18 @@
 
 #include "common/config_option.hpp"
 #include "grid/qtm.hpp"
+#include "write/raster_bands.hpp"
 #include "write/raster_writer.hpp"
 
 namespace qtmv::write {
 
 OutputSize estimate_raster_size(int level, const RasterOptions& options, bool with_distance) {
   const RasterSize size = raster_size(level, options);
-  const int bands = with_distance ? 3 : 2;
+  const std::vector<RasterBand> band_list = raster_bands(options, with_distance);
+  const std::uint64_t bands = band_list.size();
   check_raster_data_type(options.data_type);
-  // The default before the FIDs are known: Float32 with distances, Int32 without (larger FIDs
-  // make it Float64 later).
-  const std::string type = options.data_type.empty() ? (with_distance ? "Float32" : "Int32") : options.data_type;
+  // The default before the FIDs are known (larger FIDs make it Float64 later).
+  const std::string type = options.data_type.empty() ? default_raster_data_type(band_list) : options.data_type;
   const GDALDataType gdal_type = GDALGetDataTypeByName(type.c_str());
   const std::uint64_t bytes_per_sample = static_cast<std::uint64_t>(GDALGetDataTypeSizeBytes(gdal_type));
   OutputSize out;

@@ -5,8 +5,9 @@
 //
 // Estimates (bytes as written without compression):
 //   raster  width x height pixels x bands x bytes of the band type, as write_raster writes them
-//           (-ot, or by default 3 bands of Float32 with distances, else 2 of Int32; FIDs beyond
-//           Float32 make the default Float64, which the estimate cannot know before reading);
+//           (the -bands, by default 3; -ot, or by default Float32 with the distance band, else
+//           Int32 with the fid band, else Byte; FIDs beyond Float32 make the default Float64,
+//           which the estimate cannot know before reading);
 //           a driver that can only CreateCopy stages a copy too, which is not counted.
 //   vector  the cells layer: one row per cell, kBytesPerCellRow bytes each (measured at level 7:
 //           GeoPackage 146, Shapefile 198, FlatGeobuf 195, GeoJSON 302 bytes a row). regions and

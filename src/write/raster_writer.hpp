@@ -1,18 +1,22 @@
 // The raster writer: the labels of every cell of a level as a GDAL raster, either the
 // QTM-coded raster (one pixel per cell, not georeferenced) or an EPSG:4326 lon/lat grid.
 //
-// Bands (described "site_fid", "boundary", "distance_m"):
-//   1  the FID of the cell's site (table.sites[site].fid)
-//   2  1 on boundary cells, else 0
-//   3  distance from the cell's centre to its site (metres); only when labels.distance_m is set
+// Bands (RasterGrid::bands, -bands: any of them, in the order given; by default all three, the
+// distance only where the labels have distances), described "site_fid", "boundary", "distance_m":
+//   fid       the FID of the cell's site (table.sites[site].fid)
+//   boundary  1 on boundary cells, else 0
+//   distance  distance from the cell's centre to its site (metres, unit "m")
+// Only the labels the bands need are asked for (no distances, no boundary flags otherwise).
 //
 // One data type and one nodata value for all bands: GDAL's Create takes one type for all bands,
 // and GeoTIFF keeps one nodata value per file (TIFFTAG_GDAL_NODATA), so an Int32 FID, a Byte
 // flag and a Float32 distance cannot share one GeoTIFF. No value is ever changed silently:
-//   - default with distances: Float32 when every FID is exact in Float32 (every FID up to
+//   - default with the distance band: Float32 when every FID is exact in Float32 (every FID up to
 //     2^24 = 16 777 216, and larger ones that happen to be), else Float64. Float32 holds the
 //     labeller's distances (float metres) and the 0/1 flags exactly, at half Float64's size.
-//   - default without distances: Int32 when every FID fits it, else Float64.
+//   - default without it: Int32 when every FID fits it, else Float64; Byte for the boundary band
+//     alone.
+//   The FIDs are checked only when the fid band is written.
 //   - -ot TYPE (RasterGrid::data_type; Byte, UInt16, Int16, UInt32, Int32, Float32, Float64, as
 //     gdal_translate): integer types hold distances rounded to whole metres. A FID outside the
 //     type (or not exact in Float32) is a WriteError naming -ot and the FID before anything is
@@ -39,18 +43,24 @@
 //           the equator: 4 * 2^L x 2 * 2^L pixels, as many pixels as cells.
 //           Dataset metadata: QTM_LEVEL, QTM_LAYOUT=lonlat.
 //
-// Streaming: the writer holds one strip of rows at a time (RasterOptions::strip_bytes, 64 MiB by
-// default: the strip's pixels and its cells' labels) and asks its CellLabelSource for the labels of
-// that strip only: the QTM-coded raster's strip of pixel rows is one range of codes (row
-// octant * 2^L + i holds codes [o * 4^L + i^2, o * 4^L + (i + 1)^2)); a lon/lat strip the sorted,
-// de-duplicated codes of its pixels' centres. After each strip that ends a row of the driver's
-// blocks those blocks are flushed from GDAL's cache, so the cache holds at most one row of blocks.
+// Streaming: the writer holds two strips of rows (RasterOptions::strip_bytes, 64 MiB by default,
+// for both strips' pixels and one strip's cells' labels): a helper thread fills the next strip
+// (raster_strips.hpp: its cells, their labels from the CellLabelSource, the values, on all cores)
+// while this thread hands the last one to GDAL, which compresses its blocks on the run's threads.
+// The labels are asked for one strip at a time: the QTM-coded raster's strip of pixel rows is one
+// range of codes (row octant * 2^L + i holds codes [o * 4^L + i^2, o * 4^L + (i + 1)^2)); a lon/lat
+// strip's pixel centres lie on parallels, each one row of cells per octant, so the strip's rows of
+// cells are labelled whole (up to one range of codes an octant), or, for pixels much coarser than
+// cells, the sorted, de-duplicated codes of its pixels' centres. After each strip that ends a row
+// of the driver's blocks those blocks are flushed from GDAL's cache, so the cache holds at most
+// one row of blocks. The file does not depend on the number of threads.
 //
 // Drivers: any GDAL raster driver that can Create (written strip by strip) or only CreateCopy,
 // such as COG (written to a staging dataset first: MEM when the whole raster fits one strip's
-// budget, else a tiled DEFLATE GeoTIFF beside the destination, removed afterwards). GTiff gets TILED=YES, COMPRESS=DEFLATE (with ZLEVEL=1),
-// BIGTIFF=IF_SAFER, INTERLEAVE=BAND and NUM_THREADS=ALL_CPUS unless creation_options name them
-// (5.6x faster than GDAL's DEFLATE defaults at level 11, and no larger). A driver that cannot create the band type (PNG: Byte/UInt16 only)
+// budget, else a tiled DEFLATE GeoTIFF beside the destination, removed afterwards). GTiff gets
+// TILED=YES, COMPRESS=DEFLATE (with ZLEVEL=1), BIGTIFF=IF_SAFER and INTERLEAVE=BAND unless
+// creation_options name them (5.6x faster than GDAL's DEFLATE defaults at level 11, and no
+// larger); GTiff and COG get NUM_THREADS = the run's threads (thread_count(0)) unless named. A driver that cannot create the band type (PNG: Byte/UInt16 only)
 // is a WriteError, never a silent truncation.
 #pragma once
 
@@ -66,10 +76,15 @@ namespace qtmv::write {
 /// Buffers of one strip (bytes) when RasterOptions::strip_bytes is 0.
 constexpr std::uint64_t kDefaultStripBytes = std::uint64_t{64} << 20;
 
-/// The bands' data type for these options (RasterGrid::data_type or the default above), as
-/// GDAL names it ("Float32"). Throws WriteError naming -ot for an unknown type, and naming -ot
-/// (or the default) and the FID when a FID does not fit the type exactly.
+/// The bands' data type for these options (RasterGrid::data_type or the default above) and labels
+/// with or without distances, as GDAL names it ("Float32"). Throws WriteError naming -ot for an
+/// unknown type, naming -ot (or the default) and the FID when the fid band is written and a FID
+/// does not fit the type exactly, and naming -bands for bands the labels cannot give.
 std::string raster_data_type(const RasterOptions& options, bool with_distance, const sites::SiteTable& table);
+
+/// The default type of `bands` before the FIDs are known: Float32 with the distance band, else
+/// Int32 with the fid band, else Byte.
+std::string default_raster_data_type(const std::vector<RasterBand>& bands);
 
 /// Throws WriteError when `data_type` (-ot) is not one of the types above (empty is fine).
 void check_raster_data_type(const std::string& data_type);
@@ -95,9 +110,9 @@ RasterWritten write_raster(const std::string& path, const CellLabelSource& label
 RasterWritten write_raster(const std::string& path, const CellLabels& labels, const sites::SiteTable& table,
                   const RasterOptions& options);
 
-/// Host bytes the writer's buffers take at most for these options: one strip, or one row of
-/// 256-row blocks in GDAL's cache (bands x 8 bytes a pixel at most, and at most GDAL_CACHEMAX)
-/// where that is larger.
+/// Host bytes the writer's buffers take at most for these options and labels with or without
+/// distances: the strips, or one row of 256-row blocks in GDAL's cache (bands x 8 bytes a pixel
+/// at most, and at most GDAL_CACHEMAX) where that is larger.
 std::uint64_t raster_buffer_bytes(int level, const RasterOptions& options, bool with_distance);
 
 /// The raster's size (pixels) for these options and level, as write_raster would make it.

@@ -1121,6 +1121,52 @@ TEST(CatalogueOptions, BruteForceForARasterIsRefusedNotIgnored) {
             regions_of(kCountries, dir + "/hier.gpkg", {"-l", "countries_110m", "-algorithm", "hier"}).size());
 }
 
+TEST(CatalogueOptions, BadBandsAreRefusedNamingTheArgument) {
+  const std::string dir = test_dir();
+  const std::string dst = dir + "/out.tif";
+  // The list: names from fid, boundary, distance, each once.
+  for (const auto& [list, says] : std::vector<std::pair<std::string, std::string>>{
+           {"fid,fid", "-bands: 'fid,fid': band 'fid' named twice"},
+           {"fid,Boundary,FID", "-bands: 'fid,Boundary,FID': band 'fid' named twice"},
+           {"fid,height", "-bands: 'fid,height': 'height' is not a band; name bands from fid, boundary, distance"},
+           {"", "-bands: '': a band name is empty"},
+           {"fid,,distance", "-bands: 'fid,,distance': a band name is empty"}}) {
+    expect_failure(run(concat(concat({"-bands", list}, kCsvOptions), {kCentres, dst})), 2, {says}, dst);
+  }
+  expect_failure(run({"in.csv", dst, "-bands"}), 2, {"option '-bands' needs a value"}, dst);
+  expect_failure(run({"-bands", "fid", "-bands", "boundary", "in.csv", dst}), 2, {"-bands: given twice"}, dst);
+  // Vector output has layers, not bands: refused as -layers is with a raster.
+  expect_failure(run({"-layers", "regions", "-bands", "fid", "in.csv", dst}), 2,
+                 {"-bands is for raster output, -layers for vector output"}, dst);
+  expect_failure(run({"-bands", "fid", "-layers", "regions", "in.csv", dst}), 2,
+                 {"-bands is for raster output, -layers for vector output"}, dst);
+  const std::string gpkg = dir + "/out.gpkg";
+  expect_failure(run_small(concat(concat({"-bands", "fid"}, kCsvOptions), {kCentres, gpkg})), 1,
+                 {"-bands is for raster output; GPKG output is vector"}, gpkg);
+  // A tile job writes no raster, and -merge writes vector output.
+  const std::string product = dir + "/t.qtmt";
+  expect_failure(run(concat(concat({"-tile", "1/4", "-bands", "fid"}, kCsvOptions), {kCentres, product})), 2,
+                 {"-bands is for a raster, which a whole run writes (-merge writes vector output)"}, product);
+  expect_failure(run_small(concat(concat({"-merge", dir, "-bands", "fid"}, kCsvOptions), {kCentres, gpkg})), 1,
+                 {"-bands is for raster output; GPKG output is vector"}, gpkg);
+  expect_failure(run_small(concat(concat({"-merge", dir, "-bands", "fid"}, kCsvOptions), {kCentres, dst})), 1,
+                 {"-merge joins tile products into vector output"}, dst);
+  // The FID band alone (an allocation raster) keeps -ot's checks of the FIDs; the boundary band
+  // alone writes no FID, so no FID is checked.
+  const std::string src = write_text(dir + "/ids.geojson",
+                                     "{\"type\":\"FeatureCollection\",\"features\":["
+                                     "{\"type\":\"Feature\",\"id\":70000,\"properties\":{},"
+                                     "\"geometry\":{\"type\":\"Point\",\"coordinates\":[10,10]}},"
+                                     "{\"type\":\"Feature\",\"id\":3,\"properties\":{},"
+                                     "\"geometry\":{\"type\":\"Point\",\"coordinates\":[-60,20]}}]}");
+  expect_failure(run_small({"-bands", "fid", "-ot", "UInt16", src, dst}), 1,
+                 {"band 1 (site_fid): site 0 has FID 70000, which UInt16 does not hold exactly", "choose a wider -ot"},
+                 dst);
+  expect_failure(run_small({"-bands", "distance,fid", "-ot", "UInt16", src, dst}), 1,
+                 {"band 2 (site_fid): site 0 has FID 70000"}, dst);
+  expect_success(run_small({"-q", "-bands", "boundary", "-ot", "Byte", src, dst}), dst);
+}
+
 TEST(CatalogueOutput, ZipBasedFormatsAreWritten) {
   // GDAL's /vsizip/ took the staging directory ".areas.xlsx.tmpXXXXXX" for the archive.
   const std::string dir = test_dir();

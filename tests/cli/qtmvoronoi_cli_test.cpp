@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <memory>
 #include <random>
 #include <set>
@@ -170,6 +171,11 @@ TEST(QtmvoronoiCore, ParsesOptions) {
   EXPECT_EQ(ot.run.raster.data_type, "uint16");
   EXPECT_TRUE(parse_command_line({"in.csv", "out.tif"}).run.raster.data_type.empty());
   EXPECT_THROW(parse_command_line({"-ot", "Int64", "a", "b"}), UsageError);
+  using qtmv::write::RasterBand;
+  EXPECT_EQ(parse_command_line({"-bands", "distance,fid", "in.csv", "out.tif"}).run.raster.bands,
+            (std::vector<RasterBand>{RasterBand::distance, RasterBand::fid}));
+  EXPECT_TRUE(parse_command_line({"in.csv", "out.tif"}).run.raster.bands.empty());  // all three
+  EXPECT_THROW(parse_command_line({"-bands", "fid,fid", "a", "b"}), UsageError);
 
   EXPECT_THROW(parse_command_line({"-layers", "regions", "-raster", "qtm", "a", "b"}), UsageError);
   EXPECT_THROW(parse_command_line({"-tr", "0", "1", "a", "b"}), UsageError);
@@ -427,6 +433,44 @@ TEST(QtmvoronoiCli, OtChoosesTheBandTypeAndRefusesValuesItCannotHold) {
   const Result v = run(concat({"-ot", "Int32", "-level", "2", kCentres, dir + "/v.gpkg"}, kCsvOptions));
   EXPECT_EQ(v.status, 1) << v.err;
   EXPECT_NE(v.err.find("-ot is for raster output"), std::string::npos) << v.err;
+}
+
+// -bands: an allocation raster (the FID band alone) holds band 1 of the full raster, as Int32,
+// and -threads changes no byte of either.
+TEST(QtmvoronoiCli, BandsWriteTheBandsAskedForAndThreadsChangeNoByte) {
+  const std::string dir = test_dir();
+  const std::vector<std::string> common =
+      concat({"-q", "-level", "8", "-device", "cpu", "-tr", "0.1", "0.1"}, kCsvOptions);  // 8 strips of 256 rows
+  const auto bytes_of = [](const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  };
+  const std::string full = dir + "/full.tif", fid = dir + "/fid.tif";
+  ASSERT_EQ(run(concat(common, {kCentres, full})).status, 0);
+  for (const char* threads : {"1", "2", "5"}) {
+    SCOPED_TRACE(std::string("-threads ") + threads);
+    const std::string again = dir + "/full" + threads + ".tif", fid_again = dir + "/fid" + threads + ".tif";
+    const Result r = run(concat(common, {"-threads", threads, kCentres, again}));
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_EQ(bytes_of(again), bytes_of(full));
+    const Result f = run(concat(common, {"-threads", threads, "-bands", "fid", kCentres, fid_again}));
+    ASSERT_EQ(f.status, 0) << f.err;
+    if (std::string(threads) == "1") {
+      fs::copy_file(fid_again, fid);
+    } else {
+      EXPECT_EQ(bytes_of(fid_again), bytes_of(fid));
+    }
+  }
+  const auto a = open(full, GDAL_OF_RASTER), b = open(fid, GDAL_OF_RASTER);
+  ASSERT_TRUE(a && b);
+  ASSERT_EQ(b->GetRasterCount(), 1);
+  EXPECT_EQ(b->GetRasterBand(1)->GetRasterDataType(), GDT_Int32);
+  EXPECT_STREQ(b->GetRasterBand(1)->GetDescription(), "site_fid");
+  const int w = a->GetRasterXSize(), h = a->GetRasterYSize();
+  std::vector<double> va(std::size_t(w) * h), vb(va.size());
+  ASSERT_EQ(a->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, w, h, va.data(), w, h, GDT_Float64, 0, 0), CE_None);
+  ASSERT_EQ(b->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, w, h, vb.data(), w, h, GDT_Float64, 0, 0), CE_None);
+  EXPECT_TRUE(va == vb);
 }
 
 TEST(QtmvoronoiCli, ShapefileSidecarsMoveTogether) {

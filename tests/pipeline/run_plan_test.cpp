@@ -6,6 +6,8 @@
 #include <gdal_priv.h>
 
 #include <string>
+#include <tuple>
+#include <vector>
 
 #include "../test_temp_dir.hpp"
 #include "label/device_startup.hpp"
@@ -122,6 +124,50 @@ TEST(RunPlan, AutoEstimatesWhatThePlanWrites) {
   settle_auto_device(settled, after, 2);
   EXPECT_EQ(settled.label.device, "cpu");
   EXPECT_EQ(auto_device_summary("cpu (16 threads)", after, 2), "auto: cpu (16 threads), " + after.reason());
+}
+
+std::string plan_error(const std::string& destination, const VoronoiOptions& o) {
+  if (GDALGetDriverCount() == 0) GDALAllRegister();
+  try {
+    if (o.tile_count > 0) {
+      plan_tile_job(destination, o);
+    } else {
+      plan_run(destination, o);
+    }
+  } catch (const VoronoiError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(RunPlan, BandsAreHonouredOrRefusedInEveryMode) {
+  const std::string dir = test::process_temp_dir();
+  VoronoiOptions o = options_for("cpu");
+  // A raster: only the labels its bands need.
+  for (const auto& [bands, distance, boundary] :
+       std::vector<std::tuple<std::vector<write::RasterBand>, bool, bool>>{
+           {{}, true, true},
+           {{write::RasterBand::fid}, false, false},
+           {{write::RasterBand::boundary, write::RasterBand::fid}, false, true},
+           {{write::RasterBand::distance}, true, false}}) {
+    o.raster.bands = bands;
+    const RunPlan plan = plan_run(dir + "/plan.tif", o);
+    EXPECT_EQ(plan.label.want_distance, distance);
+    EXPECT_EQ(plan.label.want_boundary, boundary);
+  }
+  o.raster.bands = {write::RasterBand::fid, write::RasterBand::fid};
+  EXPECT_EQ(plan_error(dir + "/plan.tif", o), "-bands: band 'fid' named twice");
+  // Vector output, a merge's, and a tile job's product hold no bands.
+  o.raster.bands = {write::RasterBand::fid};
+  EXPECT_EQ(plan_error(dir + "/plan.gpkg", o), "-bands is for raster output; GPKG output is vector: use -layers");
+  o.merge = {dir};
+  EXPECT_EQ(plan_error(dir + "/plan.gpkg", o), "-bands is for raster output; GPKG output is vector: use -layers");
+  EXPECT_NE(plan_error(dir + "/plan.tif", o).find("-merge joins tile products into vector output"), std::string::npos);
+  o.merge.clear();
+  o.tile_index = 1;
+  o.tile_count = 4;
+  EXPECT_EQ(plan_error(dir + "/t.qtmt", o),
+            "-bands: a tile job writes a tile product, not a raster; a raster is written by a whole run");
 }
 
 TEST(DeviceStartup, CountsWhatTheLabellerCounts) {

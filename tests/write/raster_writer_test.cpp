@@ -23,6 +23,8 @@
 #include "label/synthetic_sites.hpp"
 #include "label/label_session.hpp"
 #include "label/labeller.hpp"
+#include "common/openmp_threads.hpp"
+#include "write/raster_bands.hpp"
 #include "write/raster_writer.hpp"
 
 namespace qtmv::write {
@@ -767,6 +769,233 @@ TEST_F(RasterWriter, StreamedStopAndCogStagingLeaveNothingBehind) {
     EXPECT_EQ(compare_with_dense(opened.ds, f, true), 0u);
     if (std::string(driver) == "COG") {
       EXPECT_EQ(metadata(opened.ds, "LAYOUT", "IMAGE_STRUCTURE"), "COG");
+    }
+  }
+}
+
+// --- -bands, threads ----------------------------------------------------------------------------
+
+/// A band's values as the bytes of its type.
+std::vector<unsigned char> band_bytes(GDALDatasetH ds, int band) {
+  const int w = GDALGetRasterXSize(ds), h = GDALGetRasterYSize(ds);
+  GDALRasterBandH hb = GDALGetRasterBand(ds, band);
+  const GDALDataType type = GDALGetRasterDataType(hb);
+  std::vector<unsigned char> bytes(static_cast<std::size_t>(w) * h * GDALGetDataTypeSizeBytes(type));
+  EXPECT_EQ(GDALRasterIO(hb, GF_Read, 0, 0, w, h, bytes.data(), w, h, type, 0, 0), CE_None);
+  return bytes;
+}
+
+std::vector<unsigned char> file_bytes(const std::string& path) {
+  std::vector<unsigned char> bytes;
+  VSILFILE* f = VSIFOpenL(path.c_str(), "rb");
+  if (f == nullptr) return bytes;
+  VSIFSeekL(f, 0, SEEK_END);
+  bytes.resize(static_cast<std::size_t>(VSIFTellL(f)));
+  VSIFSeekL(f, 0, SEEK_SET);
+  EXPECT_EQ(VSIFReadL(bytes.data(), 1, bytes.size(), f), bytes.size());
+  VSIFCloseL(f);
+  return bytes;
+}
+
+/// A Fixture's labels as a CellLabelSource that records which labels it is asked for.
+class AskedSource : public CellLabelSource {
+ public:
+  explicit AskedSource(const CellLabels& labels) : dense_(labels) {}
+  int level() const override { return dense_.level(); }
+  bool has_distance() const override { return dense_.has_distance(); }
+  void label_range(Code first, std::uint64_t count, std::int32_t* site, float* distance_m,
+                   std::uint8_t* boundary) const override {
+    note(distance_m, boundary);
+    dense_.label_range(first, count, site, distance_m, boundary);
+  }
+  void label_codes(const Code* codes, std::size_t count, std::int32_t* site, float* distance_m,
+                   std::uint8_t* boundary) const override {
+    note(distance_m, boundary);
+    dense_.label_codes(codes, count, site, distance_m, boundary);
+  }
+  mutable bool distance_asked = false, boundary_asked = false;
+
+ private:
+  void note(const float* distance_m, const std::uint8_t* boundary) const {
+    distance_asked = distance_asked || distance_m != nullptr;
+    boundary_asked = boundary_asked || boundary != nullptr;
+  }
+  DenseLabelSource dense_;
+};
+
+TEST_F(RasterWriter, BandsSubsetsEqualTheMatchingBandsOfTheFullRasterByteForByte) {
+  const Fixture f(6, 40, 7);
+  using B = RasterBand;
+  const std::vector<std::vector<RasterBand>> subsets = {
+      {B::fid}, {B::boundary}, {B::distance}, {B::distance, B::fid}, {B::boundary, B::distance, B::fid},
+      {B::fid, B::boundary}, {B::fid, B::boundary, B::distance}};
+  const char* descriptions[] = {"site_fid", "boundary", "distance_m"};
+  for (const bool qtm : {true, false}) {
+    for (const char* type : {"Float32", "Int32"}) {
+      SCOPED_TRACE(std::string(qtm ? "qtm " : "lonlat ") + type);
+      RasterOptions options;
+      options.layout = qtm ? RasterOptions::Layout::qtm : RasterOptions::Layout::lonlat;
+      if (!qtm) options.width = 700, options.height = 310;  // pixels about as fine as the cells
+      options.data_type = type;                             // the full raster's type for every subset
+      options.strip_bytes = 40000;                          // many strips
+      const std::string full_path = temp_path("bands_full.tif");
+      write_raster(full_path, f.labels(), f.table, options);
+      Opened full(full_path);
+      ASSERT_NE(full.ds, nullptr);
+      ASSERT_EQ(GDALGetRasterCount(full.ds), 3);
+      const std::vector<double> full_gt = geotransform(full.ds);
+      for (const std::vector<RasterBand>& bands : subsets) {
+        std::string names;
+        for (const RasterBand b : bands) names += std::string(names.empty() ? "" : ",") + raster_band_name(b);
+        SCOPED_TRACE(names);
+        options.bands = bands;
+        const AskedSource source(f.labels());
+        const std::string path = temp_path("bands_subset.tif");
+        write_raster(path, source, f.table, options);
+        // Only the labels the bands need were asked for.
+        EXPECT_EQ(source.distance_asked, has_band(bands, B::distance));
+        EXPECT_EQ(source.boundary_asked, has_band(bands, B::boundary));
+        Opened subset(path);
+        ASSERT_NE(subset.ds, nullptr);
+        ASSERT_EQ(GDALGetRasterCount(subset.ds), static_cast<int>(bands.size()));
+        EXPECT_EQ(geotransform(subset.ds), full_gt);
+        EXPECT_EQ(metadata(subset.ds, "QTM_LEVEL"), "6");
+        EXPECT_EQ(metadata(subset.ds, "QTM_LAYOUT"), qtm ? "octant_row_col" : "lonlat");
+        for (std::size_t k = 0; k < bands.size(); ++k) {
+          const int in_full = static_cast<int>(bands[k]) + 1;
+          GDALRasterBandH band = GDALGetRasterBand(subset.ds, static_cast<int>(k) + 1);
+          EXPECT_STREQ(GDALGetDescription(band), descriptions[in_full - 1]);
+          EXPECT_STREQ(GDALGetDescription(band), raster_band_description(bands[k]));
+          EXPECT_STREQ(GDALGetRasterUnitType(band), bands[k] == B::distance ? "m" : "");
+          int has_nodata = 0;
+          EXPECT_EQ(GDALGetRasterNoDataValue(band, &has_nodata), -1.0);
+          EXPECT_TRUE(has_nodata);
+          EXPECT_TRUE(band_bytes(subset.ds, static_cast<int>(k) + 1) == band_bytes(full.ds, in_full))
+              << "band " << k + 1 << " differs from band " << in_full << " of the full raster";
+        }
+      }
+    }
+  }
+}
+
+TEST_F(RasterWriter, BandsChooseTheirDefaultTypeAndKeepTheOtChecks) {
+  const Fixture f(4, 20, 5);  // FIDs 1000 .. 1133
+  using B = RasterBand;
+  RasterOptions options;
+  const auto type_of = [&](std::vector<RasterBand> bands, const std::string& ot = "") {
+    options.bands = std::move(bands);
+    options.data_type = ot;
+    return raster_data_type(options, true, f.table);
+  };
+  EXPECT_EQ(type_of({}), "Float32");
+  EXPECT_EQ(type_of({B::fid}), "Int32");
+  EXPECT_EQ(type_of({B::fid, B::boundary}), "Int32");
+  EXPECT_EQ(type_of({B::boundary}), "Byte");
+  EXPECT_EQ(type_of({B::distance}), "Float32");
+  EXPECT_EQ(type_of({B::boundary, B::distance}), "Float32");
+  // An allocation raster's FIDs are checked against -ot as ever; without the FID band none is.
+  try {
+    type_of({B::distance, B::fid}, "Byte");
+    ADD_FAILURE() << "FID 1000 accepted as Byte";
+  } catch (const WriteError& e) {
+    EXPECT_NE(std::string(e.what()).find("band 2 (site_fid): site 0 has FID 1000, which Byte does not hold exactly"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_THROW(type_of({B::fid}, "Byte"), WriteError);
+  EXPECT_EQ(type_of({B::boundary}, "Byte"), "Byte");
+  // A distance the type cannot hold, with the distance band alone: named by its band, nothing left.
+  options.bands = {B::distance};
+  options.data_type = "Int16";
+  const std::string path = temp_path("bands_far.tif");
+  try {
+    write_raster(path, f.labels(), f.table, options);
+    ADD_FAILURE() << "distances beyond Int16 accepted";
+  } catch (const WriteError& e) {
+    EXPECT_NE(std::string(e.what()).find("band 1 (distance_m): cell "), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(exists(path));
+  // The boundary band alone, in Byte: the labeller's flags.
+  options.bands = {B::boundary};
+  options.data_type.clear();
+  write_raster(path, f.labels(), f.table, options);
+  {
+    Opened opened(path);
+    ASSERT_NE(opened.ds, nullptr);
+    GDALRasterBandH band = GDALGetRasterBand(opened.ds, 1);
+    EXPECT_EQ(GDALGetRasterDataType(band), GDT_Byte);
+    int has_nodata = 0;
+    EXPECT_EQ(GDALGetRasterNoDataValue(band, &has_nodata), 255.0);
+    const std::vector<double> flags = read_band(opened.ds, 1);
+    const int w = GDALGetRasterXSize(opened.ds);
+    for (int y = 0; y < GDALGetRasterYSize(opened.ds); ++y) {
+      for (int x = 0; x < w; ++x) {
+        const Code code = pixel_code(nullptr, 4, true, x, y);
+        ASSERT_EQ(flags[static_cast<std::size_t>(y) * w + x],
+                  code == grid::kInvalidCode ? 255.0 : static_cast<double>(f.result.boundary[code]));
+      }
+    }
+  }
+  // Bands the labels cannot give, or listed twice.
+  options.bands = {B::fid, B::distance};
+  EXPECT_THROW(write_raster(path, f.labels(false, true), f.table, options), WriteError);
+  EXPECT_FALSE(exists(path));
+  options.bands = {B::fid, B::boundary, B::fid};
+  EXPECT_THROW(write_raster(path, f.labels(), f.table, options), WriteError);
+  // Without distances the default is fid and boundary, as before -bands.
+  EXPECT_EQ(raster_bands(RasterOptions{}, false), (std::vector<RasterBand>{B::fid, B::boundary}));
+  EXPECT_EQ(raster_bands(RasterOptions{}, true), (std::vector<RasterBand>{B::fid, B::boundary, B::distance}));
+}
+
+TEST_F(RasterWriter, BandsListsParseInOrderAndBadOnesNameTheArgument) {
+  using B = RasterBand;
+  EXPECT_EQ(parse_raster_bands("fid"), std::vector<RasterBand>{B::fid});
+  EXPECT_EQ(parse_raster_bands("distance, FID"), (std::vector<RasterBand>{B::distance, B::fid}));
+  EXPECT_EQ(parse_raster_bands("boundary,fid,distance"), (std::vector<RasterBand>{B::boundary, B::fid, B::distance}));
+  const auto message_of = [](const std::string& list) {
+    try {
+      parse_raster_bands(list);
+    } catch (const WriteError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  EXPECT_EQ(message_of("fid,fid"), "-bands: 'fid,fid': band 'fid' named twice");
+  EXPECT_EQ(message_of("fid,site_fid"),
+            "-bands: 'fid,site_fid': 'site_fid' is not a band; name bands from fid, boundary, distance, separated by commas");
+  EXPECT_EQ(message_of(""), "-bands: '': a band name is empty; name bands from fid, boundary, distance, separated by commas");
+  EXPECT_EQ(message_of("fid,"),
+            "-bands: 'fid,': a band name is empty; name bands from fid, boundary, distance, separated by commas");
+}
+
+TEST_F(RasterWriter, OneAndSeveralThreadsWriteTheSameFile) {
+  const Fixture f(7, 60, 21);
+  for (const bool qtm : {true, false}) {
+    for (const bool fid_alone : {false, true}) {
+      SCOPED_TRACE(std::string(qtm ? "qtm" : "lonlat") + (fid_alone ? ", -bands fid" : ", every band"));
+      RasterOptions options;
+      options.layout = qtm ? RasterOptions::Layout::qtm : RasterOptions::Layout::lonlat;
+      if (!qtm) options.width = 1500, options.height = 700;
+      if (fid_alone) options.bands = {RasterBand::fid};
+      // Strips of a few rows, several a row of GeoTIFF's 256-row blocks, and whole rows of blocks.
+      for (const std::uint64_t strip_bytes : {std::uint64_t{100000}, std::uint64_t{0}}) {
+        options.strip_bytes = strip_bytes;
+        std::vector<unsigned char> first;
+        for (const int threads : {1, 2, 3, 8}) {
+          SCOPED_TRACE(std::to_string(threads) + " threads, strip budget " + std::to_string(strip_bytes));
+          const ScopedDefaultThreads scoped(threads);  // the labels', the values' and GDAL's compression
+          const std::string path = temp_path("threads_" + std::to_string(threads) + ".tif");
+          write_raster(path, f.labels(), f.table, options);
+          const std::vector<unsigned char> bytes = file_bytes(path);
+          VSIUnlink(path.c_str());
+          ASSERT_FALSE(bytes.empty());
+          if (threads == 1) {
+            first = bytes;
+          } else {
+            EXPECT_TRUE(bytes == first) << "the file differs from the one written on 1 thread";
+          }
+        }
+      }
     }
   }
 }

@@ -20,6 +20,7 @@
 
 #include "qtmv_version.hpp"
 #include "qtmvoronoi_usage.hpp"  // generated from man/qtmvoronoi.pod
+#include "write/raster_bands.hpp"
 #include "write/raster_writer.hpp"
 #include "write/vector_writer.hpp"
 
@@ -105,7 +106,8 @@ std::vector<std::string> split_list(const std::string& text) {
 // Options that shape a dataset: a tile job, which writes a tile product, refuses them.
 bool shapes_output(const std::string& name) {
   return name == "-of" || name == "-f" || name == "-lco" || name == "-dsco" || name == "-co" || name == "-ot" ||
-         name == "-layers" || name == "-raster" || name == "-tr" || name == "-ts" || name == "-vertices";
+         name == "-layers" || name == "-raster" || name == "-tr" || name == "-ts" || name == "-vertices" ||
+         name == "-bands";
 }
 
 // One option on the command line, as written (arg) and as named (option_name), and its values.
@@ -225,6 +227,7 @@ bool parse_vector_option(const OptionAt& at, VoronoiOptions& run) {
       }
     }
     if (run.kind == OutputKind::raster) throw UsageError("-layers is for vector output, -raster for raster output");
+    if (!run.raster.bands.empty()) throw UsageError("-bands is for raster output, -layers for vector output");
     run.kind = OutputKind::vector;
   } else if (name == "-vertices") {
     const std::string v = lower(at.value());
@@ -249,6 +252,14 @@ bool parse_raster_option(const OptionAt& at, VoronoiOptions& run, ParseState& st
     } catch (const std::exception& e) {
       throw UsageError(e.what());
     }
+  } else if (name == "-bands") {
+    if (!run.raster.bands.empty()) throw UsageError("-bands: given twice; name every band in one list");
+    try {
+      run.raster.bands = write::parse_raster_bands(at.value());
+    } catch (const std::exception& e) {
+      throw UsageError(e.what());
+    }
+    if (run.kind == OutputKind::vector) throw UsageError("-bands is for raster output, -layers for vector output");
   } else if (name == "-raster") {
     const std::string v = lower(at.value());
     if (v == "qtm") {
@@ -306,6 +317,12 @@ void check_option_combinations(VoronoiOptions& run, const ParseState& state) {
     throw UsageError("-tile and -merge exclude each other: tile jobs come first, then one merge of their products");
   }
   if (run.tile_count > 0 && !state.output_option.empty()) {
+    const std::string name = option_name(state.output_option);
+    if (name == "-co" || name == "-ot" || name == "-raster" || name == "-tr" || name == "-ts" || name == "-bands") {
+      // -merge writes vector output: the raster's options belong to no run of the pair.
+      throw UsageError("-tile writes a tile product, not a dataset: " + state.output_option +
+                       " is for a raster, which a whole run writes (-merge writes vector output)");
+    }
     throw UsageError("-tile writes a tile product, not a dataset: give " + state.output_option + " to the -merge run");
   }
   // Which of the two a batch job meant is a guess: refuse the pair.

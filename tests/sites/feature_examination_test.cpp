@@ -13,12 +13,7 @@
 namespace qtmv::sites {
 namespace {
 
-OGRSpatialReference srs_of(const char* text) {
-  OGRSpatialReference srs;
-  srs.SetFromUserInput(text);
-  srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  return srs;
-}
+using test::srs_of;
 
 TEST(FeatureExamination, BlocksHoldTheirFeaturesPartsAndSkips) {
   const OGRSpatialReference wgs84 = srs_of("EPSG:4326");

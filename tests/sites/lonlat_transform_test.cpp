@@ -12,16 +12,12 @@
 
 #include "common/openmp_threads.hpp"
 #include "sites/lonlat_transform.hpp"
+#include "sites_test_support.hpp"
 
 namespace qtmv::sites {
 namespace {
 
-OGRSpatialReference srs_of(const char* text) {
-  OGRSpatialReference srs;
-  srs.SetFromUserInput(text);
-  srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  return srs;
-}
+using test::srs_of;
 
 TEST(LonLatTransform, ToLonLatChecksLatitudesAndLeavesAFailureAsGiven) {
   gdal::ErrorCapture errors;

@@ -1,8 +1,8 @@
 // Reading one layer (gdal_rasterize's ProcessLayer is the model): its -where filter, its CRS and
-// the transformation to WGS84; its features read in chunks and examined on all threads, then in
-// feature order reported, transformed and made into jobs; its sites built in batches; then its
-// warnings. Each layer's sites follow the layer before's (composite sites), each with its own
-// CRS, checks and messages.
+// the transformation to WGS84; its features read by GDAL on the calling thread in chunks, which
+// are examined, settled in feature order (reported and made into jobs), built and appended in
+// steps beside the reading; then its warnings. Each layer's sites follow the layer before's
+// (composite sites), each with its own CRS, checks and messages.
 #pragma once
 
 #include <cstddef>

@@ -73,13 +73,18 @@ SiteCellCounts resolve_claims(SiteGeometry& g, DistanceRule rule) {
     sort_by_pair(site_codes, [](const SiteCode& c) { return static_cast<std::uint32_t>(c.site); }, [](const SiteCode& c) { return c.code; });
   }
   site_codes.erase(std::unique(site_codes.begin(), site_codes.end()), site_codes.end());
-  // Whether another site's interior holds each (looked up on all cores, when there are interiors).
+  // Whether each is its site's own: its site holds an interior already, or no other site's
+  // interior holds it (looked up on all cores, when there are interiors).
   const auto m = static_cast<std::int64_t>(site_codes.size());
   std::vector<unsigned char, DefaultInitAllocator<unsigned char>> own(held.empty() ? 0 : site_codes.size());
   if (!held.empty()) {
 #pragma omp parallel for schedule(static) num_threads(threads)
     for (std::int64_t k = 0; k < m; ++k) {
       const auto [site, code] = site_codes[k];
+      if (counts.has_own_cell[site]) {
+        own[k] = 1;
+        continue;
+      }
       const std::uint64_t key = grid::quadtree_key(grid::cell_of(code, g.level), g.level);
       auto r = std::upper_bound(held.begin(), held.end(), key,
                                 [](std::uint64_t x, const grid::KeyRange& range) { return x < range.first; });

@@ -140,7 +140,7 @@ TEST(PolygonValidityCheck, WarnsByFidCountsAndCapsTheLines) {
   EXPECT_TRUE(any_contains(messages, "24 sites, ") && any_contains(messages, "; 23 invalid polygon(s) (read by even-odd)"));
 }
 
-// Features are examined on all threads in chunks of up to 1024: the warnings still come in
+// Features are examined on all threads in blocks of up to 1024: the warnings still come in
 // feature order, the same with one thread as with several, and -strict stops at the first.
 TEST(PolygonValidityCheck, WarningsComeInFeatureOrderWhateverTheThreads) {
   std::vector<std::string> wkts;

@@ -97,6 +97,14 @@ inline void corrupt_geometry(const std::string& path, GIntBig fid) {
                  nullptr, nullptr);
 }
 
+/// A CRS from any SetFromUserInput text, in lon/lat (traditional GIS) order.
+inline OGRSpatialReference srs_of(const char* text) {
+  OGRSpatialReference srs;
+  srs.SetFromUserInput(text);
+  srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  return srs;
+}
+
 /// Options at a level whose messages are kept in `messages`.
 inline ReadOptions options_at(int level, std::vector<std::string>* messages) {
   ReadOptions o;

@@ -65,16 +65,17 @@ struct LevelFilter {
 };
 
 /// A part's kept lists: its internal nodes' lists are their children's parent lists, read where
-/// they are (no copy) while the next level is filtered.
-struct PartLists {
+/// they are (no copy) while the next level is filtered. Aligned to a cache line: the parts'
+/// vectors grow on different threads.
+struct alignas(64) PartLists {
   DefaultInitVector<ListBlock> blocks;
   DefaultInitVector<std::int32_t> loose;
   DefaultInitVector<std::int32_t> points;
   std::vector<PointBins> bins;
 };
 
-/// A thread's scratch.
-struct Scratch {
+/// A thread's scratch (aligned to a cache line, as PartLists).
+struct alignas(64) Scratch {
   std::vector<double> lb2;         ///< the loose items' lower bounds
   std::vector<std::int32_t> site;  ///< and sites
   FilterScratch filter;            ///< the blocks' filter's

@@ -72,34 +72,29 @@ void binned_keep(const SpatialItems& items, const NodeBounds& node, const std::i
                  const PointBins* bins, PointScratch& s) {
   const Vec3& x = node.centre;
   const Vec3* rep = items.points();
-  s.pos.resize(count);
-  s.kept_chord2.resize(count);
-  std::size_t m = 0;
-  // Without branches: a point's entry is written and kept only when within the threshold.
-  auto keep = [&](std::uint32_t begin, std::uint32_t end) {
-    for (std::uint32_t k = begin; k < end; ++k) {
-      s.pos[m] = points[k];
-      s.kept_chord2[m] = s.chord2[k];
-      m += s.chord2[k] <= node.threshold ? 1 : 0;
-    }
-  };
-  if (!bins) {
-    keep(0, count);  // binned_least measured them all
-  } else {
+  std::uint32_t end = count;  // binned_least measured them all when they are plain
+  if (bins) {
+    // The bins up to the first beyond the node's reach (and every one after it) are one stretch
+    // of the list: measured (beyond those binned_least measured) and kept in one pass each.
     const double delta = centre_delta(*bins, x);
     const double reach = sqrt(node.threshold);
-    for (int b = 0; b < kPointBins; ++b) {
-      if (bin_beyond(*bins, b, delta, reach)) break;  // and every bin after it
-      const std::uint32_t begin = bins->first[b], end = bins->first[b + 1];
-      if (b >= s.searched) {
-        for (std::uint32_t k = begin; k < end; ++k) {
-          const Vec3& a = rep[points[k]];
-          const double dx = x.x - a.x, dy = x.y - a.y, dz = x.z - a.z;
-          s.chord2[k] = dx * dx + dy * dy + dz * dz;
-        }
-      }
-      keep(begin, end);
+    int stop = 0;
+    while (stop < kPointBins && !bin_beyond(*bins, stop, delta, reach)) ++stop;
+    end = bins->first[stop];
+    for (std::uint32_t k = bins->first[std::min(s.searched, stop)]; k < end; ++k) {
+      const Vec3& a = rep[points[k]];
+      const double dx = x.x - a.x, dy = x.y - a.y, dz = x.z - a.z;
+      s.chord2[k] = dx * dx + dy * dy + dz * dz;
     }
+  }
+  s.pos.resize(end);
+  s.kept_chord2.resize(end);
+  std::size_t m = 0;
+  // Without branches: a point's entry is written and kept only when within the threshold.
+  for (std::uint32_t k = 0; k < end; ++k) {
+    s.pos[m] = points[k];
+    s.kept_chord2[m] = s.chord2[k];
+    m += s.chord2[k] <= node.threshold ? 1 : 0;
   }
   s.pos.resize(m);
   s.kept_chord2.resize(m);

@@ -1,6 +1,7 @@
-// The host's build of the pruned tree (label_tree.hpp), level by level on all cores, coarse
-// levels block by block (tree_items.hpp); the device build (cuda/tree_build_cuda.cu) makes the
-// same tree with the same node rule (tree_node_rule.hpp).
+// The host's build of the pruned tree (label_tree.hpp), level by level on all cores: long lists
+// block by block (tree_items.hpp), short lists of points by bins (tree_point_bins.hpp); the
+// device build (cuda/tree_build_cuda.cu) makes the same tree with the same node rule
+// (tree_node_rule.hpp).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -88,15 +89,17 @@ struct alignas(64) Scratch {
 /// The form of a node's kept list: blocks of positions, or point positions, plain or binned.
 enum class ListForm { blocks, points, binned };
 
-/// Lists of at most this many items are spread out item by item for their nodes' children;
-/// longer ones (the coarse levels') are filtered block by block.
+/// Lists of at most this many items are filtered item by item (kept as points when they are
+/// points, else spread out for their nodes' children); longer ones (the coarse levels') block by
+/// block.
 constexpr std::uint32_t kFlatList = 4096;
 
 /// The host's build, level by level: each level's nodes are filtered (filter_level: the items
 /// each keeps, and what it becomes), then the next level's nodes, lists and pending entries are
 /// laid out and filled (grow_level). The octants' items are placed in a spatial order
 /// (SpatialItems), so that a node's list is blocks of positions that nodes filter block by
-/// block; a list leaf's list is put back in the candidates' order, the plain filter's.
+/// block, or, once short, point positions binned about the node; a list leaf's list is put back
+/// in the candidates' order, the plain filter's.
 class TreeBuilder {
  public:
   TreeBuilder(const std::vector<Piece>& candidates, int level, bool with_distance, int threads,

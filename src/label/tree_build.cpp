@@ -1,6 +1,7 @@
-// The host's build of the pruned tree (label_tree.hpp), level by level on all cores, coarse
-// levels block by block (tree_items.hpp); the device build (cuda/tree_build_cuda.cu) makes the
-// same tree with the same node rule (tree_node_rule.hpp).
+// The host's build of the pruned tree (label_tree.hpp), level by level on all cores: long lists
+// block by block (tree_items.hpp), short lists of points by bins (tree_point_bins.hpp); the
+// device build (cuda/tree_build_cuda.cu) makes the same tree with the same node rule
+// (tree_node_rule.hpp).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -35,8 +36,8 @@ struct ListRef {
   std::uint32_t loose;
   std::uint32_t items;
   std::int32_t part;
-  std::int32_t bins;       ///< points: an internal node's PointBins in the part, or -1 (a leaf's)
-  bool points;             ///< the positions are points, binned; else blocks
+  std::int32_t bins;       ///< points: their PointBins in the part, or -1 (plain, or a leaf's)
+  bool points;             ///< the positions are points (binned when bins >= 0); else blocks
 };
 
 /// A node of the level being built, with the list its parent kept (the node filters it).
@@ -65,16 +66,17 @@ struct LevelFilter {
 };
 
 /// A part's kept lists: its internal nodes' lists are their children's parent lists, read where
-/// they are (no copy) while the next level is filtered.
-struct PartLists {
+/// they are (no copy) while the next level is filtered. Aligned to a cache line: the parts'
+/// vectors grow on different threads.
+struct alignas(64) PartLists {
   DefaultInitVector<ListBlock> blocks;
   DefaultInitVector<std::int32_t> loose;
   DefaultInitVector<std::int32_t> points;
   std::vector<PointBins> bins;
 };
 
-/// A thread's scratch.
-struct Scratch {
+/// A thread's scratch (aligned to a cache line, as PartLists).
+struct alignas(64) Scratch {
   std::vector<double> lb2;         ///< the loose items' lower bounds
   std::vector<std::int32_t> site;  ///< and sites
   FilterScratch filter;            ///< the blocks' filter's
@@ -84,15 +86,20 @@ struct Scratch {
   std::uint32_t flat_blocks = 0;
 };
 
-/// Lists of at most this many items are spread out item by item for their nodes' children;
-/// longer ones (the coarse levels') are filtered block by block.
+/// The form of a node's kept list: blocks of positions, or point positions, plain or binned.
+enum class ListForm { blocks, points, binned };
+
+/// Lists of at most this many items are filtered item by item (kept as points when they are
+/// points, else spread out for their nodes' children); longer ones (the coarse levels') block by
+/// block.
 constexpr std::uint32_t kFlatList = 4096;
 
 /// The host's build, level by level: each level's nodes are filtered (filter_level: the items
 /// each keeps, and what it becomes), then the next level's nodes, lists and pending entries are
 /// laid out and filled (grow_level). The octants' items are placed in a spatial order
 /// (SpatialItems), so that a node's list is blocks of positions that nodes filter block by
-/// block; a list leaf's list is put back in the candidates' order, the plain filter's.
+/// block, or, once short, point positions binned about the node; a list leaf's list is put back
+/// in the candidates' order, the plain filter's.
 class TreeBuilder {
  public:
   TreeBuilder(const std::vector<Piece>& candidates, int level, bool with_distance, int threads,
@@ -179,10 +186,10 @@ class TreeBuilder {
   }
 
   /// Filters the parent's list of p (a node of level l < L, centre c): the items it keeps go to
-  /// `kept` (item_bounds against prune_threshold, refine_kept). Returns true when they are points
-  /// kept binned (their bins in *bins), false when blocks.
-  bool filter(const Pending& p, int l, const Vec3& c, const CoverLookup& covered, Scratch& s,
-              RadiusStretches& stretches, KeptList& kept, PointBins* bins) const {
+  /// `kept` (item_bounds against prune_threshold, refine_kept), as blocks or as points (binned:
+  /// their bins in *bins).
+  ListForm filter(const Pending& p, int l, const Vec3& c, const CoverLookup& covered, Scratch& s,
+                  RadiusStretches& stretches, KeptList& kept, PointBins* bins) const {
     const PartLists& from = parent_part(p);
     const std::int32_t* loose = from.loose.data() + p.parent.loose_at;
     const std::size_t loose_at = kept.loose->size();
@@ -195,14 +202,15 @@ class TreeBuilder {
       min_ub2 = std::min(min_ub2, ub2);
     }
     const double radius = node_radius(l, p.cell, stretches(l, p.cell.row));
-    bool binned = false;
+    bool points = false;
     NodeBounds node{c, radius, 0.0};
     if (p.parent.points) {
-      const std::int32_t* points = from.points.data() + p.parent.at;
-      const PointBins& parent_bins = from.bins[p.parent.bins];
-      node.threshold = prune_threshold(binned_least(*items_, c, points, parent_bins, min_ub2, s.points), radius);
-      binned_keep(*items_, node, points, parent_bins, s.points);
-      binned = true;
+      const std::int32_t* list = from.points.data() + p.parent.at;
+      const PointBins* parent_bins = p.parent.bins >= 0 ? &from.bins[p.parent.bins] : nullptr;
+      node.threshold =
+          prune_threshold(binned_least(*items_, c, list, p.parent.length, parent_bins, min_ub2, s.points), radius);
+      binned_keep(*items_, node, list, p.parent.length, parent_bins, s.points);
+      points = true;
     } else {
       const ListBlock* blocks = from.blocks.data() + p.parent.at;
       const bool flat = p.parent.items <= kFlatList;
@@ -216,29 +224,29 @@ class TreeBuilder {
       node.threshold = prune_threshold(min_ub2, radius);
       if (flat && s.flat.points) {
         flat_points_keep(s.flat, node, s.points);
-        binned = true;
+        points = true;
       } else if (flat) {
         items_->flat_keep(node, s.flat, kept);
       } else {
         const std::size_t blocks_at = kept.blocks->size();
         items_->keep(node, blocks, p.parent.length, s.filter, kept);
-        // A short list of points goes on binned (its children need not spread it out).
+        // A short list of points goes on as points (its children need not spread it out).
         if (kept.count <= kFlatList && kept.loose->size() == loose_at &&
             points_of_blocks(*items_, c, kept.blocks->data() + blocks_at,
                              static_cast<std::uint32_t>(kept.blocks->size() - blocks_at), s.points)) {
           kept.blocks->resize(blocks_at);
           kept.count = 0;
-          binned = true;
+          points = true;
         }
       }
     }
-    if (binned) {
+    ListForm form = ListForm::blocks;
+    if (points) {
       // A node that keeps few enough at the list level has no children (decide_node): its list
       // needs no bins.
       const bool leaf = l >= list_level_ && p.parent.loose == 0 && s.points.pos.size() <= kMaxLeafList &&
                         !(covered.partly && cover_.split_partly);
-      emit_binned(*items_, node, s.points, kept, leaf ? nullptr : bins);
-      if (leaf) *bins = PointBins{{0.0, 0.0, 0.0}, -1.0, {}};  // none: decide checks
+      form = emit_points(*items_, node, s.points, kept, leaf ? nullptr : bins) ? ListForm::binned : ListForm::points;
     }
     for (std::uint32_t k = 0; k < p.parent.loose; ++k) {
       if (!(s.lb2[k] <= node.threshold)) continue;
@@ -250,7 +258,7 @@ class TreeBuilder {
       kept.count += static_cast<std::uint64_t>(n);
       kept.note_sites(s.site[k], s.site[k]);
     }
-    return binned;
+    return form;
   }
 
   /// Filters the parent's list of p (of level l, centre c), appending the items it keeps to
@@ -259,7 +267,8 @@ class TreeBuilder {
                   RadiusStretches& stretches) const {
     const std::size_t blocks_at = out.blocks.size(), points_at = out.points.size(), loose_at = out.loose.size();
     KeptList kept{&out.blocks, &out.loose, &out.points};
-    bool one_site = true, binned = false;
+    bool one_site = true;
+    ListForm form = ListForm::blocks;
     std::int32_t site = -1;
     PointBins bins;
     // A node all of whose cells one site claims needs no filtering (decide_node).
@@ -279,15 +288,16 @@ class TreeBuilder {
       }
     }
     if (l < level_ && covered.site < 0) {
-      binned = filter(p, l, c, covered, s, stretches, kept, &bins);
+      form = filter(p, l, c, covered, s, stretches, kept, &bins);
       one_site = kept.one_site();
       site = kept.site();
     }
     if (kept.count > 0x7fffffffu) throw std::runtime_error("the labeller's tree: a list of 2^31 candidates");
-    Decision dec{0, -1, {binned ? points_at : blocks_at, loose_at,
-                         static_cast<std::uint32_t>(binned ? out.points.size() - points_at : out.blocks.size() - blocks_at),
+    const bool points = form != ListForm::blocks;
+    Decision dec{0, -1, {points ? points_at : blocks_at, loose_at,
+                         static_cast<std::uint32_t>(points ? out.points.size() - points_at : out.blocks.size() - blocks_at),
                          static_cast<std::uint32_t>(out.loose.size() - loose_at), static_cast<std::uint32_t>(kept.count),
-                         part, -1, binned}};
+                         part, -1, points}};
     const NodeDecision rule = decide_node(l == level_, with_distance_, l >= list_level_, dec.kept.items, one_site, site,
                                           covered.site, covered.partly, cover_.split_partly, covered.claim_site);
     dec.kind = rule.kind;
@@ -297,8 +307,7 @@ class TreeBuilder {
       out.points.resize(points_at);
       out.loose.resize(loose_at);
       dec.kept = {blocks_at, loose_at, 0, 0, 0, part, -1, false};
-    } else if (dec.kind == kInternal && binned) {
-      if (!(bins.threshold >= 0.0)) throw std::logic_error("build_tree: a node taken for a leaf has children");
+    } else if (dec.kind == kInternal && form == ListForm::binned) {
       dec.kept.bins = static_cast<std::int32_t>(out.bins.size());
       out.bins.push_back(bins);
     }

@@ -42,15 +42,15 @@ std::uint64_t morton_key(const Vec3& p, int bits) {
 /// their top bits leaves them nearly in order, and an insertion pass finishes (a comparison sort
 /// mispredicts half its branches on such data).
 void sort_short(const std::int32_t* a, std::size_t n, std::int32_t* out) {
-  constexpr int kMaxBucketBits = 8;
-  if (n >= (std::size_t{1} << (kMaxBucketBits - 1))) {
+  constexpr int kMaxBucketBits = 9;
+  if (n >= (std::size_t{1} << (kMaxBucketBits - 2))) {
     std::copy(a, a + n, out);
     std::sort(out, out + n);
     return;
   }
   std::int32_t top = 0;
   for (std::size_t i = 0; i < n; ++i) top |= a[i];
-  const int bucket_bits = bits_for(n);  // about two buckets an item
+  const int bucket_bits = bits_for(n) + 1;  // about four buckets an item
   const int shift = std::max(0, bits_for(static_cast<std::uint64_t>(top)) - bucket_bits);
   const std::size_t buckets = std::size_t{1} << bucket_bits;
   std::uint32_t bucket[std::size_t{1} << kMaxBucketBits];

@@ -20,9 +20,10 @@
 
 namespace qtmv::label {
 
-/// Positions a tier-0 block holds; a tier-k block holds kBlockFanout^k tier-0 blocks.
-constexpr int kTier0Bits = 3;  // 8
-constexpr int kFanoutBits = 2;  // 4
+/// A tier-0 block holds 2^kTier0Bits positions (8); a tier-k block 2^(kFanoutBits k) (4^k) tier-0
+/// blocks.
+constexpr int kTier0Bits = 3;
+constexpr int kFanoutBits = 2;
 
 /// Part of a node's list: block `index` of tier `tier`, whole; or, at tier 0, its positions whose
 /// bits are set in `mask` (bit k: position 8 index + k).
@@ -56,7 +57,7 @@ struct NodeBounds {
 struct KeptList {
   DefaultInitVector<ListBlock>* blocks;
   DefaultInitVector<std::int32_t>* loose;
-  DefaultInitVector<std::int32_t>* points;  ///< a list of point items kept binned (tree_point_bins.hpp)
+  DefaultInitVector<std::int32_t>* points;  ///< a list kept as point positions (tree_point_bins.hpp)
   std::uint64_t count = 0;
   std::int32_t site_min = 0x7fffffff;
   std::int32_t site_max = -1;
@@ -79,7 +80,7 @@ struct FlatList {
   DefaultInitVector<double> x, y, z;
   DefaultInitVector<double> lb2;          ///< the node's lower bounds, per item
   DefaultInitVector<std::int32_t> kept;   ///< scratch: the indices of the items a node keeps
-  bool points = true;               ///< every item is a point piece
+  bool points = true;                     ///< every item is a point piece
 };
 
 /// A thread's scratch for the filters.

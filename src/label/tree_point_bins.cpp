@@ -40,51 +40,61 @@ void note_points_sites(const SpatialItems& items, const std::int32_t* pos, std::
 
 }  // namespace
 
-double binned_least(const SpatialItems& items, const Vec3& x, const std::int32_t* points, const PointBins& bins,
-                    double best, PointScratch& s) {
-  const double delta = centre_delta(bins, x);
+double binned_least(const SpatialItems& items, const Vec3& x, const std::int32_t* points, std::uint32_t count,
+                    const PointBins* bins, double best, PointScratch& s) {
   const Vec3* rep = items.points();
-  s.chord2.resize(bins.first[kPointBins]);
-  int b = 0;
-  for (; b < kPointBins; ++b) {
-    if (best < kChord2Infinity && bin_beyond(bins, b, delta, sqrt(best))) break;
-    for (std::uint32_t k = bins.first[b]; k < bins.first[b + 1]; ++k) {
-      const std::int32_t pos = points[k];
-      const double dx = x.x - rep[pos].x, dy = x.y - rep[pos].y, dz = x.z - rep[pos].z;
+  s.chord2.resize(count);
+  auto search = [&](std::uint32_t begin, std::uint32_t end) {
+    for (std::uint32_t k = begin; k < end; ++k) {
+      const Vec3& a = rep[points[k]];
+      const double dx = x.x - a.x, dy = x.y - a.y, dz = x.z - a.z;
       const double d2 = dx * dx + dy * dy + dz * dz;  // grid::chord2(x, a), as piece_chord2
       s.chord2[k] = d2;
       best = d2 < best ? d2 : best;
     }
+  };
+  if (!bins) {
+    search(0, count);
+    s.searched = kPointBins;
+    return best;
+  }
+  const double delta = centre_delta(*bins, x);
+  int b = 0;
+  for (; b < kPointBins; ++b) {
+    if (best < kChord2Infinity && bin_beyond(*bins, b, delta, sqrt(best))) break;
+    search(bins->first[b], bins->first[b + 1]);
   }
   s.searched = b;
   return best;
 }
 
-void binned_keep(const SpatialItems& items, const NodeBounds& node, const std::int32_t* points, const PointBins& bins,
-                 PointScratch& s) {
+void binned_keep(const SpatialItems& items, const NodeBounds& node, const std::int32_t* points, std::uint32_t count,
+                 const PointBins* bins, PointScratch& s) {
   const Vec3& x = node.centre;
-  const double delta = centre_delta(bins, x);
-  const double reach = sqrt(node.threshold);
   const Vec3* rep = items.points();
-  s.pos.resize(bins.first[kPointBins]);
-  s.kept_chord2.resize(bins.first[kPointBins]);
+  std::uint32_t end = count;  // binned_least measured them all when they are plain
+  if (bins) {
+    // The bins up to the first beyond the node's reach (and every one after it) are one stretch
+    // of the list: measured (beyond those binned_least measured) and kept in one pass each.
+    const double delta = centre_delta(*bins, x);
+    const double reach = sqrt(node.threshold);
+    int stop = 0;
+    while (stop < kPointBins && !bin_beyond(*bins, stop, delta, reach)) ++stop;
+    end = bins->first[stop];
+    for (std::uint32_t k = bins->first[std::min(s.searched, stop)]; k < end; ++k) {
+      const Vec3& a = rep[points[k]];
+      const double dx = x.x - a.x, dy = x.y - a.y, dz = x.z - a.z;
+      s.chord2[k] = dx * dx + dy * dy + dz * dz;
+    }
+  }
+  s.pos.resize(end);
+  s.kept_chord2.resize(end);
   std::size_t m = 0;
-  for (int b = 0; b < kPointBins; ++b) {
-    if (bin_beyond(bins, b, delta, reach)) break;  // and every bin after it
-    const std::uint32_t begin = bins.first[b], end = bins.first[b + 1];
-    if (b >= s.searched) {
-      for (std::uint32_t k = begin; k < end; ++k) {
-        const std::int32_t pos = points[k];
-        const double dx = x.x - rep[pos].x, dy = x.y - rep[pos].y, dz = x.z - rep[pos].z;
-        s.chord2[k] = dx * dx + dy * dy + dz * dz;
-      }
-    }
-    // Without branches: a point's entry is written and kept only when within the threshold.
-    for (std::uint32_t k = begin; k < end; ++k) {
-      s.pos[m] = points[k];
-      s.kept_chord2[m] = s.chord2[k];
-      m += s.chord2[k] <= node.threshold ? 1 : 0;
-    }
+  // Without branches: a point's entry is written and kept only when within the threshold.
+  for (std::uint32_t k = 0; k < end; ++k) {
+    s.pos[m] = points[k];
+    s.kept_chord2[m] = s.chord2[k];
+    m += s.chord2[k] <= node.threshold ? 1 : 0;
   }
   s.pos.resize(m);
   s.kept_chord2.resize(m);
@@ -120,16 +130,16 @@ bool points_of_blocks(const SpatialItems& items, const Vec3& x, const ListBlock*
   return points;
 }
 
-void emit_binned(const SpatialItems& items, const NodeBounds& node, PointScratch& s, KeptList& out, PointBins* bins) {
+bool emit_points(const SpatialItems& items, const NodeBounds& node, PointScratch& s, KeptList& out, PointBins* bins) {
   const std::size_t n = s.pos.size();
   const std::size_t at = out.points->size();
   out.points->resize(at + n);
   std::int32_t* dest = out.points->data() + at;
   out.count += n;
   note_points_sites(items, s.pos.data(), n, out);
-  if (!bins) {
+  if (!bins || n <= kPlainPoints) {
     std::copy(s.pos.begin(), s.pos.begin() + static_cast<std::ptrdiff_t>(n), dest);
-    return;
+    return false;
   }
   bins->centre = node.centre;
   bins->threshold = node.threshold;
@@ -152,6 +162,7 @@ void emit_binned(const SpatialItems& items, const NodeBounds& node, PointScratch
     next[1][b] = first[b] + count[0][b];
   }
   for (std::size_t k = 0; k < n; ++k) dest[next[k & 1][s.bin[k]]++] = s.pos[k];
+  return true;
 }
 
 }  // namespace qtmv::label

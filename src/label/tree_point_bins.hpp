@@ -36,15 +36,18 @@ struct PointScratch {
   DefaultInitVector<std::uint8_t> bin;    ///< emit_binned's: each kept point's bin
 };
 
+/// Lists of at most this many points are kept plain (unbinned): their children test them all.
+constexpr std::size_t kPlainPoints = 32;
+
 /// The least squared chord from x to the `count` points `points` (positions of `items`) binned by
-/// `bins`, or `best` when that is less.
-double binned_least(const SpatialItems& items, const Vec3& x, const std::int32_t* points, const PointBins& bins,
-                    double best, PointScratch& s);
+/// `bins` (or plain: null), or `best` when that is less.
+double binned_least(const SpatialItems& items, const Vec3& x, const std::int32_t* points, std::uint32_t count,
+                    const PointBins* bins, double best, PointScratch& s);
 
 /// The points of the same list that the node (centre x, as binned_least's) keeps, into s.pos and
 /// s.kept_chord2.
-void binned_keep(const SpatialItems& items, const NodeBounds& node, const std::int32_t* points, const PointBins& bins,
-                 PointScratch& s);
+void binned_keep(const SpatialItems& items, const NodeBounds& node, const std::int32_t* points, std::uint32_t count,
+                 const PointBins* bins, PointScratch& s);
 
 /// binned_keep for a list spread out (f.points: every item a point piece) whose squared chords
 /// from the node's centre f.lb2 holds.
@@ -55,9 +58,10 @@ void flat_points_keep(const FlatList& f, const NodeBounds& node, PointScratch& s
 bool points_of_blocks(const SpatialItems& items, const Vec3& x, const ListBlock* blocks, std::uint32_t count,
                       PointScratch& s);
 
-/// The points s.pos (squared chords s.kept_chord2 from the node's centre) binned about the node:
-/// appended to *out.points, their count and sites noted in out, their bins in *bins. When `bins`
-/// is null (a node that cannot have children) they are appended as they are.
-void emit_binned(const SpatialItems& items, const NodeBounds& node, PointScratch& s, KeptList& out, PointBins* bins);
+/// The points s.pos (squared chords s.kept_chord2 from the node's centre) appended to
+/// *out.points, their count and sites noted in out: binned about the node, their bins in *bins
+/// (returns true), unless they are few (at most kPlainPoints) or `bins` is null (a node that cannot
+/// have children).
+bool emit_points(const SpatialItems& items, const NodeBounds& node, PointScratch& s, KeptList& out, PointBins* bins);
 
 }  // namespace qtmv::label

@@ -153,6 +153,14 @@ void LeafRows::meeting(grid::Code first, std::uint64_t count, std::vector<std::i
   std::sort(out.begin(), out.end());
 }
 
+std::uint64_t LeafRows::memory_bytes() const {
+  std::uint64_t bytes = 0;
+  for (const auto& level : entries_) {
+    for (const auto& octant : level) bytes += octant.capacity() * sizeof(Entry);
+  }
+  return bytes;
+}
+
 /// The CPU's hier pass over [first, first + count): every leaf paints its cells, row run by row
 /// run (a uniform leaf writes its site; a list leaf tests its candidates per cell), then the
 /// boundary flags come from the labels.

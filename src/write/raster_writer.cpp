@@ -33,8 +33,6 @@ namespace qtmv::write {
 
 namespace {
 
-using grid::Code;
-
 constexpr const char* kStage = "write";
 /// The block height assumed by raster_buffer_bytes (GeoTIFF's tiles are 256 x 256).
 constexpr std::uint64_t kAssumedBlockRows = 256;

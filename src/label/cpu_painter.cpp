@@ -30,11 +30,11 @@ void boundary_from_labels(int level, grid::Code first, std::uint64_t count, cons
     grid::Cell c = grid::cell_of(first + begin, level);
     for (std::uint64_t k = begin; k < end; ++k) {
       if (!premarked || boundary[k] != 0) {
-        grid::Cell nb[3];
-        grid::neighbours(c, level, nb);
+        grid::Code nb[3];
+        grid::neighbours(c, first + k, level, nb);  // inside the octant, from the code alone
         std::uint8_t flag = 0;
         for (int s = 0; s < 3 && !flag; ++s) {
-          const grid::Code code = grid::code_of(nb[s], level);
+          const grid::Code code = nb[s];
           const std::int32_t other = code >= first && code - first < count ? site[code - first] : outside(code);
           flag = other != site[k];
         }
@@ -151,6 +151,14 @@ void LeafRows::meeting(grid::Code first, std::uint64_t count, std::vector<std::i
     }
   }
   std::sort(out.begin(), out.end());
+}
+
+std::uint64_t LeafRows::memory_bytes() const {
+  std::uint64_t bytes = 0;
+  for (const auto& level : entries_) {
+    for (const auto& octant : level) bytes += octant.capacity() * sizeof(Entry);
+  }
+  return bytes;
 }
 
 /// The CPU's hier pass over [first, first + count): every leaf paints its cells, row run by row

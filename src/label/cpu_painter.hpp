@@ -21,6 +21,8 @@ class LeafRows {
   /// The leaves (indices into tree.leaves) whose rows meet the rows that [first, first + count)
   /// runs through, into `out` (replaced), in ascending order.
   void meeting(grid::Code first, std::uint64_t count, std::vector<std::int64_t>& out) const;
+  /// Host bytes of the index.
+  std::uint64_t memory_bytes() const;
 
  private:
   struct Entry {

@@ -130,7 +130,7 @@ std::uint64_t LabelSession::memory_bytes() const {
          s.pieces_copy.capacity() * sizeof(SitePiece) + s.site_cells_copy.capacity() * sizeof(SiteCell) +
          (s.fixed_copy.capacity() + s.prepared.fixed_cells.capacity()) * sizeof(FixedCell) +
          s.nodes_copy.capacity() * sizeof(FixedNode) + (c.first.capacity() + c.last.capacity()) * 8 +
-         (c.site.capacity() + c.owner_run.capacity()) * 4;
+         (c.site.capacity() + c.owner_run.capacity()) * 4 + (s.leaf_rows ? s.leaf_rows->memory_bytes() : 0);
 }
 
 void LabelSession::label_range(grid::Code first, std::uint64_t count, std::int32_t* site, float* distance_m,

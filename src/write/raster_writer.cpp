@@ -33,8 +33,6 @@ namespace qtmv::write {
 
 namespace {
 
-using grid::Code;
-
 constexpr const char* kStage = "write";
 /// The block height assumed by raster_buffer_bytes (GeoTIFF's tiles are 256 x 256).
 constexpr std::uint64_t kAssumedBlockRows = 256;
@@ -502,6 +500,7 @@ std::vector<std::uint8_t> write_strips(const RasterJob& job, GDALDatasetH ds, co
   const double write_share = job.can_create ? 1.0 : 0.5;
   if (options.progress && !options.progress(0.0, kStage)) throw Interrupted();
   // QTMV_TRACE=write: the strips' steps (beside the writes), GDAL's writes, and the waits for strips.
+  StepTrace trace(TraceStage::write);
   double io_seconds = 0, wait_seconds = 0;
   int strips = 0;
   {
@@ -524,10 +523,13 @@ std::vector<std::uint8_t> write_strips(const RasterJob& job, GDALDatasetH ds, co
     }
   }
   const StripTimes& times = filler.times();
-  trace_printf(TraceStage::write,
-               "raster %d strips of %d rows, each filled while the one before is written: cells %.3f s, labels %.3f s, "
-               "values %.3f s; GDAL writes %.3f s, waits for strips %.3f s",
-               strips, strip_rows, times.cells, times.labels, times.values, io_seconds, wait_seconds);
+  trace("raster strips", std::to_string(strips) + " strips of " + std::to_string(strip_rows) +
+                             " rows, each filled while the one before is written");
+  trace.note("strips' cells", times.cells);
+  trace.note("strips' labels", times.labels);
+  trace.note("strips' values", times.values);
+  trace.note("GDAL writes", io_seconds);
+  trace.note("waits for strips", wait_seconds);
   return filler.site_seen();
 }
 

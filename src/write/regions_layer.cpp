@@ -176,10 +176,11 @@ RowValue source_value(const OGRFeature* feature, int sf) {
   }
 }
 
-/// A block of regions traced ahead of writing: their GeoPackage blobs for direct rows, or their
-/// OGR geometries (null for an empty region) for OGR features.
+/// A block of regions traced ahead of writing: their GeoPackage blobs and rows' values for direct
+/// rows, or their OGR geometries (null for an empty region) for OGR features.
 struct TracedRegions {
   std::vector<GpkgGeometry> geometries;
+  std::vector<RowValue> values;  // direct rows: each row's, one after another
   std::vector<std::unique_ptr<OGRMultiPolygon>> features;
 };
 
@@ -197,6 +198,32 @@ struct RegionFields {
   // (the layer's field, the regions layer's field): written as real_text, not as OGR's 16 digits.
   std::vector<std::vector<std::pair<int, int>>> reals_as_text;
   int layer_index = -1, fid_index = -1, cells_index = -1, area_index = -1;  // ours (site_layer: composite only)
+};
+
+/// A row's values in the order of the rows' fields (the union's, then site_layer, site_fid,
+/// cells, area_m2): the source's for direct rows only (OGR copies them itself), then ours.
+class RegionRowValues {
+ public:
+  RegionRowValues(const LayerInput& in, const RegionFields& fields, const std::vector<double>& areas)
+      : in_(in), fields_(fields), areas_(areas) {}
+  std::size_t count() const { return fields_.written.size() + (fields_.layer_index >= 0 ? 4 : 3); }
+  /// Site s's values into out[0, count()); the source's only `with_source`.
+  void fill(std::size_t s, bool with_source, RowValue* out) const {
+    const sites::SiteRecord& site = in_.table.sites[s];
+    std::size_t v = fields_.written.size();
+    if (fields_.layer_index >= 0) out[v++] = in_.layer_of(s);
+    out[v++] = fid_value(site.fid);
+    out[v++] = RowValue::of(static_cast<std::int64_t>(in_.outlines.cells_per_site[s]));
+    out[v++] = RowValue::of(areas_[s]);
+    if (!with_source) return;
+    const std::vector<int>& index = fields_.source_index[site.layer];
+    for (std::size_t u = 0; u < fields_.written.size(); ++u) out[u] = source_value(site.attributes.get(), index[u]);
+  }
+
+ private:
+  const LayerInput& in_;
+  const RegionFields& fields_;
+  const std::vector<double>& areas_;
 };
 
 /// Adds the fields to the regions layer just begun in `w`.
@@ -322,14 +349,17 @@ void write_regions(VectorDatasetWriter& w, const LayerInput& in, double work, st
   const std::unique_ptr<GpkgRows> direct =
       plain_source_values(in, fields.union_fields, fields.source_index) ? w.direct_rows(row_fields) : nullptr;
 
-  // Blocks of regions traced (and made blobs of, for direct rows) on all cores on a helper thread
-  // while this one writes the block before: two blocks held, not every region's rings.
+  // Blocks of regions traced (and made blobs of, with the rows' values, for direct rows) on all
+  // cores on a helper thread while this one writes the block before: two blocks held, not every
+  // region's rings.
+  const RegionRowValues row_values(in, fields, areas);
   double link_seconds = 0;  // on the helper thread (for the trace)
   const auto link = [&](std::size_t first, std::size_t last) {
     const auto start = std::chrono::steady_clock::now();
     TracedRegions block;
     if (direct) {
       block.geometries.resize(last - first);
+      block.values.resize((last - first) * row_values.count());
     } else {
       block.features.resize(last - first);
     }
@@ -341,6 +371,7 @@ void write_regions(VectorDatasetWriter& w, const LayerInput& in, double work, st
         const std::size_t k = static_cast<std::size_t>(s) - first;
         if (direct) {
           region_geometry(region, block.geometries[k]);
+          row_values.fill(static_cast<std::size_t>(s), true, block.values.data() + k * row_values.count());
         } else if (!region.empty()) {
           block.features[k].reset(make_multipolygon(region));
         }
@@ -354,23 +385,15 @@ void write_regions(VectorDatasetWriter& w, const LayerInput& in, double work, st
   // rows it cannot hold are named in a warning at the end.
   const EmptyRows empty_rows = w.empty_rows();
   sites::FidList left_out;
-  // A row's values in the order of row_fields: the source's (direct rows only; OGR copies them
-  // itself), then ours.
-  std::vector<RowValue> values(row_fields.size());
+  std::vector<RowValue> values(row_values.count());  // an OGR feature's
   const auto write = [&](std::size_t first, std::size_t last, TracedRegions& block) {
     for (std::size_t s = first; s < last; ++s) {
-      const sites::SiteRecord& site = in.table.sites[s];
-      std::size_t v = fields.written.size();
-      if (fields.layer_index >= 0) values[v++] = in.layer_of(s);
-      values[v++] = fid_value(site.fid);
-      values[v++] = RowValue::of(static_cast<std::int64_t>(in.outlines.cells_per_site[s]));
-      values[v++] = RowValue::of(areas[s]);
       if (direct) {
-        const std::vector<int>& index = fields.source_index[site.layer];
-        for (std::size_t u = 0; u < fields.written.size(); ++u) values[u] = source_value(site.attributes.get(), index[u]);
-        w.write(*direct, block.geometries[s - first].blob(), values.data());
+        w.write(*direct, block.geometries[s - first].blob(), block.values.data() + (s - first) * row_values.count());
         continue;
       }
+      const sites::SiteRecord& site = in.table.sites[s];
+      row_values.fill(s, false, values.data());
       std::unique_ptr<OGRMultiPolygon>& geometry = block.features[s - first];
       const bool empty = geometry == nullptr;
       if (empty && empty_rows == EmptyRows::left_out) {

@@ -22,16 +22,18 @@ void write_boundary_cells(VectorDatasetWriter& w, const LayerInput& in, double w
   }
   w.begin_features();
   CellRows rows(w, layer, fields);
-  // Blocks of outline cells, the boundary cells' polygons made on all cores on a helper thread
-  // while this one writes the block before.
+  // Blocks of outline cells, the boundary cells' polygons made on the helper's team (and this
+  // thread when it waits) while this one writes the block before.
   const label::OutlineCells& cells = in.outlines.cells;
-  const auto make = [&](std::size_t first, std::size_t last) {
+  const auto begin = [&](std::size_t first, std::size_t last) {
     std::vector<grid::Code> codes;
     for (std::size_t k = first; k < last; ++k) {
       if (cells[k].boundary) codes.push_back(cells[k].code);
     }
-    return rows.make(std::move(codes), level);
+    const std::size_t pieces = codes.size();
+    return std::make_pair(rows.begin(std::move(codes), level), pieces);
   };
+  const auto make = [&](CellPolygons& block, std::size_t k) { rows.make(block, k); };
   std::uint64_t done = 0;
   const auto write = [&](std::size_t first, std::size_t last, const CellPolygons& block) {
     std::size_t row = 0;
@@ -46,7 +48,7 @@ void write_boundary_cells(VectorDatasetWriter& w, const LayerInput& in, double w
     }
     rows.end_block();
   };
-  work_ahead(cells.size(), kCellBlock, make, write);
+  work_ahead(cells.size(), kCellBlock, kCellGrain, begin, make, write);
   rows.finish();
   w.end_layer();
 }

@@ -34,13 +34,14 @@ void write_cells(VectorDatasetWriter& w, const LayerInput& in, double work) {
   Code next = 0;
   in.cell_tiles([&](const CellTile& tile) {
     if (tile.first != next) throw std::logic_error("write_vector: the cells layer's tiles are not in code order");
-    // Blocks of the tile's cells, their polygons made on all cores on a helper thread while
-    // this one writes the block before.
-    const auto make = [&](std::size_t first, std::size_t last) {
+    // Blocks of the tile's cells, their polygons made on the helper's team (and this thread
+    // when it waits) while this one writes the block before.
+    const auto begin = [&](std::size_t first, std::size_t last) {
       std::vector<Code> codes(last - first);
       for (std::size_t k = first; k < last; ++k) codes[k - first] = tile.first + k;
-      return rows.make(std::move(codes), level);
+      return std::make_pair(rows.begin(std::move(codes), level), last - first);
     };
+    const auto make = [&](CellPolygons& block, std::size_t k) { rows.make(block, k); };
     const auto write = [&](std::size_t first, std::size_t last, const CellPolygons& block) {
       for (std::size_t k = first; k < last; ++k) {
         const Code code = tile.first + k;
@@ -60,7 +61,7 @@ void write_cells(VectorDatasetWriter& w, const LayerInput& in, double work) {
       }
       rows.end_block();
     };
-    work_ahead(static_cast<std::size_t>(tile.count), kCellBlock, make, write);
+    work_ahead(static_cast<std::size_t>(tile.count), kCellBlock, kCellGrain, begin, make, write);
     next = tile.first + tile.count;
   });
   if (next != cells) throw std::logic_error("write_vector: the cells layer's tiles end before the last cell");

@@ -13,8 +13,6 @@
 #include <cpl_string.h>
 #include <ogrsf_frmts.h>
 
-#include "common/first_exception.hpp"
-#include "common/openmp_threads.hpp"
 #include "common/trace.hpp"
 #include "common/visible_devices.hpp"
 #include "sites/fid_list.hpp"
@@ -177,10 +175,12 @@ RowValue source_value(const OGRFeature* feature, int sf) {
   }
 }
 
-/// A block of regions traced ahead of writing: their GeoPackage blobs for direct rows, or their
-/// OGR geometries (null for an empty region) for OGR features.
+/// A block of regions traced ahead of writing: their GeoPackage blobs and rows' values for direct
+/// rows, or their OGR geometries (null for an empty region) for OGR features.
 struct TracedRegions {
+  std::size_t first = 0;  // the block's first site
   std::vector<GpkgGeometry> geometries;
+  std::vector<RowValue> values;  // direct rows: each row's, one after another
   std::vector<std::unique_ptr<OGRMultiPolygon>> features;
 };
 
@@ -198,6 +198,32 @@ struct RegionFields {
   // (the layer's field, the regions layer's field): written as real_text, not as OGR's 16 digits.
   std::vector<std::vector<std::pair<int, int>>> reals_as_text;
   int layer_index = -1, fid_index = -1, cells_index = -1, area_index = -1;  // ours (site_layer: composite only)
+};
+
+/// A row's values in the order of the rows' fields (the union's, then site_layer, site_fid,
+/// cells, area_m2): the source's for direct rows only (OGR copies them itself), then ours.
+class RegionRowValues {
+ public:
+  RegionRowValues(const LayerInput& in, const RegionFields& fields, const std::vector<double>& areas)
+      : in_(in), fields_(fields), areas_(areas) {}
+  std::size_t count() const { return fields_.written.size() + (fields_.layer_index >= 0 ? 4 : 3); }
+  /// Site s's values into out[0, count()); the source's only `with_source`.
+  void fill(std::size_t s, bool with_source, RowValue* out) const {
+    const sites::SiteRecord& site = in_.table.sites[s];
+    std::size_t v = fields_.written.size();
+    if (fields_.layer_index >= 0) out[v++] = in_.layer_of(s);
+    out[v++] = fid_value(site.fid);
+    out[v++] = RowValue::of(static_cast<std::int64_t>(in_.outlines.cells_per_site[s]));
+    out[v++] = RowValue::of(areas_[s]);
+    if (!with_source) return;
+    const std::vector<int>& index = fields_.source_index[site.layer];
+    for (std::size_t u = 0; u < fields_.written.size(); ++u) out[u] = source_value(site.attributes.get(), index[u]);
+  }
+
+ private:
+  const LayerInput& in_;
+  const RegionFields& fields_;
+  const std::vector<double>& areas_;
 };
 
 /// Adds the fields to the regions layer just begun in `w`.
@@ -323,55 +349,46 @@ void write_regions(VectorDatasetWriter& w, const LayerInput& in, double work, st
   const std::unique_ptr<GpkgRows> direct =
       plain_source_values(in, fields.union_fields, fields.source_index) ? w.direct_rows(row_fields) : nullptr;
 
-  // Blocks of regions traced (and made blobs of, for direct rows) on all cores on a helper thread
-  // while this one writes the block before: two blocks held, not every region's rings.
-  double link_seconds = 0;  // on the helper thread (for the trace)
-  const auto link = [&](std::size_t first, std::size_t last) {
-    const auto start = std::chrono::steady_clock::now();
+  // Blocks of regions traced (and made blobs of, with the rows' values, for direct rows) on the
+  // helper's team, and on this thread when it is done writing the block before: two blocks held,
+  // not every region's rings.
+  const RegionRowValues row_values(in, fields, areas);
+  const auto begin = [&](std::size_t first, std::size_t last) {
     TracedRegions block;
+    block.first = first;
     if (direct) {
       block.geometries.resize(last - first);
+      block.values.resize((last - first) * row_values.count());
     } else {
       block.features.resize(last - first);
     }
-    FirstException failure;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(ahead_threads())
-    for (std::int64_t s = static_cast<std::int64_t>(first); s < static_cast<std::int64_t>(last); ++s) {
-      failure.run([&] {
-        const Region region = tracer.trace(static_cast<std::int32_t>(s));
-        const std::size_t k = static_cast<std::size_t>(s) - first;
-        if (direct) {
-          region_geometry(region, block.geometries[k]);
-        } else if (!region.empty()) {
-          block.features[k].reset(make_multipolygon(region));
-        }
-      });
+    return std::make_pair(std::move(block), last - first);
+  };
+  const auto link = [&](TracedRegions& block, std::size_t k) {
+    const std::size_t s = block.first + k;
+    const Region region = tracer.trace(static_cast<std::int32_t>(s));
+    if (direct) {
+      region_geometry(region, block.geometries[k]);
+      row_values.fill(s, true, block.values.data() + k * row_values.count());
+    } else if (!region.empty()) {
+      block.features[k].reset(make_multipolygon(region));
     }
-    failure.rethrow();
-    link_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    return block;
   };
   // The regions of sites without a cell (empty): as the driver can hold them (EmptyRows); the
   // rows it cannot hold are named in a warning at the end.
   const EmptyRows empty_rows = w.empty_rows();
   sites::FidList left_out;
-  // A row's values in the order of row_fields: the source's (direct rows only; OGR copies them
-  // itself), then ours.
-  std::vector<RowValue> values(row_fields.size());
+  std::vector<RowValue> values(row_values.count());  // an OGR feature's
+  double write_seconds = 0;  // this thread's, in write (for the trace)
   const auto write = [&](std::size_t first, std::size_t last, TracedRegions& block) {
+    const auto start = std::chrono::steady_clock::now();
     for (std::size_t s = first; s < last; ++s) {
-      const sites::SiteRecord& site = in.table.sites[s];
-      std::size_t v = fields.written.size();
-      if (fields.layer_index >= 0) values[v++] = in.layer_of(s);
-      values[v++] = fid_value(site.fid);
-      values[v++] = RowValue::of(static_cast<std::int64_t>(in.outlines.cells_per_site[s]));
-      values[v++] = RowValue::of(areas[s]);
       if (direct) {
-        const std::vector<int>& index = fields.source_index[site.layer];
-        for (std::size_t u = 0; u < fields.written.size(); ++u) values[u] = source_value(site.attributes.get(), index[u]);
-        w.write(*direct, block.geometries[s - first].blob(), values.data());
+        w.write(*direct, block.geometries[s - first].blob(), block.values.data() + (s - first) * row_values.count());
         continue;
       }
+      const sites::SiteRecord& site = in.table.sites[s];
+      row_values.fill(s, false, values.data());
       std::unique_ptr<OGRMultiPolygon>& geometry = block.features[s - first];
       const bool empty = geometry == nullptr;
       if (empty && empty_rows == EmptyRows::left_out) {
@@ -397,15 +414,16 @@ void write_regions(VectorDatasetWriter& w, const LayerInput& in, double work, st
       w.write(*feature);
     }
     if (direct) w.guard([&] { direct->flush(); });  // before the block's blobs go
+    write_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     w.layer_progress(0.4 + 0.6 * static_cast<double>(last) / static_cast<double>(in.site_count), 1.0);
   };
-  work_ahead(static_cast<std::size_t>(in.site_count), kRegionBlock, link, write);
+  work_ahead(static_cast<std::size_t>(in.site_count), kRegionBlock, 1, begin, link, write);
   trace("regions traced and written");
   if (left_out.count() > 0) {
     w.warn(w.driver_name() + " drops rows without a geometry: the " + std::to_string(left_out.count()) +
            " site(s) without a cell (FIDs " + left_out.text() + ") are not in it");
   }
-  trace.note("of which tracing", link_seconds);
+  trace.note("of which writing rows", write_seconds);
   if (direct) {
     w.guard([&] { direct->finish(); });
     trace("regions' R-tree filled");

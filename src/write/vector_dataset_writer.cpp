@@ -7,9 +7,6 @@
 #include <cpl_error.h>
 
 #include "common/config_option.hpp"
-#include "common/first_exception.hpp"
-#include "common/openmp_threads.hpp"
-#include "write/work_ahead.hpp"
 
 namespace qtmv::write {
 
@@ -268,11 +265,10 @@ CellRows::CellRows(VectorDatasetWriter& w, OGRLayer* layer, std::vector<int> fie
   if (!direct_) feature_ = cell_feature(layer);
 }
 
-CellPolygons CellRows::make(std::vector<Code> codes, int level) const {
+CellPolygons CellRows::begin(std::vector<Code> codes, int level) const {
   CellPolygons block;
   const std::size_t n = codes.size();
-  const bool direct = direct_ != nullptr;
-  if (direct) {
+  if (direct_) {
     block.blobs.resize(n * CellPolygons::kBlobStride);
     block.blob_sizes.resize(n);
     block.envelopes.resize(n);
@@ -280,34 +276,27 @@ CellPolygons CellRows::make(std::vector<Code> codes, int level) const {
     block.rings.resize(n * grid::kMaxPolygonCorners);
     block.corners.resize(n);
   }
+  block.level = level;
   block.codes = std::move(codes);
-  FirstException failure;
-#pragma omp parallel num_threads(ahead_threads())
-  {
-    GpkgGeometry polygon;
-#pragma omp for schedule(static)
-    for (std::int64_t i = 0; i < static_cast<std::int64_t>(n); ++i) {
-      failure.run([&] {
-        const auto k = static_cast<std::size_t>(i);
-        LonLat ring[grid::kMaxPolygonCorners];
-        const int corners = grid::cell_polygon(grid::cell_of(block.codes[k], level), level, ring);
-        if (!direct) {
-          std::copy(ring, ring + corners, block.rings.begin() + static_cast<std::ptrdiff_t>(k * grid::kMaxPolygonCorners));
-          block.corners[k] = static_cast<std::uint8_t>(corners);
-          return;
-        }
-        polygon.begin(GpkgGeometry::kPolygon, 1);
-        polygon.ring(ring, static_cast<std::size_t>(corners));
-        polygon.end();
-        std::copy(polygon.data(), polygon.data() + polygon.size(),
-                  block.blobs.begin() + static_cast<std::ptrdiff_t>(k * CellPolygons::kBlobStride));
-        block.blob_sizes[k] = static_cast<std::uint32_t>(polygon.size());
-        block.envelopes[k] = polygon.envelope();
-      });
-    }
-  }
-  failure.rethrow();
   return block;
+}
+
+void CellRows::make(CellPolygons& block, std::size_t k) const {
+  LonLat ring[grid::kMaxPolygonCorners];
+  const int corners = grid::cell_polygon(grid::cell_of(block.codes[k], block.level), block.level, ring);
+  if (!direct_) {
+    std::copy(ring, ring + corners, block.rings.begin() + static_cast<std::ptrdiff_t>(k * grid::kMaxPolygonCorners));
+    block.corners[k] = static_cast<std::uint8_t>(corners);
+    return;
+  }
+  thread_local GpkgGeometry polygon;  // the thread's, from cell to cell
+  polygon.begin(GpkgGeometry::kPolygon, 1);
+  polygon.ring(ring, static_cast<std::size_t>(corners));
+  polygon.end();
+  std::copy(polygon.data(), polygon.data() + polygon.size(),
+            block.blobs.begin() + static_cast<std::ptrdiff_t>(k * CellPolygons::kBlobStride));
+  block.blob_sizes[k] = static_cast<std::uint32_t>(polygon.size());
+  block.envelopes[k] = polygon.envelope();
 }
 
 void CellRows::add(const CellPolygons& block, std::size_t k, const RowValue* values) {

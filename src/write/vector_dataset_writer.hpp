@@ -137,12 +137,13 @@ class VectorDatasetWriter {
   double total_work_, work_done_ = 0, layer_work_ = 0, layer_done_ = 0;
 };
 
-/// A block of cells' polygons made ahead of their rows (CellRows::make, on all cores), in the
+/// A block of cells' polygons made ahead of their rows (CellRows::begin, make), in the
 /// form the rows take: GeoPackage blobs for direct rows, else the rings for OGR features.
 struct CellPolygons {
   /// The largest cell's blob (bytes): a pole cell's ring of 4 corners, closed.
   static constexpr std::size_t kBlobStride = 8 + 32 + 9 + 4 + 16 * (grid::kMaxPolygonCorners + 1);
 
+  int level = 0;                           ///< the cells' QTM level
   std::vector<grid::Code> codes;           ///< the cells, in the order of their rows
   DefaultInitVector<unsigned char> blobs;  ///< direct rows: cell k's blob at k * kBlobStride
   std::vector<std::uint32_t> blob_sizes;   ///< direct rows
@@ -157,9 +158,12 @@ class CellRows {
  public:
   CellRows(VectorDatasetWriter& w, OGRLayer* layer, std::vector<int> fields);
 
-  /// The polygons of cells `codes` of QTM level `level` (on all cores; callable from a helper
-  /// thread while this one writes the rows of the block before).
-  CellPolygons make(std::vector<grid::Code> codes, int level) const;
+  /// A block for cells `codes` of QTM level `level`, sized, its polygons still to make (any
+  /// thread, while this one writes the rows of the block before).
+  CellPolygons begin(std::vector<grid::Code> codes, int level) const;
+
+  /// Makes the polygon of cell k of `block` (any thread, any cell at once).
+  void make(CellPolygons& block, std::size_t k) const;
 
   /// Adds the row of cell k of `block`, with its values.
   void add(const CellPolygons& block, std::size_t k, const RowValue* values);

@@ -19,6 +19,8 @@ namespace qtmv::write {
 
 /// Cells whose polygons a per-cell layer (boundary_cells, cells) makes at once ahead of writing.
 constexpr std::size_t kCellBlock = std::size_t{1} << 16;
+/// Cells' polygons a thread takes at once from such a block.
+constexpr std::size_t kCellGrain = 1024;
 
 /// What every layer writer reads: the labelled level, the sites and the options it needs.
 struct LayerInput {

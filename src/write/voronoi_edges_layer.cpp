@@ -8,8 +8,6 @@
 
 #include <ogrsf_frmts.h>
 
-#include "common/first_exception.hpp"
-#include "common/openmp_threads.hpp"
 #include "common/trace.hpp"
 #include "write/pair_edges.hpp"
 #include "write/vector_layer_writers.hpp"
@@ -27,6 +25,12 @@ struct MeasuredPair {
   double length_m = 0;
   GpkgGeometry geometry;
   std::unique_ptr<OGRMultiLineString> feature;
+};
+
+/// A block of pairs, from its first.
+struct MeasuredPairs {
+  std::size_t first;
+  std::vector<MeasuredPair> pairs;
 };
 
 OGRMultiLineString* make_multilinestring(const PairLines& lines) {
@@ -75,38 +79,33 @@ void write_voronoi_edges(VectorDatasetWriter& w, const LayerInput& in, double wo
   if (in.composite()) row_fields.insert(row_fields.end(), {layer_a_index, layer_b_index});
   const std::unique_ptr<GpkgRows> direct = w.direct_rows(row_fields);
   FeaturePtr feature(OGRFeature::CreateFeature(layer->GetLayerDefn()));
-  const auto measure = [&](std::size_t first, std::size_t last) {
-    std::vector<MeasuredPair> block(last - first);
-    FirstException failure;
-#pragma omp parallel for schedule(dynamic, 16) num_threads(ahead_threads())
-    for (std::int64_t p = static_cast<std::int64_t>(first); p < static_cast<std::int64_t>(last); ++p) {
-      failure.run([&] {
-        MeasuredPair& out = block[static_cast<std::size_t>(p) - first];
-        const std::uint64_t key = edges[pair_start[p]].key;
-        std::uint64_t units = 0;  // a pair whose edges are all on the cut is not in `measured`
-        if (measured) {
-          const auto it = std::lower_bound(measured->begin(), measured->end(), key,
-                                           [](const PairLength& m, std::uint64_t k) { return m.key < k; });
-          if (it != measured->end() && it->key == key) units = it->units;
-        }
-        const PairLines lines = link_pair(edges.data() + pair_start[p], edges.data() + pair_start[p + 1], level,
-                                          measured ? &units : nullptr);
-        out.length_m = lines.length_m;
-        if (direct) {
-          out.geometry.begin(GpkgGeometry::kMultiLineString, static_cast<std::uint32_t>(lines.lines.size()));
-          for (const auto& line : lines.lines) out.geometry.line(line.data(), line.size());
-          out.geometry.end();
-        } else {
-          out.feature.reset(make_multilinestring(lines));
-        }
-      });
-    }
-    failure.rethrow();
-    return block;
+  const auto begin = [&](std::size_t first, std::size_t last) {
+    return std::make_pair(MeasuredPairs{first, std::vector<MeasuredPair>(last - first)}, last - first);
   };
-  const auto write = [&](std::size_t first, std::size_t last, std::vector<MeasuredPair>& block) {
+  const auto measure = [&](MeasuredPairs& block, std::size_t k) {
+    const std::size_t p = block.first + k;
+    MeasuredPair& out = block.pairs[k];
+    const std::uint64_t key = edges[pair_start[p]].key;
+    std::uint64_t units = 0;  // a pair whose edges are all on the cut is not in `measured`
+    if (measured) {
+      const auto it = std::lower_bound(measured->begin(), measured->end(), key,
+                                       [](const PairLength& m, std::uint64_t k) { return m.key < k; });
+      if (it != measured->end() && it->key == key) units = it->units;
+    }
+    const PairLines lines = link_pair(edges.data() + pair_start[p], edges.data() + pair_start[p + 1], level,
+                                      measured ? &units : nullptr);
+    out.length_m = lines.length_m;
+    if (direct) {
+      out.geometry.begin(GpkgGeometry::kMultiLineString, static_cast<std::uint32_t>(lines.lines.size()));
+      for (const auto& line : lines.lines) out.geometry.line(line.data(), line.size());
+      out.geometry.end();
+    } else {
+      out.feature.reset(make_multilinestring(lines));
+    }
+  };
+  const auto write = [&](std::size_t first, std::size_t last, MeasuredPairs& block) {
     for (std::size_t p = first; p < last; ++p) {
-      MeasuredPair& pair = block[p - first];
+      MeasuredPair& pair = block.pairs[p - first];
       const std::uint64_t key = edges[pair_start[p]].key;
       const auto a = static_cast<std::size_t>(key >> 32), b = static_cast<std::size_t>(key & 0xffffffffu);
       // In the order of row_fields (layer_a, layer_b only for composite sites).
@@ -124,7 +123,7 @@ void write_voronoi_edges(VectorDatasetWriter& w, const LayerInput& in, double wo
     if (direct) w.guard([&] { direct->flush(); });  // before the block's blobs go
     w.layer_progress(0.2 + 0.8 * static_cast<double>(last) / static_cast<double>(pairs), 1.0);
   };
-  work_ahead(pairs, kEdgePairBlock, measure, write);
+  work_ahead(pairs, kEdgePairBlock, 16, begin, measure, write);
   trace("edges linked and written");
   if (direct) {
     w.guard([&] { direct->finish(); });

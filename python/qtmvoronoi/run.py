@@ -35,8 +35,8 @@ def _pair(value, name):
 def make_options(level=None, *, layers="regions", raster=None, tr=None, ts=None, distance="exact", device="auto",
                  algorithm="auto", threads=0, vertices="auto", source_layers=None, where=None, sql=None, dialect=None,
                  s_srs=None, open_options=(), edges="lonlat", wrap="auto", strict=False, makevalid=False,
-                 data_type=None, creation_options=(), dataset_options=(), layer_options=(), memory_limit=0,
-                 format=None, overwrite=False):
+                 data_type=None, creation_options=(), bands=None, dataset_options=(), layer_options=(),
+                 memory_limit=0, format=None, overwrite=False):
     """VoronoiOptions of voronoi()'s keywords (see there), with the tool's checks of options given together."""
     if tr is not None and ts is not None:
         raise OptionError("-tr and -ts exclude each other")
@@ -49,6 +49,8 @@ def make_options(level=None, *, layers="regions", raster=None, tr=None, ts=None,
         if raster == "qtm":
             raise OptionError("-tr and -ts are for -raster lonlat: the QTM-coded raster's size follows the level")
         raster = "lonlat"
+    if bands is not None and raster is None:
+        raise OptionError("-bands is for raster output, -layers for vector output")
     o = VoronoiOptions()
     o.level = level
     o.distance, o.device, o.algorithm, o.threads = distance, device, algorithm, threads
@@ -62,6 +64,7 @@ def make_options(level=None, *, layers="regions", raster=None, tr=None, ts=None,
         o.output, o.raster = "raster", raster
         o.tr, o.ts = _pair(tr, "tr"), _pair(ts, "ts")
         o.data_type, o.creation_options = data_type or "", list(creation_options)
+        o.bands = [bands] if isinstance(bands, str) else list(bands or [])
     else:
         o.output = "vector"
         o.layers = [layers] if isinstance(layers, str) else list(layers)
@@ -193,8 +196,8 @@ def read_result(directory, name, options, summary):
 def voronoi(sites, level=None, *, layers="regions", raster=None, tr=None, ts=None, distance="exact", device="auto",
             algorithm="auto", threads=0, vertices="auto", source_layers=None, where=None, sql=None, dialect=None,
             s_srs=None, open_options=(), edges="lonlat", wrap="auto", strict=False, makevalid=False, data_type=None,
-            creation_options=(), dataset_options=(), layer_options=(), memory_limit=0, destination=None,
-            format=None, overwrite=False, progress=None, messages=None):
+            creation_options=(), bands=None, dataset_options=(), layer_options=(), memory_limit=0,
+            destination=None, format=None, overwrite=False, progress=None, messages=None):
     """The spherical Voronoi diagram of `sites` on the QTM grid at `level`, as Python data.
 
     The library's run (the tool qtmvoronoi's, man qtmvoronoi): each cell of the level is labelled
@@ -215,7 +218,9 @@ def voronoi(sites, level=None, *, layers="regions", raster=None, tr=None, ts=Non
         xarray.DataArray (band, y, x) of bands site_fid, boundary, distance_m (metres) instead of
         layers. tr: its pixel size (degrees; a number or (x, y)); ts: its size (width, height)
         (pixels); either implies raster='lonlat'. data_type: -ot (Byte .. Float64);
-        creation_options: -co NAME=VALUE.
+        creation_options: -co NAME=VALUE. bands: -bands, the bands in order, of 'fid',
+        'boundary', 'distance' (a name or a list; None: all three): an allocation raster is
+        often bands='fid' alone.
     distance: 'exact' (to the sites' geometry) or 'cell' (between cell centres, the seed paper's).
     device: 'auto', 'cpu', 'cuda', 'cuda:N', 'cuda:N,M,...', 'cuda:all': the same results on each.
     algorithm: 'auto', 'hier' or 'brute'. threads: CPU threads (0: all; the same results).
@@ -248,7 +253,7 @@ def voronoi(sites, level=None, *, layers="regions", raster=None, tr=None, ts=Non
                            algorithm=algorithm, threads=threads, vertices=vertices, source_layers=source_layers,
                            where=where, sql=sql, dialect=dialect, s_srs=s_srs, open_options=open_options,
                            edges=edges, wrap=wrap, strict=strict, makevalid=makevalid, data_type=data_type,
-                           creation_options=creation_options, dataset_options=dataset_options,
+                           creation_options=creation_options, bands=bands, dataset_options=dataset_options,
                            layer_options=layer_options, memory_limit=memory_limit, format=format,
                            overwrite=overwrite)
     directory = conversions.MemoryDirectory()

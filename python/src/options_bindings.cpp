@@ -15,6 +15,7 @@
 #include "bindings.hpp"
 #include "common/device_spec.hpp"
 #include "pipeline/voronoi_options.hpp"
+#include "write/raster_bands.hpp"
 
 namespace qtmv::python {
 
@@ -199,6 +200,23 @@ void bind_output_options(py::class_<VoronoiOptions>& c) {
           "creation_options", [](const VoronoiOptions& o) { return o.raster.creation_options; },
           [](VoronoiOptions& o, const std::vector<std::string>& v) { o.raster.creation_options = name_values("-co", v); },
           "-co: the raster driver's creation options, NAME=VALUE each")
+      .def_property(
+          "bands",
+          [](const VoronoiOptions& o) {
+            std::vector<std::string> names;
+            for (const write::RasterBand band : o.raster.bands) names.emplace_back(write::raster_band_name(band));
+            return names;
+          },
+          [](VoronoiOptions& o, const std::vector<std::string>& names) {
+            std::string list;  // -bands' own parser, for its checks and messages
+            for (const std::string& name : names) list += (list.empty() ? "" : ",") + name;
+            try {
+              o.raster.bands = names.empty() ? std::vector<write::RasterBand>{} : write::parse_raster_bands(list);
+            } catch (const write::WriteError& e) {
+              raise(exceptions().option_error, e.what());
+            }
+          },
+          "-bands: a raster's bands in order, of 'fid', 'boundary', 'distance'; empty: all three")
       .def_readwrite("overwrite", &VoronoiOptions::overwrite, "-overwrite: replace an existing destination")
       .def_readwrite("check_disk_space", &VoronoiOptions::check_disk_space,
                      "refuse, before any work, an output larger than its directory's free space");

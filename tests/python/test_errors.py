@@ -44,6 +44,9 @@ def test_bad_coordinates_only(nothing_left):
     (dict(level=5, tr=1, ts=(10, 10)), q.OptionError, "-tr and -ts exclude each other"),
     (dict(level=5, raster="qtm", tr=1), q.OptionError, "-tr and -ts are for -raster lonlat"),
     (dict(level=5, open_options=["X"]), q.OptionError, "-oo: 'X' is not NAME=VALUE"),
+    (dict(level=5, bands="fid"), q.OptionError, "-bands is for raster output, -layers for vector output"),
+    (dict(level=5, raster="qtm", bands=["fid", "fid"]), q.OptionError, "-bands: "),
+    (dict(level=5, raster="qtm", bands="height"), q.OptionError, "-bands: "),
 ])
 def test_bad_option(centres, nothing_left, options, error, message):
     with pytest.raises(error, match="^" + message.replace("(", r"\(").replace(")", r"\)")):

@@ -45,3 +45,17 @@ def test_raster_destination_is_the_tools_file(centres, tmp_path):
     summary = q.voronoi(centres, 6, raster="lonlat", tr=(1, 1), destination=tmp_path / "ours.tif")
     assert summary.raster
     assert (tmp_path / "ours.tif").read_bytes() == (tmp_path / "tool.tif").read_bytes()
+
+
+def test_bands_chosen_are_the_tools_and_the_full_runs(centres, tmp_path):
+    run_tool("-level", 7, "-raster", "qtm", "-bands", "distance,fid", *CENTRES_OPTIONS, CENTRES_CSV,
+             tmp_path / "tool.tif")
+    values, bands, _, _ = read_tiff(tmp_path / "tool.tif")
+    chosen = q.voronoi(centres, 7, raster="qtm", bands=["distance", "fid"])
+    assert chosen.band.values.tolist() == bands == ["distance_m", "site_fid"]
+    np.testing.assert_array_equal(chosen.values, values)
+    whole = q.voronoi(centres, 7, raster="qtm")
+    np.testing.assert_array_equal(chosen.sel(band="site_fid").values, whole.sel(band="site_fid").values)
+    fid = q.voronoi(centres, 7, raster="qtm", bands="fid")
+    assert fid.band.values.tolist() == ["site_fid"]
+    np.testing.assert_array_equal(fid.values[0], whole.sel(band="site_fid").values)

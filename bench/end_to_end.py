@@ -63,6 +63,7 @@ CASES = {
     "points1m-L12-regions": ("points1m", 12, "regions", ("cpu", "cuda")),
     "points1m-L14-regions": ("points1m", 14, "regions", ("cpu", "cuda")),
     "points1m-L16-regions": ("points1m", 16, "regions", ("cuda",)),
+    "points10m-L14-regions": ("points10m", 14, "regions", ("cuda",)),
     "points135k-L15-regions": ("points", 15, "regions", ("cpu", "cuda")),
     "points135k-L11-tif": ("points", 11, "tif", ("cpu", "cuda")),
     "points135k-L13-tif": ("points", 13, "tif", ("cpu", "cuda")),
@@ -169,7 +170,7 @@ def main():
 
     work = args.keep or tempfile.mkdtemp(prefix="qtmv_e2e_")
     # The evenly spread points: the input's name, its count and its seed.
-    spread = {"points": (135233, 135233), "points1m": (1000000, 1000000)}
+    spread = {"points": (135233, 135233), "points1m": (1000000, 1000000), "points10m": (10000000, 10000000)}
     inputs = {"centres": CENTRES}
     names = [c for c in args.cases.split(",") if c]
     for source, (count, seed) in spread.items():

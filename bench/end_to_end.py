@@ -50,6 +50,7 @@ CASES = {
     "centres-L15-regions": ("centres", 15, "regions", ("cuda",)),
     "centres-L16-regions": ("centres", 16, "regions", ("cuda",)),
     "centres-L17-regions": ("centres", 17, "regions", ("cuda",)),
+    "centres-L20-regions": ("centres", 20, "regions", ("cuda",)),
     "points135k-L16-regions": ("points", 16, "regions", ("cuda",)),
     "points135k-L17-regions": ("points", 17, "regions", ("cuda",)),
     "centres-L13-regions+edges": ("centres", 13, "regions,voronoi_edges", ("cpu", "cuda")),

@@ -316,11 +316,15 @@ float Labeller::select_outline(grid::Code first, std::uint64_t count, OutlineCel
     throw std::invalid_argument("Labeller::select_outline: the last run had no flags for these cells");
   }
   QTMV_CUDA_CHECK(cudaSetDevice(m.device));
-  const std::uint64_t chunk = std::min<std::uint64_t>(kOutlineChunkCells, m.capacity);
+  std::uint64_t chunk = std::min<std::uint64_t>(kOutlineChunkCells, m.capacity);
+  // The tests make the buffer small (QTMV_FAULT_OUTLINE_BUFFER, cells; at least a segment's), so
+  // that a tile's outline cells come in several runs.
+  const std::string small = fault_switch("QTMV_FAULT_OUTLINE_BUFFER");
+  if (!small.empty()) chunk = std::min(chunk, std::max<std::uint64_t>(kSelectSegmentCells, std::stoull(small)));
   if (!m.outline.allocated()) {
     // Counted in the outputs: reserve() freed the last ones, free_outputs() frees these.
     const std::size_t before = m.bytes;
-    m.outline.allocate(chunk, m.boundary.get(), first, m.level, &m.bytes, m.injected_fault);
+    m.outline.allocate(chunk, m.capacity, &m.bytes, m.injected_fault);
     m.output_bytes += m.bytes - before;
   }
   QTMV_CUDA_CHECK(cudaEventRecord(m.start));

@@ -1,11 +1,11 @@
 // The outline selection's launches and copies (the device code: outline_select_kernels.cuh).
 #include "outline_select_cuda.cuh"
 
-#include <cub/device/device_select.cuh>
-#include <thrust/iterator/counting_iterator.h>
+#include <cub/device/device_scan.cuh>
 
 #include <algorithm>
 #include <cstring>
+#include <stdexcept>
 #include <thread>
 #include <vector>
 
@@ -39,69 +39,96 @@ void parallel_copy(void* to, const void* from, std::size_t bytes) {
   for (std::thread& th : pool) th.join();
 }
 
+/// Blocks of a grid-stride kernel over `segments`: enough to fill the device, not one a segment.
+unsigned int grid_blocks(std::uint64_t segments) {
+  return static_cast<unsigned int>(std::min<std::uint64_t>(segments, std::uint64_t{1} << 16));
+}
+
 }  // namespace
 
-void OutlineSelection::allocate(std::uint64_t chunk, const std::uint8_t* boundary, grid::Code first, int level,
-                                std::size_t* bytes, device_memory::FaultStep injected) {
+void OutlineSelection::allocate(std::uint64_t chunk, std::uint64_t tile_cells, std::size_t* bytes,
+                                device_memory::FaultStep injected) {
   chunk_ = chunk;
-  index_ = device_memory::device_alloc<std::uint32_t>(chunk, bytes, injected);
+  const std::uint64_t segments = (tile_cells + kSelectSegmentCells - 1) / kSelectSegmentCells;
   cells_ = device_memory::device_alloc<OutlineCell>(chunk, bytes, injected);
-  count_ = device_memory::device_alloc<std::uint32_t>(1, bytes, injected);
+  per_segment_ = device_memory::device_alloc<std::uint64_t>(segments + 1, bytes, injected);
+  offset_ = device_memory::device_alloc<std::uint64_t>(segments + 1, bytes, injected);
   std::size_t temp_bytes = 0;
-  QTMV_CUDA_CHECK(cub::DeviceSelect::If(nullptr, temp_bytes, thrust::counting_iterator<std::uint32_t>(0), index_.get(),
-                                        count_.get(), static_cast<std::int64_t>(chunk),
-                                        OutlinePick{boundary, first, level}));
+  QTMV_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(nullptr, temp_bytes, per_segment_.get(), offset_.get(),
+                                                static_cast<std::int64_t>(segments + 1)));
   temp_ = device_memory::device_alloc<unsigned char>(temp_bytes, bytes, injected);
 }
 
 void OutlineSelection::select(grid::Code first, std::uint64_t count, int level, const std::int32_t* site,
                               const std::uint8_t* boundary, OutlineCells* out) {
-  const std::uint64_t chunk = chunk_;
-  // The chunks' outline cells gather in cells_ (a chunk's worth) and cross to the host in as few
-  // copies as fit: small pageable copies, and the vector's growth, were most of the time.
-  std::uint64_t pending = 0;
-  const auto flush = [&](std::uint64_t done_cells) {
-    if (pending == 0) return;
-    const std::size_t at = out->size();
-    if (out->capacity() < at + pending && done_cells < count) {
-      // Room for the rest of the range at the rate seen so far, so that the vector grows once.
-      const double rate = static_cast<double>(pending) / static_cast<double>(done_cells);
-      out->reserve(at + static_cast<std::size_t>(pending + rate * 1.1 * static_cast<double>(count - done_cells)));
+  const std::uint64_t segments = (count + kSelectSegmentCells - 1) / kSelectSegmentCells;
+  if (segments + 1 > offset_.size()) throw std::invalid_argument("OutlineSelection::select: a tile larger than allocated");
+  count_outline_kernel<<<grid_blocks(segments), kBlock>>>(boundary, first, count, level, segments, per_segment_.get());
+  QTMV_CUDA_CHECK_LAUNCH("count_outline_kernel");
+  QTMV_CUDA_CHECK(cudaMemsetAsync(per_segment_.get() + segments, 0, sizeof(std::uint64_t)));
+  std::size_t temp_bytes = temp_.size();
+  QTMV_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(temp_.get(), temp_bytes, per_segment_.get(), offset_.get(),
+                                                static_cast<std::int64_t>(segments + 1)));
+  std::uint64_t total = 0;
+  QTMV_CUDA_CHECK(cudaMemcpy(&total, offset_.get() + segments, sizeof total, cudaMemcpyDeviceToHost));
+  if (total == 0) return;
+  // Runs of segments whose outline cells fit the device buffer: all of them at once, unless the
+  // tile has more outline cells than that (coarse levels with many sites).
+  std::vector<std::uint64_t> cuts{0, segments};
+  if (total > chunk_) {
+    std::vector<std::uint64_t> offset(segments + 1);
+    QTMV_CUDA_CHECK(cudaMemcpy(offset.data(), offset_.get(), offset.size() * sizeof(std::uint64_t), cudaMemcpyDeviceToHost));
+    cuts.assign(1, 0);
+    for (std::uint64_t s = 1; s <= segments; ++s) {
+      // A segment holds at most kSelectSegmentCells <= chunk_ outline cells.
+      if (offset[s] - offset[cuts.back()] > chunk_) cuts.push_back(s - 1);
     }
-    out->resize(at + pending);
-    // Through page-locked memory in pieces, each copied on to the list on all cores.
-    constexpr std::uint64_t kStagedCells = std::uint64_t{1} << 22;  // 64 MiB
-    const std::uint64_t staged = std::min(pending, kStagedCells);
-    auto* host = static_cast<OutlineCell*>(host_.get(staged * sizeof(OutlineCell)));
-    for (std::uint64_t done = 0; done < pending; done += staged) {
-      const std::uint64_t n = std::min(staged, pending - done);
-      QTMV_CUDA_CHECK(cudaMemcpy(host, cells_.get() + done, n * sizeof(OutlineCell), cudaMemcpyDeviceToHost));
-      parallel_copy(out->data() + at + done, host, n * sizeof(OutlineCell));
-    }
-    pending = 0;
-  };
-  for (std::uint64_t offset = 0; offset < count; offset += chunk) {
-    const std::uint64_t n = std::min(chunk, count - offset);
-    std::size_t temp_bytes = temp_.size();
-    QTMV_CUDA_CHECK(cub::DeviceSelect::If(temp_.get(), temp_bytes, thrust::counting_iterator<std::uint32_t>(0),
-                                          index_.get(), count_.get(), static_cast<std::int64_t>(n),
-                                          OutlinePick{boundary + offset, first + offset, level}));
-    std::uint32_t selected = 0;
-    QTMV_CUDA_CHECK(cudaMemcpy(&selected, count_.get(), sizeof selected, cudaMemcpyDeviceToHost));
-    if (selected == 0) continue;
-    if (pending + selected > chunk) flush(offset);
-    gather_outline_kernel<<<blocks_of(selected), kBlock>>>(index_.get(), selected, first + offset, site + offset,
-                                                           boundary + offset, cells_.get() + pending);
-    QTMV_CUDA_CHECK_LAUNCH("gather_outline_kernel");
-    pending += selected;
+    cuts.push_back(segments);
   }
-  flush(count);
+  const std::size_t at = out->size();
+  if (out->capacity() < at + total) out->reserve(at + total);
+  out->resize(at + total);
+  OutlineCell* to = out->data() + at;
+  try {
+    write_runs(first, count, level, site, boundary, cuts, to);
+  } catch (...) {
+    out->resize(at);  // no cell of a tile left half copied
+    throw;
+  }
+}
+
+void OutlineSelection::write_runs(grid::Code first, std::uint64_t count, int level, const std::int32_t* site,
+                                  const std::uint8_t* boundary, const std::vector<std::uint64_t>& cuts, OutlineCell* to) {
+  for (std::size_t k = 0; k + 1 < cuts.size(); ++k) {
+    const std::uint64_t from = cuts[k], to_segment = cuts[k + 1];
+    write_outline_kernel<<<grid_blocks(to_segment - from), kBlock>>>(boundary, site, first, count, level, from, to_segment,
+                                                                 offset_.get(), cells_.get());
+    QTMV_CUDA_CHECK_LAUNCH("write_outline_kernel");
+    std::uint64_t range[2] = {0, 0};
+    QTMV_CUDA_CHECK(cudaMemcpy(&range[0], offset_.get() + from, sizeof(std::uint64_t), cudaMemcpyDeviceToHost));
+    QTMV_CUDA_CHECK(cudaMemcpy(&range[1], offset_.get() + to_segment, sizeof(std::uint64_t), cudaMemcpyDeviceToHost));
+    to = copy_to_host(range[1] - range[0], to);
+  }
+}
+
+OutlineCell* OutlineSelection::copy_to_host(std::uint64_t cells, OutlineCell* to) {
+  // Through page-locked memory in pieces, each copied on to the list on all cores: small
+  // pageable copies, and the vector's growth, were most of the time.
+  constexpr std::uint64_t kStagedCells = std::uint64_t{1} << 22;  // 64 MiB
+  const std::uint64_t staged = std::min(cells, kStagedCells);
+  auto* host = static_cast<OutlineCell*>(host_.get(staged * sizeof(OutlineCell)));
+  for (std::uint64_t done = 0; done < cells; done += staged) {
+    const std::uint64_t n = std::min(staged, cells - done);
+    QTMV_CUDA_CHECK(cudaMemcpy(host, cells_.get() + done, n * sizeof(OutlineCell), cudaMemcpyDeviceToHost));
+    parallel_copy(to + done, host, n * sizeof(OutlineCell));
+  }
+  return to + cells;
 }
 
 void OutlineSelection::free_device() {
-  index_.reset();
   cells_.reset();
-  count_.reset();
+  per_segment_.reset();
+  offset_.reset();
   temp_.reset();
 }
 

@@ -30,8 +30,10 @@ namespace qtmv::label::cuda {
 /// cuda/device_memory.cuh.)
 using OutOfMemory = DeviceOutOfMemory;
 
-/// Cells per selection of select_outline; its buffers take kOutlineSelectBytesPerCell bytes a
-/// cell of it (indices and outline cells), on top of the tile's outputs.
+/// Outline cells select_outline holds on the device at once; its buffers take at most
+/// kOutlineSelectBytesPerCell bytes for each of them (the outline cells, and the counts and
+/// offsets of the tile's segments: 16 bytes per 4096 cells, which the 4 bytes cover for tiles of
+/// up to 2^35 cells), on top of the tile's outputs.
 constexpr std::uint64_t kOutlineChunkCells = std::uint64_t{1} << 25;
 constexpr std::uint64_t kOutlineSelectBytesPerCell = 4 + sizeof(OutlineCell);
 
@@ -102,7 +104,7 @@ class Labeller {
   float download(std::uint64_t offset, std::uint64_t count, std::int32_t* site, float* distance_m,
                  std::uint8_t* boundary);
   /// Appends the outline cells (outline_cells.hpp) of the last run's cells [0, count), codes
-  /// first.., to *out, selected on the device in chunks of kOutlineChunkCells (CUB); the run
+  /// first.., to *out, counted and written on the device segment by segment (CUB's scan); the run
   /// must have had boundary flags. Returns the time (milliseconds) of selection and copies.
   float select_outline(grid::Code first, std::uint64_t count, OutlineCells* out);
   /// Bytes this object holds on the device now.

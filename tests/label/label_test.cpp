@@ -829,6 +829,30 @@ std::size_t outline_mismatches(const OutlineCells& got, const OutlineCells& want
   return mismatches;
 }
 
+// A tile whose outline cells do not fit the device's buffer at once gives them in several runs
+// of segments (the buffer made small by the tests' switch): the same cells.
+TEST_P(LabelDevice, OutlinesInSeveralRunsAreTheSame) {
+  if (GetParam() == "cpu") GTEST_SKIP() << "the device's selection only";
+  const SiteSet set{"points L8", random_points(8, 2000, 8)};
+  LabelOptions options;
+  options.device = GetParam();
+  options.want_distance = false;
+  Outlines whole;
+  label_outlines(set.geometry.input(), options, &whole);
+  ::setenv("QTMV_FAULT_OUTLINE_BUFFER", "4096", 1);
+  Outlines runs;
+  label_outlines(set.geometry.input(), options, &runs);
+  ::unsetenv("QTMV_FAULT_OUTLINE_BUFFER");
+  ASSERT_GT(whole.cells.size(), 3u * 4096) << "too few outline cells for several runs";
+  EXPECT_EQ(outline_mismatches(runs.cells, whole.cells), 0u);
+  EXPECT_EQ(runs.cells_per_site, whole.cells_per_site);
+  const LabelResult dense = label_all(set.geometry.input(), options);
+  const Outlines want = outlines_of_dense(set.geometry.level, dense.site.data(), dense.boundary.data(),
+                                          set.geometry.site_count);
+  EXPECT_EQ(outline_mismatches(runs.cells, want.cells), 0u);
+}
+
+
 /// The device names of a parameter for label_outlines_on ("cuda" is "cuda:0").
 std::string device_name(const std::string& param) { return param == "cuda" ? "cuda:0" : param; }
 

@@ -19,5 +19,9 @@ scripts/deps.sh python3-pytest python3-gdal python3-geopandas python3-xarray pyt
 # one-node cluster that the test starts and stops.
 scripts/deps.sh slurm-wlm munge ||
   echo "qtmvoronoi: warning: slurm-wlm and munge could not be installed; the real-Slurm test is left out" >&2
+# PostgreSQL 15 and PostGIS for the test of a PostGIS destination (PG:...), on a throwaway cluster
+# that pg_virtualenv (postgresql-common) starts for the test.
+scripts/deps.sh postgresql postgresql-15-postgis-3 postgresql-common ||
+  echo "qtmvoronoi: warning: postgresql and postgresql-15-postgis-3 could not be installed; the PostGIS destination's test is left out" >&2
 scripts/build.sh
 ctest --test-dir build --output-on-failure -j "$(nproc)"

@@ -2,6 +2,7 @@
 """A PostgreSQL/PostGIS destination (PG:...) written all or nothing (issue 36), on the throwaway
 cluster pg_virtualenv starts (postgis_destination_test.sh; the PG* variables name it):
 
+- PostGIS's geodesic area (ST_Area of geography) of each region is its area_m2;
 - every layer's rows and geometries read back equal the GeoPackage output's of the same run (Real
   fields to 1e-12: GDAL 3.6's PostgreSQL driver writes them as text of 15 significant digits or
   fewer, OGRFormatDouble's, so 411697493366.1709 becomes 411697493366.171);
@@ -111,6 +112,10 @@ with tempfile.TemporaryDirectory() as work:
                            "FROM geometry_columns WHERE f_table_schema = 'public'")
     check(geometry_columns == "boundary_cells:POLYGON:4326,cells:POLYGON:4326,regions:MULTIPOLYGON:4326,"
           "voronoi_edges:MULTILINESTRING:4326", "geometry_columns: " + geometry_columns)
+    # PostGIS reads the regions as geography (geodesic edges) with the tool's areas.
+    worst = float(sql("SELECT max(abs(ST_Area(wkb_geometry::geography) - area_m2) / area_m2) FROM public.regions "
+                      "WHERE NOT ST_IsEmpty(wkb_geometry)"))
+    check(worst < 1e-9, "PostGIS geography's ST_Area of the regions against area_m2: at most %.1g apart" % worst)
     old = {t: digest("public", t) for t in ALL.split(",")}
     objects = "SELECT string_agg(n.nspname || '.' || c.relname, ',' ORDER BY n.nspname, c.relname) FROM pg_class c JOIN pg_namespace n " \
               "ON n.oid = c.relnamespace WHERE c.relname LIKE 'regions%' OR c.relname LIKE 'cells%'"

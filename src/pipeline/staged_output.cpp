@@ -156,6 +156,9 @@ class Transaction {
 
 }  // namespace
 
+StagedOutput::StagedOutput(std::string destination, bool overwrite)
+    : StagedOutput(std::move(destination), overwrite, nullptr) {}
+
 StagedOutput::StagedOutput(std::string destination, bool overwrite, std::unique_ptr<DatabaseOutput> database)
     : database_(std::move(database)), destination_(std::move(destination)), overwrite_(overwrite) {
   if (database_) return;

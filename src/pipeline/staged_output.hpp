@@ -61,7 +61,9 @@ class RenameInMessages {
 /// (`database`, from open_database_output) is staged by it instead (database_output.hpp).
 class StagedOutput {
  public:
-  StagedOutput(std::string destination, bool overwrite, std::unique_ptr<DatabaseOutput> database = nullptr);
+  StagedOutput(std::string destination, bool overwrite);
+  /// (The caller includes database_output.hpp.)
+  StagedOutput(std::string destination, bool overwrite, std::unique_ptr<DatabaseOutput> database);
   StagedOutput(const StagedOutput&) = delete;
   StagedOutput& operator=(const StagedOutput&) = delete;
   ~StagedOutput();

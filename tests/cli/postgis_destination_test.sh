@@ -2,7 +2,9 @@
 # A PostgreSQL/PostGIS destination written all or nothing (postgis_destination_test.py), on a
 # throwaway cluster that pg_virtualenv (postgresql-common) starts for the test and drops after.
 # Skipped (77) without pg_virtualenv, a PostgreSQL server or PostGIS (scripts/test.sh installs
-# postgresql and postgresql-15-postgis-3). pg_virtualenv runs as root too (the cluster as postgres).
+# postgresql and postgresql-15-postgis-3). -t: the cluster in a temporary directory even as root
+# (as root pg_virtualenv would otherwise make it in /etc/postgresql, where a cluster left by
+# a killed run, or another run's, stops it: "Cluster 15/regress exists").
 #   postgis_destination_test.sh QTMVORONOI TESTDATA
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
@@ -23,4 +25,4 @@ if ! /usr/bin/python3 -c "import osgeo" 2>/dev/null; then
   exit 77
 fi
 cd "${TMPDIR:-/tmp}"
-exec pg_virtualenv /usr/bin/python3 "$here/postgis_destination_test.py" "$1" "$2"
+exec pg_virtualenv -t /usr/bin/python3 "$here/postgis_destination_test.py" "$1" "$2"

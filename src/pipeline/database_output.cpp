@@ -112,7 +112,9 @@ class SqlConnection {
     if (dataset_->CommitTransaction() != OGRERR_NONE || trap.failed()) fail("cannot commit the transaction", trap);
   }
 
-  [[noreturn]] void fail(const std::string& what) const { throw VoronoiError("cannot write '" + destination_ + "': " + what); }
+  [[noreturn]] void fail(const std::string& what) const {
+    throw VoronoiError("cannot write '" + destination_ + "': " + what);
+  }
 
  private:
   [[noreturn]] void fail(const std::string& what, gdal::ErrorCapture& trap) const {
@@ -127,7 +129,10 @@ class SqlConnection {
 
 DatabaseOutput::DatabaseOutput(std::string destination, bool overwrite, std::vector<std::string> layers,
                                std::vector<std::string>& layer_options)
-    : destination_(std::move(destination)), connection_(destination_), layers_(std::move(layers)), overwrite_(overwrite) {
+    : destination_(std::move(destination)),
+      connection_(destination_),
+      layers_(std::move(layers)),
+      overwrite_(overwrite) {
   const std::string active = take_item(connection_, "active_schema");
   take_item(connection_, "schemas");
   // GDAL 3.6 takes no active_schema after a URI, which the staging needs.
@@ -165,14 +170,14 @@ DatabaseOutput::DatabaseOutput(std::string destination, bool overwrite, std::vec
   if (!tables.empty() && !overwrite_) db.fail("table(s) " + tables + " exist: use -overwrite to replace them");
   // -overwrite never drops what the user made on the old tables: say so now, not after the work.
   for (const auto& [name, kind] : existing(db)) {
-    const SqlConnection::Rows views = db.run(
-        "SELECT DISTINCT v.oid::regclass::text AS v FROM pg_depend d JOIN pg_rewrite r ON r.oid = d.objid "
-        "JOIN pg_class v ON v.oid = r.ev_class WHERE d.refobjid = " +
-            quote_literal(quote_identifier(schema_) + "." + quote_identifier(name)) + "::regclass AND v.oid <> d.refobjid",
-        "reading what depends on table " + schema_ + "." + name);
+    const std::string table = quote_literal(quote_identifier(schema_) + "." + quote_identifier(name));
+    const SqlConnection::Rows views =
+        db.run("SELECT DISTINCT v.oid::regclass::text AS v FROM pg_depend d JOIN pg_rewrite r ON r.oid = d.objid "
+               "JOIN pg_class v ON v.oid = r.ev_class WHERE d.refobjid = " + table + "::regclass AND v.oid <> d.refobjid",
+               "reading what depends on table " + schema_ + "." + name);
     if (!views.empty()) {
-      db.fail("-overwrite: view " + views[0][0] + " depends on table " + schema_ + "." + name +
-              ", which would have to go with it: both are left as they are (drop the view, or write another schema: -lco SCHEMA=NAME)");
+      db.fail("-overwrite: view " + views[0][0] + " depends on table " + schema_ + "." + name + ", which would " +
+              "have to go with it: both are left as they are (drop the view, or write another schema: -lco SCHEMA=NAME)");
     }
   }
 }

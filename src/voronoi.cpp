@@ -11,6 +11,7 @@
 #include "common/openmp_threads.hpp"
 #include "common/trace.hpp"
 #include "label/device_startup.hpp"
+#include "pipeline/database_output.hpp"
 #include "pipeline/run_plan.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/stages.hpp"
@@ -41,7 +42,8 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   label::AutoDevice auto_choice;  // with no sites yet: the least work the plan can take
   if (automatic) auto_choice = pipeline::estimate_auto_device(plan, 0, 0);
   if (auto_choice.gpu) start_devices();
-  pipeline::StagedOutput output(destination, options.overwrite);
+  pipeline::StagedOutput output(destination, options.overwrite,
+                                pipeline::open_database_output(destination, options.overwrite, plan));
   pipeline::RunProgress progress(options.progress);
   VoronoiSummary summary;
   summary.driver = plan.format.driver;

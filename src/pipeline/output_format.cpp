@@ -51,12 +51,18 @@ OutputFormat choose_output_format(const std::string& destination, const std::str
     if (!driver) throw VoronoiError("-of " + format + ": no such GDAL driver (--formats lists them)");
     return pick(driver);
   }
+  // A connection string (PG:dbname=...) names its driver by its prefix.
+  GDALDriverManager* manager = GetGDALDriverManager();
+  for (int k = 0; k < manager->GetDriverCount(); ++k) {
+    GDALDriver* d = manager->GetDriver(k);
+    const char* prefix = d->GetMetadataItem(GDAL_DMD_CONNECTION_PREFIX);
+    if (prefix && STARTS_WITH_CI(destination.c_str(), prefix) && (can_vector(d) || can_raster(d))) return pick(d);
+  }
   // As GDAL's utilities do: the drivers whose extensions match, in registration order (GTiff
   // before COG); a driver that writes both (GPKG) writes vectors unless told otherwise.
   const std::string name = lower(CPLGetFilename(destination.c_str()));
   GDALDriver* first_vector = nullptr;
   GDALDriver* first_raster = nullptr;
-  GDALDriverManager* manager = GetGDALDriverManager();
   for (int k = 0; k < manager->GetDriverCount(); ++k) {
     GDALDriver* d = manager->GetDriver(k);
     const char* list = d->GetMetadataItem(GDAL_DMD_EXTENSIONS);
@@ -79,6 +85,11 @@ OutputFormat choose_output_format(const std::string& destination, const std::str
                        "driver writes files of that extension; use -of FORMAT (--formats lists them)");
   }
   return pick(chosen);
+}
+
+bool is_database_driver(const std::string& driver) {
+  GDALDriver* d = GetGDALDriverManager()->GetDriverByName(driver.c_str());
+  return d && d->GetMetadataItem(GDAL_DMD_CONNECTION_PREFIX) != nullptr;
 }
 
 }  // namespace qtmv

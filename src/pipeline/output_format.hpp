@@ -7,7 +7,8 @@
 
 namespace qtmv {
 
-/// The output driver and kind a run would use: options.format (-of), or the first GDAL driver
+/// The output driver and kind a run would use: options.format (-of), the driver whose connection
+/// prefix (GDAL_DMD_CONNECTION_PREFIX: PG:, ...) the destination starts with, or the first GDAL driver
 /// whose extensions (GDAL_DMD_EXTENSIONS) list the destination's and that can create vectors
 /// (preferred) or rasters, as `kind` allows. Throws VoronoiError.
 struct OutputFormat {
@@ -15,5 +16,9 @@ struct OutputFormat {
   bool raster = false;
 };
 OutputFormat choose_output_format(const std::string& destination, const std::string& format, OutputKind kind);
+
+/// Whether the GDAL driver `driver` writes to a connection (it has a connection prefix: PG:,
+/// MYSQL:, MSSQL:, ...) rather than to files.
+bool is_database_driver(const std::string& driver);
 
 }  // namespace qtmv

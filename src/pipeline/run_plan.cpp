@@ -272,7 +272,8 @@ RunPlan plan_run(const std::string& destination, const VoronoiOptions& options) 
 
   // An output its file system cannot hold fails now, not after the work (GDAL's GeoTIFF driver
   // checks the same, late, and only uncompressed files).
-  if (options.check_disk_space) {
+  // (A database's free space is not the destination's directory's.)
+  if (options.check_disk_space && !is_database_driver(plan.format.driver)) {
     try {
       write::check_disk_space(destination,
                               plan.format.raster ? write::estimate_raster_size(plan.level, plan.raster, plan.label.want_distance)

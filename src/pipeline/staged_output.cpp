@@ -11,6 +11,7 @@
 #include <utility>
 
 #include "gdal/error_capture.hpp"
+#include "pipeline/database_output.hpp"
 
 namespace qtmv::pipeline {
 
@@ -156,7 +157,11 @@ class Transaction {
 }  // namespace
 
 StagedOutput::StagedOutput(std::string destination, bool overwrite)
-    : destination_(std::move(destination)), overwrite_(overwrite) {
+    : StagedOutput(std::move(destination), overwrite, nullptr) {}
+
+StagedOutput::StagedOutput(std::string destination, bool overwrite, std::unique_ptr<DatabaseOutput> database)
+    : database_(std::move(database)), destination_(std::move(destination)), overwrite_(overwrite) {
+  if (database_) return;
   if (starts_with(destination_, "/vsi")) {
     // No rename in most virtual file systems: written directly.
     direct_ = true;
@@ -239,12 +244,18 @@ void StagedOutput::put_back_virtual() {
 }
 
 const std::string& StagedOutput::begin() {
+  if (database_) return write_path_ = database_->begin();
   if (direct_ && exists_) set_aside_virtual();
   began_ = true;
   return write_path_;
 }
 
 void StagedOutput::commit() {
+  if (database_) {
+    database_->commit();
+    committed_ = true;
+    return;
+  }
   if (direct_) {
     committed_ = true;
     for (const Aside& a : virtual_aside_) VSIUnlink(a.aside.c_str());

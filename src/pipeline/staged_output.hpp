@@ -12,11 +12,16 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <system_error>
 #include <vector>
 
 #include "pipeline/voronoi_error.hpp"
+
+namespace qtmv::pipeline {
+class DatabaseOutput;
+}
 
 namespace qtmv::pipeline {
 
@@ -52,10 +57,13 @@ class RenameInMessages {
 /// A GDAL virtual file system destination (/vsimem/, /vsis3/, ...) is written in place, most of
 /// them having no rename into a directory; with -overwrite its old files are renamed aside in
 /// their directory first (put back on failure, removed on commit), and where the file system
-/// cannot rename (/vsizip/) -overwrite is refused, the old dataset kept.
+/// cannot rename (/vsizip/) -overwrite is refused, the old dataset kept. A database destination
+/// (`database`, from open_database_output) is staged by it instead (database_output.hpp).
 class StagedOutput {
  public:
   StagedOutput(std::string destination, bool overwrite);
+  /// (The caller includes database_output.hpp.)
+  StagedOutput(std::string destination, bool overwrite, std::unique_ptr<DatabaseOutput> database);
   StagedOutput(const StagedOutput&) = delete;
   StagedOutput& operator=(const StagedOutput&) = delete;
   ~StagedOutput();
@@ -77,6 +85,7 @@ class StagedOutput {
     std::string old, aside;
   };
   std::vector<Aside> virtual_aside_;
+  std::unique_ptr<DatabaseOutput> database_;
   std::string destination_, write_path_;
   fs::path dir_, temp_dir_;
   bool overwrite_ = false, direct_ = false, exists_ = false, began_ = false, committed_ = false;

@@ -82,7 +82,14 @@ VectorDatasetWriter::VectorDatasetWriter(const std::string& path, const VectorOp
 
 void VectorDatasetWriter::open(GDALDriver* driver) {
   const CPLStringList dsco = string_list(options_.dataset_options);
-  dataset_.reset(driver->Create(path_.c_str(), 0, 0, 0, GDT_Unknown, dsco.List()));
+  if (driver->GetMetadataItem(GDAL_DMD_CONNECTION_PREFIX)) {
+    // A database (PG:...) exists already: its driver opens it for update, and cannot create one.
+    const char* const drivers[] = {driver->GetDescription(), nullptr};
+    dataset_.reset(static_cast<GDALDataset*>(
+        GDALOpenEx(path_.c_str(), GDAL_OF_VECTOR | GDAL_OF_UPDATE, drivers, nullptr, nullptr)));
+  } else {
+    dataset_.reset(driver->Create(path_.c_str(), 0, 0, 0, GDT_Unknown, dsco.List()));
+  }
   if (!dataset_) fail("cannot create the dataset");
   check("creating the dataset");
   transactions_ = dataset_->TestCapability(ODsCTransactions) != 0;

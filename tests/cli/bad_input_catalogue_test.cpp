@@ -1088,6 +1088,28 @@ TEST(CatalogueOutput, TileJobUnderAnotherFormatsNameIsRefused) {
                  dst);
 }
 
+TEST(CatalogueOutput, DatabaseDestinationsNotWrittenAllOrNothingAreRefusedBeforeAnyWork) {
+  // A PostgreSQL destination is staged in a schema of its own (written for real on a throwaway
+  // cluster: cli.PostgisDestinationIsWrittenAllOrNothing); what cannot be staged so is refused
+  // before the source is read, and no staging directory is made for a connection string.
+  const std::string dir = test_dir();
+  const std::string pg = "PG:dbname=qtmv_nowhere host=" + dir + "/no_server";
+  const auto refused = [&](const std::vector<std::string>& options, const std::string& dst, const std::string& message) {
+    const Result r = run(concat(concat(concat({"-level", "5", "-device", "cpu"}, kCsvOptions), options), {kCentres, dst}));
+    expect_failure(r, 1, {message}, dir + "/out.gpkg");
+    EXPECT_FALSE(contains(r.err, "site(s) got no cell")) << "worked before refusing: " << r.err;
+    EXPECT_TRUE(hidden_entries(fs::current_path().string()).empty());
+  };
+  refused({"-of", "MySQL"}, "MYSQL:qtmv,user=nobody",
+          "-of MySQL: a database destination is written all or nothing only in PostgreSQL (PG:...)");
+  refused({"-raster", "lonlat", "-ts", "20", "10"}, pg, "the PostgreSQL driver cannot write rasters");
+  refused({"-of", "PostGISRaster"}, pg, "a PostgreSQL connection is written as vector output (PostgreSQL driver), not with PostGISRaster");
+  refused({"-dsco", "A=B"}, pg, "-dsco: a PostgreSQL database has no dataset creation options");
+  refused({"-of", "PostgreSQL"}, dir + "/out.gpkg", "a PostgreSQL destination is a connection string: PG:dbname=NAME");
+  refused({}, "PG:postgresql://localhost/qtmv_nowhere", "a URI (PG:postgresql://...) cannot name the schema");
+  refused({}, pg + " password=secret", "cannot write 'PG:dbname=qtmv_nowhere host=" + dir + "/no_server password=***': cannot connect to the database");
+}
+
 TEST(CatalogueOptions, SitesSharingAFidAreRefusedForARaster) {
   // A -sql UNION of two layers gives sites FIDs 1, 2, 1, 2: the FID band could not tell them apart.
   const std::string dir = test_dir();

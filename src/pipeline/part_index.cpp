@@ -14,6 +14,7 @@
 #include <memory>
 
 #include "gdal/error_capture.hpp"
+#include "pipeline/tile_product.hpp"
 #include "pipeline/voronoi_error.hpp"
 
 namespace qtmv::pipeline {
@@ -213,27 +214,9 @@ bool writes_part_index(const std::string& destination, const VoronoiOptions& opt
 }
 
 std::vector<std::string> part_files(const std::vector<std::string>& paths) {
-  std::vector<std::string> files;
-  for (const std::string& path : paths) {
-    VSIStatBufL stat;
-    if (VSIStatL(path.c_str(), &stat) != 0) throw VoronoiError("-merge: '" + path + "': no such file or directory");
-    if (!VSI_ISDIR(stat.st_mode)) {
-      files.push_back(path);
-      continue;
-    }
-    const CPLStringList names(VSIReadDir(path.c_str()));
-    std::vector<std::string> found;
-    for (int k = 0; k < names.size(); ++k) {
-      if (EQUAL(CPLGetExtension(names[k]), "gpkg")) found.push_back(CPLFormFilename(path.c_str(), names[k], nullptr));
-    }
-    if (found.empty()) {
-      throw VoronoiError("-merge: '" + path + "': a directory without parts (.gpkg files that -tile K/N -part wrote)" +
-                         "; tile products (.qtmt) are joined by a -merge into one file, not indexed");
-    }
-    std::sort(found.begin(), found.end());
-    files.insert(files.end(), found.begin(), found.end());
-  }
-  return files;
+  return merge_input_files(paths, ".gpkg",
+                           "a directory without parts (.gpkg files that -tile K/N -part wrote); tile products "
+                           "(.qtmt) are joined by a -merge into one file, not indexed");
 }
 
 PartIndexSummary write_part_index(const std::vector<std::string>& files, const std::string& path,
@@ -254,15 +237,9 @@ PartIndexSummary write_part_index(const std::vector<std::string>& files, const s
   }
   const int count = first->identity.count;
   if (static_cast<int>(parts.size()) != count) {
-    std::string missing;
-    int listed = 0, absent = 0;
-    for (int k = 1; k <= count; ++k) {
-      if (parts.count(k)) continue;
-      ++absent;
-      if (listed < 20) missing += (listed++ ? ", " : "") + std::to_string(k);
-    }
-    throw VoronoiError("-merge: " + std::to_string(absent) + " of the " + std::to_string(count) + " parts missing (tile " +
-                       missing + (absent > listed ? ", ..." : "") + ")");
+    const MissingTiles missing = missing_tiles(count, [&](int k) { return parts.count(k) > 0; });
+    throw VoronoiError("-merge: " + std::to_string(missing.count) + " of the " + std::to_string(count) +
+                       " parts missing (tile " + missing.list + ")");
   }
   PartIndexSummary summary;
   summary.parts = count;

@@ -16,7 +16,6 @@
 #include "pipeline/run_plan.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/stages.hpp"
-#include "pipeline/tile_product.hpp"
 
 namespace qtmv {
 
@@ -45,15 +44,15 @@ VoronoiSummary run_part_index(const std::string& destination, const VoronoiOptio
 }
 
 /// A part's identity (its metadata: pipeline/part_index.hpp).
-std::vector<std::pair<std::string, std::string>> part_metadata(const pipeline::RunPlan& plan, const VoronoiOptions& options,
-                                                               const sites::SiteSet& sites) {
+std::vector<std::pair<std::string, std::string>> part_metadata(const pipeline::RunPlan& plan, const std::string& source,
+                                                               const VoronoiOptions& options) {
   pipeline::PartIdentity part;
   part.level = plan.level;
   part.rule = options.rule;
   part.index = plan.tile_index;
   part.count = plan.tile_count;
-  part.site_count = static_cast<std::int32_t>(sites.table.sites.size());
-  part.sites_fingerprint = pipeline::input_fingerprint(sites.geometry.input());
+  part.source = source;
+  part.source_fingerprint = pipeline::source_fingerprint(source, options.read);
   for (const std::string& layer : plan.vector.layers) {
     if (std::find(part.layers.begin(), part.layers.end(), layer) == part.layers.end()) part.layers.push_back(layer);
   }
@@ -155,7 +154,7 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   if (tile_job) {
     pipeline::write_tile_stage(output.begin(), destination, labels, sites, options, plan);
   } else {
-    if (plan.vector.part) plan.vector.metadata = part_metadata(plan, options, sites);
+    if (plan.vector.part) plan.vector.metadata = part_metadata(plan, source, options);
     strip_label_seconds = pipeline::write_stage(output.begin(), destination, labels, sites, plan, progress,
                                                 options.messages, &summary.sites_without_cell);
   }

@@ -28,8 +28,8 @@ constexpr const char* kPartVersion = "QTMV_PART";
 constexpr const char* kLevel = "QTMV_LEVEL";
 constexpr const char* kRule = "QTMV_RULE";
 constexpr const char* kTile = "QTMV_TILE";
-constexpr const char* kSites = "QTMV_SITES";
-constexpr const char* kFingerprint = "QTMV_SITES_FINGERPRINT";
+constexpr const char* kSource = "QTMV_SOURCE";
+constexpr const char* kFingerprint = "QTMV_SOURCE_FINGERPRINT";
 constexpr const char* kLayers = "QTMV_LAYERS";
 
 std::string rule_name(label::Rule rule) { return rule == label::Rule::exact ? "exact" : "cell"; }
@@ -81,12 +81,12 @@ PartFile read_part(const std::string& path) {
   unsigned long long fingerprint = 0;
   if (std::sscanf(item(kLevel).c_str(), "%d", &id.level) != 1 || (rule != "exact" && rule != "cell") ||
       std::sscanf(tile.c_str(), "%d/%d", &id.index, &id.count) != 2 || id.index < 1 || id.index > id.count ||
-      std::sscanf(item(kSites).c_str(), "%" SCNd32, &id.site_count) != 1 ||
       std::sscanf(item(kFingerprint).c_str(), "%llx", &fingerprint) != 1) {
     throw part.fail("corrupt part (its metadata holds impossible values)");
   }
   id.rule = rule == "exact" ? label::Rule::exact : label::Rule::cell;
-  id.sites_fingerprint = fingerprint;
+  id.source = item(kSource);
+  id.source_fingerprint = fingerprint;
   const CPLStringList layers(CSLTokenizeString2(item(kLayers).c_str(), ",", 0));
   for (int k = 0; k < layers.size(); ++k) id.layers.emplace_back(layers[k]);
   if (id.layers.empty()) throw part.fail("corrupt part (its metadata names no layer)");
@@ -119,10 +119,14 @@ void check_same_run(const PartFile& part, const PartFile& first) {
     throw part.fail("a part labelled with -distance " + rule_name(a.rule) + than + "labelled with -distance " +
                     rule_name(b.rule));
   }
-  if (a.site_count != b.site_count || a.sites_fingerprint != b.sites_fingerprint) {
-    throw part.fail("a part of other sites (" + std::to_string(a.site_count) + ")" + than + "a part of " +
-                    std::to_string(b.site_count) + " sites, or read with other options: all parts come from one " +
-                    "source read with the same options");
+  if (a.source != b.source) {
+    throw part.fail("a part of '" + a.source + "'" + than + "a part of '" + b.source +
+                    "': all parts come from one source read with the same options");
+  }
+  if (a.source_fingerprint != b.source_fingerprint) {
+    throw part.fail("a part of '" + a.source + "' read with other options (-l, -where, -sql, -s_srs, -oo, -edges, " +
+                    "-wrap, -strict, -makevalid), or after it changed (its size or time), than '" + first.path +
+                    "': all parts come from one source read with the same options");
   }
   if (a.count != b.count) {
     throw part.fail("tile " + std::to_string(a.index) + " of " + std::to_string(a.count) + than + "a tile of " +
@@ -195,14 +199,42 @@ std::string index_xml(const std::map<int, PartFile>& parts, const std::string& d
 
 }  // namespace
 
+std::uint64_t source_fingerprint(const std::string& source, const sites::SourceOptions& options) {
+  // FNV-1a over the fields, each ended by a zero byte: the same bytes on every host.
+  std::uint64_t h = 0xcbf29ce484222325ull;
+  const auto add = [&](const std::string& text) {
+    for (const char c : text) h = (h ^ static_cast<unsigned char>(c)) * 0x100000001b3ull;
+    h = h * 0x100000001b3ull;
+  };
+  add(source);
+  VSIStatBufL stat;
+  if (VSIStatL(source.c_str(), &stat) == 0 && !VSI_ISDIR(stat.st_mode)) {
+    add(std::to_string(stat.st_size));
+    add(std::to_string(static_cast<long long>(stat.st_mtime)));
+  }
+  add(std::to_string(options.layers.size()));
+  for (const std::string& layer : options.layers) add(layer);
+  add(options.where);
+  add(options.sql);
+  add(options.dialect);
+  add(options.source_srs);
+  add(std::to_string(options.open_options.size()));
+  for (const std::string& option : options.open_options) add(option);
+  add(options.edges == sites::EdgeShape::lonlat ? "lonlat" : "geodesic");
+  add(options.wrap == sites::WrapMode::automatic ? "auto" : "none");
+  add(options.strict ? "strict" : "");
+  add(options.make_valid ? "makevalid" : "");
+  return h;
+}
+
 std::vector<std::pair<std::string, std::string>> part_metadata(const PartIdentity& part) {
   char fingerprint[24];
-  std::snprintf(fingerprint, sizeof fingerprint, "%016" PRIx64, part.sites_fingerprint);
+  std::snprintf(fingerprint, sizeof fingerprint, "%016" PRIx64, part.source_fingerprint);
   return {{kPartVersion, "1"},
           {kLevel, std::to_string(part.level)},
           {kRule, rule_name(part.rule)},
           {kTile, std::to_string(part.index) + "/" + std::to_string(part.count)},
-          {kSites, std::to_string(part.site_count)},
+          {kSource, part.source},
           {kFingerprint, fingerprint},
           {kLayers, join(part.layers)}};
 }

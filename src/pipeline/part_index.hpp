@@ -5,7 +5,7 @@
 // rows in code order): the regions of its sites cut at the tile's edges (a site's region is the
 // union, by site_fid, of its parts), and the per-cell layers' rows of its cells. Its metadata
 // (dataset metadata items QTMV_*) keeps what the index checks: the level, the rule, the tile K/N,
-// the sites (count and the labeller's input fingerprint, tile_product.hpp) and the layers.
+// the source and its reading options (a fingerprint) and the layers.
 //
 // The index is an OGR VRT: per layer, an OGRVRTUnionLayer over that layer of every part (paths
 // relative to the index where they can be), with the layer's geometry type, SRS and the parts'
@@ -19,6 +19,7 @@
 
 #include "label/label_options.hpp"
 #include "pipeline/voronoi_options.hpp"
+#include "sites/site_options.hpp"
 
 namespace qtmv::pipeline {
 
@@ -27,10 +28,15 @@ struct PartIdentity {
   int level = 0;
   label::Rule rule = label::Rule::exact;
   int index = 0, count = 0;  ///< tile K of N
-  std::int32_t site_count = 0;
-  std::uint64_t sites_fingerprint = 0;  ///< input_fingerprint (tile_product.hpp)
-  std::vector<std::string> layers;      ///< in the order written
+  std::string source;        ///< the source as named to the tile job
+  std::uint64_t source_fingerprint = 0;  ///< source_fingerprint of the tile job
+  std::vector<std::string> layers;       ///< in the order written
 };
+
+/// A 64-bit fingerprint of what every tile job of one run shares: the source as named, its size
+/// and time of change where it is a file (GDAL's VSIStatL), and the reading options. Not the
+/// sites read: a tile job may read only those that can own a cell of its tile.
+std::uint64_t source_fingerprint(const std::string& source, const sites::SourceOptions& options);
 
 /// The dataset metadata items (NAME, VALUE) that hold `part` (write::VectorOptions::metadata).
 std::vector<std::pair<std::string, std::string>> part_metadata(const PartIdentity& part);
@@ -53,8 +59,9 @@ struct PartIndexSummary {
 /// Reads and checks the parts of `files` (GeoPackages written by -tile K/N -part) and writes their
 /// index, an OGR VRT, at `path`; paths to the parts are relative to `destination`'s directory
 /// where both are local files (the index is moved there), named as `destination` in messages.
-/// Throws VoronoiError naming the file at fault: not a part; a part of another level, rule, sites,
-/// layers or split (N) than the first; a tile given twice; tiles missing (listed).
+/// Throws VoronoiError naming the file at fault: not a part; a part of another level, rule, source
+/// (or reading options), layers or split (N) than the first; a tile given twice; tiles missing
+/// (listed).
 PartIndexSummary write_part_index(const std::vector<std::string>& files, const std::string& path,
                                   const std::string& destination);
 

@@ -313,7 +313,7 @@ OctantSteps::OctantSteps(const label::Outlines& outlines) {
 label::Outlines with_range_edges(const label::Outlines& outlines) {
   const int level = outlines.level;
   grid::require_level(level);
-  if (!holds_code(outlines, 0) || !holds_code(outlines, grid::cell_count(level) - 1)) {
+  if (holds_part(outlines)) {
     // The cells with a neighbour outside the range: the row ends (their neighbours in the next
     // octants), and the cells of a row whose row above or below may be outside (the range's
     // first and last rows, each octant's first and last: the equator's row faces another octant).
@@ -369,7 +369,7 @@ RegionTracer::RegionTracer(const label::Outlines& whole_or_tile, RingVertices ve
   grid::require_level(level);
   // A tile's regions are cut at its edges (with_range_edges); the whole level's are traced as given.
   label::Outlines tile;
-  const bool part = !holds_code(whole_or_tile, 0) || !holds_code(whole_or_tile, grid::cell_count(level) - 1);
+  const bool part = holds_part(whole_or_tile);
   if (part) tile = with_range_edges(whole_or_tile);
   const label::Outlines& outlines = part ? tile : whole_or_tile;
   const label::OutlineCells& cells = outlines.cells;

@@ -155,6 +155,11 @@ inline bool holds_code(const label::Outlines& outlines, grid::Code code) {
   return outlines.range.end == 0 || (code >= outlines.range.first && code < outlines.range.end);
 }
 
+/// Whether the outlines hold only a part of the level (a tile), whose regions are cut at its edges.
+inline bool holds_part(const label::Outlines& outlines) {
+  return !holds_code(outlines, 0) || !holds_code(outlines, grid::cell_count(outlines.level) - 1);
+}
+
 /// Visits the edges of the k-th outline cell, as drawn, that bound its site's region (the region
 /// on their left): visit(edge, from, to, other), `edge` the edge's index in drawn_ring's ring,
 /// `other` the site across the edge or kBorderEdge. Only

@@ -5,6 +5,7 @@
 // parts' rows; and every bad set of parts is refused naming the file, writing nothing.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <map>
@@ -220,7 +221,20 @@ TEST(PartitionedOutput, BadPartSetsAreRefusedNamingTheFile) {
   other = options;
   other.read.where = "lon > 0";
   run_parts(other, 4, dir + "/east", {3});
-  expect_index_refused({p1, p2, dir + "/east/3.gpkg", p4}, {dir + "/east/3.gpkg", "other sites"}, index);
+  expect_index_refused({p1, p2, dir + "/east/3.gpkg", p4}, {dir + "/east/3.gpkg", "read with other options"}, index);
+  // Another source, or the same one changed after the first parts were written.
+  const std::string copy = dir + "/centres.csv";
+  fs::copy_file(kCentres, copy);
+  other = options;
+  other.part = true;
+  other.tile_index = 3;
+  other.tile_count = 4;
+  run_voronoi(copy, dir + "/copy3.gpkg", other);
+  expect_index_refused({p1, p2, dir + "/copy3.gpkg", p4}, {dir + "/copy3.gpkg", "a part of '" + copy + "'"}, index);
+  other.tile_index = 4;
+  fs::last_write_time(copy, fs::last_write_time(copy) + std::chrono::seconds(10));
+  run_voronoi(copy, dir + "/copy4.gpkg", other);
+  expect_index_refused({dir + "/copy4.gpkg", dir + "/copy3.gpkg"}, {dir + "/copy3.gpkg", "after it changed"}, index);
 
   // The good ones index; relative paths: the index moved with its parts still opens.
   EXPECT_NO_THROW(run_index({dir + "/four"}, index));

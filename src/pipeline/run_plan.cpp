@@ -299,7 +299,7 @@ void plan_part_destination(const std::string& destination, const VoronoiOptions&
   }
   if (plan.format.driver != "GPKG") {
     throw VoronoiError("-part: a part is a GeoPackage (-of GPKG, or a .gpkg name), not " + plan.format.driver +
-                       ": its metadata keeps the level, tile and sites that the index of the parts checks");
+                       ": its metadata keeps the level, tile and source that the index of the parts checks");
   }
   static_cast<write::VectorLayers&>(plan.vector) = options.vector;
   plan.vector.driver = plan.format.driver;

@@ -1,21 +1,30 @@
 #!/usr/bin/env bash
 # A qtmvoronoi run split into tile jobs that GNU parallel runs on this machine (all cores, or the
-# GPUs one job each), then merged: the output is the same as one run's.
+# GPUs one job each). Two forms (FORM):
+#   one-file (the default): the tile jobs write tile products, then one merge writes the output,
+#     the same as one run's;
+#   parts: each tile job writes its part of the output (-tile K/N -part: a GeoPackage, regions cut
+#     at the tile's edges), then the index of the parts (-merge -of VRT) makes them one data set;
+#     DESTINATION is the index (a .vrt).
 #
 #   tiles_gnu_parallel.sh LEVEL TILES SOURCE DESTINATION [READING OPTIONS...] [-- OUTPUT OPTIONS...]
 #
 # READING OPTIONS (-l, -where, -s_srs, -oo, -edges, -distance, -device, ...) go to every tile job
-# and to the merge; OUTPUT OPTIONS (-of, -layers, -lco, -overwrite, ...) to the merge alone.
+# and to the merge; OUTPUT OPTIONS (-of, -layers, -lco, -overwrite, ...) to the merge alone (parts:
+# to every tile job; -overwrite to the index too).
 # Environment: QTMVORONOI (the tool; default: qtmvoronoi on the PATH), JOBS (tile jobs at once;
 # default: parallel's, one per core), TILE_DIR (where the tile products go; default: a temporary
-# directory, removed at the end).
+# directory, removed at the end; parts: where the parts go, default DESTINATION less .vrt, plus
+# _parts), FORM (one-file or parts).
 #
 # Example: 8 tiles of level 12, 2 at a time, regions as a GeoPackage
 #   JOBS=2 examples/tiles_gnu_parallel.sh 12 8 sites.gpkg voronoi.gpkg -l sites -- -layers regions
+# The same as 8 parts and their index voronoi.vrt (the parts in voronoi_parts/)
+#   FORM=parts JOBS=2 examples/tiles_gnu_parallel.sh 12 8 sites.gpkg voronoi.vrt -l sites -- -layers regions
 set -euo pipefail
 
 if [ $# -lt 4 ]; then
-  sed -n '5,9p' "$0" >&2
+  sed -n '11,18p' "$0" >&2
   exit 2
 fi
 level=$1 tiles=$2 source=$3 destination=$4
@@ -27,6 +36,18 @@ output=("$@")
 
 tool=${QTMVORONOI:-qtmvoronoi}
 command -v parallel > /dev/null || { echo "$0: GNU parallel is missing (Debian: apt install parallel)" >&2; exit 1; }
+
+if [ "${FORM:-one-file}" = parts ]; then
+  part_dir=${TILE_DIR:-${destination%.vrt}_parts}
+  mkdir -p "$part_dir"
+  index=()
+  for o in ${output[@]+"${output[@]}"}; do [ "$o" = -overwrite ] && index+=(-overwrite); done
+  parallel --will-cite --quote --halt now,fail=1 ${JOBS:+-j "$JOBS"} \
+    "$tool" -q -overwrite -level "$level" -tile {}/"$tiles" -part "${reading[@]}" ${output[@]+"${output[@]}"} \
+    "$source" "$part_dir"/{}.gpkg ::: $(seq "$tiles")
+  exec "$tool" ${index[@]+"${index[@]}"} -merge "$part_dir" -of VRT "$destination"
+fi
+[ "${FORM:-one-file}" = one-file ] || { echo "$0: FORM is one-file or parts, not '$FORM'" >&2; exit 2; }
 if [ -n "${TILE_DIR:-}" ]; then
   mkdir -p "$TILE_DIR"
   tile_dir=$TILE_DIR

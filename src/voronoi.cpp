@@ -1,5 +1,6 @@
 #include "voronoi.hpp"
 
+#include <algorithm>
 #include <future>
 #include <memory>
 #include <string>
@@ -12,11 +13,54 @@
 #include "common/trace.hpp"
 #include "label/device_startup.hpp"
 #include "pipeline/database_output.hpp"
+#include "pipeline/part_index.hpp"
 #include "pipeline/run_plan.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/stages.hpp"
 
 namespace qtmv {
+
+namespace {
+
+/// -merge PARTS -of VRT: the parts' index, all or nothing; no source is read, nothing labelled.
+VoronoiSummary run_part_index(const std::string& destination, const VoronoiOptions& options) {
+  const double t_start = now_seconds();
+  if (options.tile_count > 0) throw VoronoiError("-tile and -merge: a run labels one tile, or merges all of them");
+  const std::vector<std::string> files = pipeline::part_files(options.merge);
+  pipeline::StagedOutput output(destination, options.overwrite);
+  const pipeline::PartIndexSummary index = pipeline::write_part_index(files, output.begin(), destination);
+  output.commit();
+  VoronoiSummary summary;
+  summary.driver = "VRT";
+  summary.level = index.level;
+  summary.cells = grid::cell_count(index.level);
+  summary.device = "index of " + std::to_string(index.parts) + " parts";
+  summary.total_seconds = summary.write_seconds = now_seconds() - t_start;
+  std::string rows;
+  for (const auto& [layer, count] : index.layers) rows += (rows.empty() ? "" : ", ") + layer + " " + std::to_string(count);
+  tell(options.messages, Severity::info,
+       "'" + destination + "': index of " + std::to_string(index.parts) + " parts of level " + std::to_string(index.level) +
+           " (rows: " + rows + ")");
+  return summary;
+}
+
+/// A part's identity (its metadata: pipeline/part_index.hpp).
+std::vector<std::pair<std::string, std::string>> part_metadata(const pipeline::RunPlan& plan, const std::string& source,
+                                                               const VoronoiOptions& options) {
+  pipeline::PartIdentity part;
+  part.level = plan.level;
+  part.rule = options.rule;
+  part.index = plan.tile_index;
+  part.count = plan.tile_count;
+  part.source = source;
+  part.source_fingerprint = pipeline::source_fingerprint(source, options.read);
+  for (const std::string& layer : plan.vector.layers) {
+    if (std::find(part.layers.begin(), part.layers.end(), layer) == part.layers.end()) part.layers.push_back(layer);
+  }
+  return pipeline::part_metadata(part);
+}
+
+}  // namespace
 
 VoronoiSummary run_voronoi(const std::string& source, const std::string& destination, const VoronoiOptions& options) {
   const double t_start = now_seconds();
@@ -25,7 +69,8 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   // environment), and the trace channel's lines are the run's messages.
   set_config_lookup(&CPLGetConfigOption);
   const ScopedTraceSink trace_sink(options.messages);
-  const bool tile_job = options.tile_count > 0;
+  if (pipeline::writes_part_index(destination, options)) return run_part_index(destination, options);
+  const bool tile_job = options.tile_count > 0 && !options.part;  // a tile product; a part is written as a dataset
   // The GPUs are counted and their contexts made (tenths of a second a process: much of a small
   // run, and of every tile job) while the run is planned and its sites read; a merge makes none.
   // -device auto starts them only once its estimate picks a GPU (a run the CPU does faster never
@@ -37,7 +82,7 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   const bool automatic = options.device == "auto";
   if (!automatic) start_devices();
   // Every check before any work; the devices' as soon as they are counted.
-  pipeline::RunPlan plan = tile_job ? pipeline::plan_tile_job(destination, options) : pipeline::plan_run(destination, options);
+  pipeline::RunPlan plan = options.tile_count > 0 ? pipeline::plan_tile_job(destination, options) : pipeline::plan_run(destination, options);
   if (!plan.level_note.empty()) tell(options.messages, Severity::info, plan.level_note);
   label::AutoDevice auto_choice;  // with no sites yet: the least work the plan can take
   if (automatic) auto_choice = pipeline::estimate_auto_device(plan, 0, 0);
@@ -111,6 +156,7 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   if (tile_job) {
     pipeline::write_tile_stage(output.begin(), destination, labels, sites, options, plan);
   } else {
+    if (plan.vector.part) plan.vector.metadata = part_metadata(plan, source, options);
     strip_label_seconds = pipeline::write_stage(output.begin(), destination, labels, sites, plan, progress,
                                                 options.messages, &summary.sites_without_cell);
   }

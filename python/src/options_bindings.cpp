@@ -244,8 +244,12 @@ void bind_tile_options(py::class_<VoronoiOptions>& c) {
          o.tile_count = v ? v->second : 0;
        },
        "-tile K/N as (K, N): a tile job, labelling tile K of N and writing its tile product (.qtmt); None: a whole run")
+      .def_readwrite("part", &VoronoiOptions::part,
+                     "-part: with tile, the tile job writes its part of the vector output (a GeoPackage: regions "
+                     "cut at the tile's edges) instead of a tile product")
       .def_readwrite("merge", &VoronoiOptions::merge,
-                     "-merge: tile products (files, or directories of .qtmt files) joined instead of labelling");
+                     "-merge: tile products (files, or directories of .qtmt files) joined instead of labelling; "
+                     "with format 'VRT', parts (directories of .gpkg files) indexed");
 }
 
 py::dict summary_dict(const VoronoiSummary& s) {

@@ -207,6 +207,7 @@ void check_run_memory(const RunPlan& plan, std::uint64_t memory_limit_bytes, std
 RunPlan plan_run(const std::string& destination, const VoronoiOptions& options) {
   RunPlan plan = plan_level(options);
   if (options.tile_count > 0) throw VoronoiError("-tile: a tile job is planned by plan_tile_job");
+  if (options.part) throw VoronoiError("-part: a part is what a tile job writes: give -tile K/N");
   plan.format = choose_output_format(destination, options.format, options.kind);
   if (!plan.format.raster && !options.raster.bands.empty()) {
     throw VoronoiError("-bands is for raster output; " + plan.format.driver + " output is vector: use -layers");
@@ -287,11 +288,40 @@ RunPlan plan_run(const std::string& destination, const VoronoiOptions& options) 
   return plan;
 }
 
+namespace {
+
+// A part's destination (-tile K/N -part): vector output in a GeoPackage, whose metadata keeps the
+// part's identity for the index (part_index.hpp); layers that can be cut at a tile's edges.
+void plan_part_destination(const std::string& destination, const VoronoiOptions& options, RunPlan& plan) {
+  plan.format = choose_output_format(destination, options.format, options.kind);
+  if (plan.format.raster) {
+    throw VoronoiError("-part: '" + destination + "' is " + plan.format.driver + " raster output; parts are vector " +
+                       "output (regions, boundary_cells, cells): a raster is written by a whole run");
+  }
+  if (plan.format.driver != "GPKG") {
+    throw VoronoiError("-part: a part is a GeoPackage (-of GPKG, or a .gpkg name), not " + plan.format.driver +
+                       ": its metadata keeps the level, tile and source that the index of the parts checks");
+  }
+  static_cast<write::VectorLayers&>(plan.vector) = options.vector;
+  plan.vector.driver = plan.format.driver;
+  plan.vector.part = true;
+  if (std::find(plan.vector.layers.begin(), plan.vector.layers.end(), "voronoi_edges") != plan.vector.layers.end()) {
+    throw VoronoiError("-part: a part holds no voronoi_edges layer (an edge's line and its length belong to the "
+                       "whole level, not to one tile): choose from regions, boundary_cells, cells, or write the "
+                       "edges with a one-file -merge");
+  }
+  check_vector_destination(destination, plan);
+}
+
+}  // namespace
+
 RunPlan plan_tile_job(const std::string& destination, const VoronoiOptions& options) {
   RunPlan plan = plan_level(options);
   if (!options.merge.empty()) throw VoronoiError("-tile and -merge: a run labels one tile, or merges all of them");
   if (destination.empty()) throw VoronoiError("-tile: no file named for the tile product");
-  if (!EQUAL(CPLGetExtension(destination.c_str()), kTileProductExtension + 1)) {  // ".qtmt" without its dot
+  if (options.part) {
+    plan_part_destination(destination, options, plan);
+  } else if (!EQUAL(CPLGetExtension(destination.c_str()), kTileProductExtension + 1)) {  // ".qtmt" without its dot
     // part1.gpkg would be a tile product under a GeoPackage's name: GIS software cannot read it.
     throw VoronoiError("-tile: '" + destination + "': a tile job writes a tile product, which only -merge reads: " +
                        "name it with " + kTileProductExtension + ", and give the output's name to the -merge run");
@@ -302,14 +332,15 @@ RunPlan plan_tile_job(const std::string& destination, const VoronoiOptions& opti
   }
   plan.tile_index = options.tile_index;
   plan.tile_count = options.tile_count;
-  plan_labeller(plan, options, false);
+  plan_labeller(plan, options, plan.cells_layer);  // a part's cells layer: its cells' distances
   try {
     plan.label.range = grid::tile_range(plan.level, options.tile_index, options.tile_count);
   } catch (const std::invalid_argument& e) {
     throw VoronoiError(std::string("-tile: ") + e.what());
   }
   check_run_memory(plan, options.memory_limit_bytes, 0);
-  // Labelling is nearly all of a tile job.
+  // Labelling is nearly all of a tile job (a part's write is weighed as a whole run's:
+  // settle_devices).
   plan.read_end = kReadEnd;
   plan.label_end = 0.98;
   return plan;
@@ -365,7 +396,7 @@ void settle_devices(RunPlan& plan, const VoronoiOptions& options, int cuda_devic
   const DeviceSpec device = parse_device_spec(plan.label.device);
   plan.vector.geodesic_device =
       labels_on_cpu(plan.label.device, cuda_devices) ? -1 : device.all ? 0 : cuda_ordinal(device.index);
-  if (plan.tile_count == 0) set_stage_ends(plan);
+  if (plan.tile_count == 0 || plan.vector.part) set_stage_ends(plan);
 }
 
 }  // namespace qtmv::pipeline

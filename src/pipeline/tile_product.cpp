@@ -252,12 +252,25 @@ void check_regular_file(const std::string& path, const VSIStatBufL& stat) {
   if (VSI_ISREG(stat.st_mode)) return;
   throw VoronoiError("-merge: '" + path + "': not a regular file (" +
                      special_file_kind(static_cast<unsigned>(stat.st_mode)) +
-                     "); a tile product is a file that a -tile run wrote");
+                     "); -merge takes the files that -tile runs wrote");
 }
 
 }  // namespace
 
-std::vector<std::string> tile_product_files(const std::vector<std::string>& paths) {
+MissingTiles missing_tiles(int count, const std::function<bool(int)>& present) {
+  MissingTiles out;
+  int listed = 0;
+  for (int k = 1; k <= count; ++k) {
+    if (present(k)) continue;
+    ++out.count;
+    if (listed < 20) out.list += (listed++ ? ", " : "") + std::to_string(k);
+  }
+  if (out.count > listed) out.list += ", ...";
+  return out;
+}
+
+std::vector<std::string> merge_input_files(const std::vector<std::string>& paths, const std::string& extension,
+                                           const std::string& none_found) {
   std::vector<std::string> files;
   for (const std::string& path : paths) {
     VSIStatBufL stat;
@@ -271,13 +284,12 @@ std::vector<std::string> tile_product_files(const std::vector<std::string>& path
     std::vector<std::string> found;
     for (char** n = names; n && *n; ++n) {
       const std::string name = *n;
-      const std::string extension = kTileProductExtension;
       if (name.size() > extension.size() && name.compare(name.size() - extension.size(), extension.size(), extension) == 0) {
         found.push_back(CPLFormFilename(path.c_str(), name.c_str(), nullptr));
       }
     }
     CSLDestroy(names);
-    if (found.empty()) throw VoronoiError("-merge: '" + path + "': a directory without " + kTileProductExtension + " files");
+    if (found.empty()) throw VoronoiError("-merge: '" + path + "': " + none_found);
     std::sort(found.begin(), found.end());
     for (const std::string& file : found) {
       if (VSIStatL(file.c_str(), &stat) != 0) throw VoronoiError("-merge: '" + file + "': no such file");
@@ -286,6 +298,11 @@ std::vector<std::string> tile_product_files(const std::vector<std::string>& path
     files.insert(files.end(), found.begin(), found.end());
   }
   return files;
+}
+
+std::vector<std::string> tile_product_files(const std::vector<std::string>& paths) {
+  return merge_input_files(paths, kTileProductExtension,
+                           std::string("a directory without ") + kTileProductExtension + " files");
 }
 
 label::Outlines merge_tile_products(const std::vector<std::string>& files, const MergeExpectation& expect,
@@ -327,15 +344,9 @@ label::Outlines merge_tile_products(const std::vector<std::string>& files, const
     tiles.emplace(index, std::move(tile));
   }
   if (static_cast<int>(tiles.size()) != count) {
-    std::string missing;
-    int listed = 0, absent = 0;
-    for (int k = 1; k <= count; ++k) {
-      if (tiles.count(k)) continue;
-      ++absent;
-      if (listed < 20) missing += (listed++ ? ", " : "") + std::to_string(k);
-    }
-    throw VoronoiError("-merge: " + std::to_string(absent) + " of the " + std::to_string(count) +
-                       " tiles missing (" + missing + (absent > listed ? ", ..." : "") + ")");
+    const MissingTiles missing = missing_tiles(count, [&](int k) { return tiles.count(k) > 0; });
+    throw VoronoiError("-merge: " + std::to_string(missing.count) + " of the " + std::to_string(count) +
+                       " tiles missing (" + missing.list + ")");
   }
   // Then the bodies, in code order, straight into the level's lists: the outline cells are held
   // once, as a whole run holds them.

@@ -53,6 +53,21 @@ struct MergeExpectation {
   std::string source;  ///< for messages: the source the merge read
 };
 
+/// The tiles of 1..count that are not `present`: their number, and a list of them for a message
+/// ("3, 5": the first 20, then "...").
+struct MissingTiles {
+  int count = 0;
+  std::string list;
+};
+MissingTiles missing_tiles(int count, const std::function<bool(int)>& present);
+
+/// The files that `paths` name for a merge: each a file, or a directory whose files named
+/// *`extension` are taken (in name order). Throws VoronoiError for a path that is neither, a file
+/// that is not a regular one (a FIFO would block the merge for ever), or a directory without
+/// any (`none_found` says what is missing).
+std::vector<std::string> merge_input_files(const std::vector<std::string>& paths, const std::string& extension,
+                                           const std::string& none_found);
+
 /// The files that `paths` name: each a tile product, or a directory whose *.qtmt files are taken
 /// (in name order). Throws VoronoiError for a path that is neither, or a directory without any.
 std::vector<std::string> tile_product_files(const std::vector<std::string>& paths);

@@ -6,6 +6,7 @@
 #include <functional>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "common/run_context.hpp"
@@ -125,6 +126,13 @@ struct VectorOptions : VectorLayers {
   /// them to the CPU, with a warning to `messages`.
   int geodesic_device = -1;
   MessageSink messages;  ///< may be empty
+  /// A part of a partitioned output (a tile job's, -tile K/N -part): the outlines hold one range
+  /// of the level (whole rows); its regions are cut at the range's edges (region_tracer.hpp:
+  /// with_range_edges) and only the sites with cells in it get a row. Not voronoi_edges.
+  bool part = false;
+  /// Items of the dataset's metadata (NAME, VALUE), set before it is closed: a part's identity,
+  /// which the index of the parts checks. Empty for a whole run.
+  std::vector<std::pair<std::string, std::string>> metadata;
 };
 
 /// A band of a raster output (-bands): the FID of the cell's site, its boundary flag (0/1), its

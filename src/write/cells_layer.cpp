@@ -30,8 +30,10 @@ void write_cells(VectorDatasetWriter& w, const LayerInput& in, double work) {
   }
   w.begin_features();
   CellRows rows(w, layer, fields);
-  const Code cells = grid::cell_count(level);
-  Code next = 0;
+  // The level's cells, or a part's range of them (VectorOptions::part).
+  const Code first = in.outlines.range.first, end = in.outlines.range.end;
+  const Code cells = end - first;
+  Code next = first;
   in.cell_tiles([&](const CellTile& tile) {
     if (tile.first != next) throw std::logic_error("write_vector: the cells layer's tiles are not in code order");
     // Blocks of the tile's cells, their polygons made on the helper's team (and this thread
@@ -57,14 +59,14 @@ void write_cells(VectorDatasetWriter& w, const LayerInput& in, double work) {
             RowValue::of(std::int64_t{tile.boundary[k] != 0 ? 1 : 0}),
             in.composite() ? in.layer_of(static_cast<std::size_t>(site)) : RowValue{}};
         rows.add(block, k - first, values);
-        if ((code + 1) % kProgressEvery == 0) w.layer_progress(static_cast<double>(code + 1), static_cast<double>(cells));
+        if ((code + 1) % kProgressEvery == 0) w.layer_progress(static_cast<double>(code + 1 - first), static_cast<double>(cells));
       }
       rows.end_block();
     };
     work_ahead(static_cast<std::size_t>(tile.count), kCellBlock, kCellGrain, begin, make, write);
     next = tile.first + tile.count;
   });
-  if (next != cells) throw std::logic_error("write_vector: the cells layer's tiles end before the last cell");
+  if (next != end) throw std::logic_error("write_vector: the cells layer's tiles end before the last cell");
   rows.finish();
   w.end_layer();
 }

@@ -242,7 +242,12 @@ std::vector<PairLength> RegionAreaSums::pair_lengths() const {
   return out;
 }
 
-std::vector<double> region_areas(const label::Outlines& outlines, int cuda_device) {
+std::vector<double> region_areas(const label::Outlines& whole_or_tile, int cuda_device) {
+  // A tile's regions are cut at its edges (with_range_edges), as RegionTracer cuts them.
+  label::Outlines tile;
+  const bool part = holds_part(whole_or_tile);
+  if (part) tile = with_range_edges(whole_or_tile);
+  const label::Outlines& outlines = part ? tile : whole_or_tile;
   const label::OutlineCells& cells = outlines.cells;
   RegionAreaSums sums(outlines.site_count, false, cuda_device);
   FirstException failure;

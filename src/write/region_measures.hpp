@@ -66,7 +66,8 @@ class RegionAreaSums : public RegionEdgeObserver {
 };
 
 /// Areas (square metres) of the regions of all sites (outlines.site_count of them; 0 for a site
-/// without cells) on all cores, from the outline cells (whole level). Deterministic: the edges'
+/// without cells) on all cores, from the outline cells (the whole level, or a tile's: then the
+/// areas of the regions cut at its edges). Deterministic: the edges'
 /// areas are added in fixed point (kAreaUnit), so the result does not depend on the threads.
 /// `cuda_device` as RegionAreaSums'.
 std::vector<double> region_areas(const label::Outlines& outlines, int cuda_device = -1);

@@ -310,14 +310,68 @@ OctantSteps::OctantSteps(const label::Outlines& outlines) {
   }
 }
 
-RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertices,
+label::Outlines with_range_edges(const label::Outlines& outlines) {
+  const int level = outlines.level;
+  grid::require_level(level);
+  if (holds_part(outlines)) {
+    // The cells with a neighbour outside the range: the row ends (their neighbours in the next
+    // octants), and the cells of a row whose row above or below may be outside (the range's
+    // first and last rows, each octant's first and last: the equator's row faces another octant).
+    const label::OutlineCells& cells = outlines.cells;
+    label::OutlineCells cut;
+    cut.reserve(cells.size() + 4 * grid::rows_per_octant(level));
+    std::size_t k = 0;  // the next of `cells` to copy
+    const std::uint64_t last_row = grid::rows_per_octant(level) - 1;
+    const auto add = [&](grid::Code code) {
+      grid::Code nb[3];
+      grid::neighbours(code, level, nb);
+      if (holds_code(outlines, nb[0]) && holds_code(outlines, nb[1]) && holds_code(outlines, nb[2])) return;
+      while (k < cells.size() && cells[k].code < code) cut.push_back(cells[k++]);
+      if (k < cells.size() && cells[k].code == code) {
+        cut.push_back(cells[k++]);
+        cut.back().boundary = 1;
+      } else {
+        cut.push_back({code, label::site_of(cells, code), 1});
+      }
+    };
+    for (grid::Code row = outlines.range.first; row < outlines.range.end;) {
+      const grid::Cell c = grid::cell_of(row, level);
+      const grid::Code end = row + 2 * std::uint64_t{c.row} + 1;
+      if (row == outlines.range.first || end == outlines.range.end || c.row == 0 || c.row == last_row) {
+        for (grid::Code code = row; code < end; ++code) add(code);
+      } else {
+        add(row);
+        add(end - 1);
+      }
+      row = end;
+    }
+    if (!cut.empty()) {
+      while (k < cells.size()) cut.push_back(cells[k++]);
+      label::Outlines out;
+      out.level = level;
+      out.site_count = outlines.site_count;
+      out.range = outlines.range;
+      out.cells = std::move(cut);
+      out.cells_per_site = outlines.cells_per_site;
+      return out;
+    }
+  }
+  return outlines;
+}
+
+RegionTracer::RegionTracer(const label::Outlines& whole_or_tile, RingVertices vertices,
                            const std::function<void(double)>& step_done, RegionEdgeObserver* observer)
-    : level_(outlines.level), vertices_(vertices) {
+    : level_(whole_or_tile.level), vertices_(vertices) {
   const auto done = [&](double fraction) {
     if (step_done) step_done(fraction);
   };
-  const int level = outlines.level;
+  const int level = whole_or_tile.level;
   grid::require_level(level);
+  // A tile's regions are cut at its edges (with_range_edges); the whole level's are traced as given.
+  label::Outlines tile;
+  const bool part = holds_part(whole_or_tile);
+  if (part) tile = with_range_edges(whole_or_tile);
+  const label::Outlines& outlines = part ? tile : whole_or_tile;
   const label::OutlineCells& cells = outlines.cells;
 
   // The outline cells with region edges, each thread's in a list of its own: the cells' indices

@@ -108,6 +108,13 @@ class RegionTracer {
   std::vector<std::size_t> start_;  // site s's: [start_[s], start_[s + 1])
 };
 
+/// The outlines of a tile (outlines.range, whole rows) made ready to trace its regions cut at
+/// its edges: every cell of the range with a neighbour outside it becomes an outline cell flagged
+/// as a boundary cell (its site from site_of), so that visit_region_edges sees its edges across
+/// the range's edge as border edges. Its cells per site are the tile's. Not for the boundary
+/// cells layer: the flags are the tracer's, not the labels'. The whole level is returned as it is.
+label::Outlines with_range_edges(const label::Outlines& outlines);
+
 /// All regions at once (RegionTracer with the rings' corners only, then every site on all
 /// cores). Returns
 /// outlines.site_count regions. `step_done` as for RegionTracer, and once more when linked.
@@ -142,12 +149,25 @@ inline bool on_cut(const LonLat& from, const LonLat& to) {
   return std::fabs(from.lon) == 180.0 && std::fabs(to.lon) == 180.0;
 }
 
+/// Whether `code` lies in the codes the outlines hold (outlines.range; an unset range, end 0: the
+/// whole level). A neighbour outside them is across a tile's edge, where a part's regions are cut.
+inline bool holds_code(const label::Outlines& outlines, grid::Code code) {
+  return outlines.range.end == 0 || (code >= outlines.range.first && code < outlines.range.end);
+}
+
+/// Whether the outlines hold only a part of the level (a tile), whose regions are cut at its edges.
+inline bool holds_part(const label::Outlines& outlines) {
+  return !holds_code(outlines, 0) || !holds_code(outlines, grid::cell_count(outlines.level) - 1);
+}
+
 /// Visits the edges of the k-th outline cell, as drawn, that bound its site's region (the region
 /// on their left): visit(edge, from, to, other), `edge` the edge's index in drawn_ring's ring,
 /// `other` the site across the edge or kBorderEdge. Only
 /// a boundary cell has a neighbour of another site; any cell may have border edges. The regions'
 /// tracing and their areas both walk the outlines by this one rule. `search`: the calling
-/// thread's, which then visits its cells in code order.
+/// thread's, which then visits its cells in code order. Outlines of a part of the level (a tile:
+/// outlines.range) cut the regions at its edges: an edge to a cell outside the range is a border
+/// edge, seen only where the cell is flagged as a boundary cell (with_range_edges does that).
 template <class Visit>
 void visit_region_edges(const label::Outlines& outlines, std::size_t k, label::NearSearch& search, const Visit& visit) {
   const label::OutlineCell& outline = outlines.cells[k];
@@ -166,6 +186,10 @@ void visit_region_edges(const label::Outlines& outlines, std::size_t k, label::N
     } else if (outline.boundary) {
       // The cell across a row line lies a row away in the list; those beside it, next to k.
       const grid::Code code = nb[across[e]];
+      if (!holds_code(outlines, code)) {
+        visit(e, from, to, kBorderEdge);
+        continue;
+      }
       const std::int32_t other = across[e] == grid::kNeighbourVertical ? search.site(outlines.cells, k, code)
                                                                        : label::site_of_near(outlines.cells, k, code);
       if (other != outline.site) visit(e, from, to, other);

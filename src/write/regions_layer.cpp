@@ -353,6 +353,15 @@ void write_regions(VectorDatasetWriter& w, const LayerInput& in, double work, st
   // helper's team, and on this thread when it is done writing the block before: two blocks held,
   // not every region's rings.
   const RegionRowValues row_values(in, fields, areas);
+  // A row per site; a part's only for the sites with cells in its range (VectorOptions::part).
+  std::vector<std::size_t> part_sites;
+  if (in.part) {
+    for (std::size_t s = 0; s < in.outlines.cells_per_site.size(); ++s) {
+      if (in.outlines.cells_per_site[s] > 0) part_sites.push_back(s);
+    }
+  }
+  const std::size_t row_count = in.part ? part_sites.size() : static_cast<std::size_t>(in.site_count);
+  const auto site_of_row = [&](std::size_t row) { return in.part ? part_sites[row] : row; };
   const auto begin = [&](std::size_t first, std::size_t last) {
     TracedRegions block;
     block.first = first;
@@ -365,7 +374,7 @@ void write_regions(VectorDatasetWriter& w, const LayerInput& in, double work, st
     return std::make_pair(std::move(block), last - first);
   };
   const auto link = [&](TracedRegions& block, std::size_t k) {
-    const std::size_t s = block.first + k;
+    const std::size_t s = site_of_row(block.first + k);
     const Region region = tracer.trace(static_cast<std::int32_t>(s));
     if (direct) {
       region_geometry(region, block.geometries[k]);
@@ -382,14 +391,15 @@ void write_regions(VectorDatasetWriter& w, const LayerInput& in, double work, st
   double write_seconds = 0;  // this thread's, in write (for the trace)
   const auto write = [&](std::size_t first, std::size_t last, TracedRegions& block) {
     const auto start = std::chrono::steady_clock::now();
-    for (std::size_t s = first; s < last; ++s) {
+    for (std::size_t row = first; row < last; ++row) {
       if (direct) {
-        w.write(*direct, block.geometries[s - first].blob(), block.values.data() + (s - first) * row_values.count());
+        w.write(*direct, block.geometries[row - first].blob(), block.values.data() + (row - first) * row_values.count());
         continue;
       }
+      const std::size_t s = site_of_row(row);
       const sites::SiteRecord& site = in.table.sites[s];
       row_values.fill(s, false, values.data());
-      std::unique_ptr<OGRMultiPolygon>& geometry = block.features[s - first];
+      std::unique_ptr<OGRMultiPolygon>& geometry = block.features[row - first];
       const bool empty = geometry == nullptr;
       if (empty && empty_rows == EmptyRows::left_out) {
         left_out.add(site.fid);
@@ -415,9 +425,9 @@ void write_regions(VectorDatasetWriter& w, const LayerInput& in, double work, st
     }
     if (direct) w.guard([&] { direct->flush(); });  // before the block's blobs go
     write_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    w.layer_progress(0.4 + 0.6 * static_cast<double>(last) / static_cast<double>(in.site_count), 1.0);
+    w.layer_progress(0.4 + 0.6 * static_cast<double>(last) / static_cast<double>(row_count), 1.0);
   };
-  work_ahead(static_cast<std::size_t>(in.site_count), kRegionBlock, 1, begin, link, write);
+  work_ahead(row_count, kRegionBlock, 1, begin, link, write);
   trace("regions traced and written");
   if (left_out.count() > 0) {
     w.warn(w.driver_name() + " drops rows without a geometry: the " + std::to_string(left_out.count()) +

@@ -109,6 +109,10 @@ VectorDatasetWriter::~VectorDatasetWriter() {
 
 void VectorDatasetWriter::close() {
   layer_name_.clear();
+  for (const auto& [name, value] : options_.metadata) {
+    if (dataset_->SetMetadataItem(name.c_str(), value.c_str()) != CE_None) fail("cannot set the metadata item " + name);
+  }
+  if (!options_.metadata.empty()) check("setting the dataset's metadata");
   dataset_.reset();
   check("closing the dataset");
   check_counts();

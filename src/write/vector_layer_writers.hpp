@@ -31,6 +31,7 @@ struct LayerInput {
   bool all_ring_vertices;  ///< VectorOptions::all_ring_vertices()
   int geodesic_device;     ///< VectorOptions::geodesic_device
   const MessageSink& messages;
+  bool part = false;  ///< VectorOptions::part: the outlines hold one range of the level
 
   /// Composite sites (several source layers): every layer says which layer its sites came from.
   bool composite() const { return table.source_count() > 1; }

@@ -55,15 +55,19 @@ void write_vector(const std::string& path, const label::Outlines& outlines, cons
   StepTrace trace(TraceStage::write);
   label::check_outlines(outlines);
   trace("outline cells checked");
-  if (!(outlines.range == grid::whole_level(outlines.level))) {
+  if (options.part && std::find(layers.begin(), layers.end(), "voronoi_edges") != layers.end()) {
+    throw WriteError(path + ": a part holds no voronoi_edges layer (an edge's line and length belong to the "
+                     "whole level, not to one tile)");
+  }
+  if (!options.part && !(outlines.range == grid::whole_level(outlines.level))) {
     throw std::invalid_argument("write_vector: the outlines hold only codes " + std::to_string(outlines.range.first) +
                                 " to " + std::to_string(outlines.range.end) + " of the level");
   }
   const bool want_cells = std::find(layers.begin(), layers.end(), "cells") != layers.end();
   if (want_cells && !cell_tiles) throw std::invalid_argument("write_vector: the cells layer needs the cells' labels");
-  const Code cells = grid::cell_count(outlines.level);
+  const Code cells = outlines.range.size();
   const LayerInput in{outlines, cell_tiles, table, site_count, options.all_ring_vertices(), options.geodesic_device,
-                 options.messages};
+                 options.messages, options.part};
   std::uint64_t boundary_count = 0;
   const auto outline_cells = static_cast<std::int64_t>(outlines.cells.size());
 #pragma omp parallel for schedule(static) num_threads(thread_count(0)) reduction(+ : boundary_count)

@@ -1110,6 +1110,25 @@ TEST(CatalogueOutput, DatabaseDestinationsNotWrittenAllOrNothingAreRefusedBefore
   refused({}, pg + " password=secret", "cannot write 'PG:dbname=qtmv_nowhere host=" + dir + "/no_server password=***': cannot connect to the database");
 }
 
+TEST(CatalogueOutput, PartsThatCannotBeCutOrIndexedAreRefused) {
+  // A part holds what can be cut at a tile's edge, in a GeoPackage; an index needs every part.
+  const std::string dir = test_dir();
+  const auto tile = [&](const std::vector<std::string>& extra, const std::string& dst) {
+    return run(concat(concat(concat({"-q", "-level", "5", "-device", "cpu", "-tile", "1/2", "-part"}, extra), kCsvOptions),
+                      {kCentres, dst}));
+  };
+  expect_failure(tile({"-layers", "regions,voronoi_edges"}, dir + "/1.gpkg"), 1,
+                 {"-part: a part holds no voronoi_edges layer"}, dir + "/1.gpkg");
+  expect_failure(tile({}, dir + "/1.fgb"), 1, {"-part: a part is a GeoPackage", "not FlatGeobuf"}, dir + "/1.fgb");
+  expect_failure(tile({"-bands", "fid"}, dir + "/1.gpkg"), 2, {"-part: -bands is for a raster"}, dir + "/1.gpkg");
+  const std::string parts = dir + "/parts";
+  fs::create_directory(parts);
+  ASSERT_EQ(tile({}, parts + "/1.gpkg").status, 0);
+  const std::string index = dir + "/index.vrt";
+  expect_failure(run({"-merge", parts, "-of", "VRT", index}), 1, {"-merge: 1 of the 2 parts missing (tile 2)"}, index);
+  expect_failure(run({"-merge", parts, "-of", "VRT", kCentres, index}), 2, {"reads no source"}, index);
+}
+
 TEST(CatalogueOptions, SitesSharingAFidAreRefusedForARaster) {
   // A -sql UNION of two layers gives sites FIDs 1, 2, 1, 2: the FID band could not tell them apart.
   const std::string dir = test_dir();

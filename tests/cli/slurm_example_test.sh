@@ -5,7 +5,9 @@
 #  1. the job array of tile jobs, then the merge after afterok: the merged CSV equals one whole run's;
 #  2. one task fails (its tile's path is taken by a directory): the merge stays pending with
 #     DependencyNeverSatisfied; it is cancelled, the failed index is rerun (sbatch --array=K of the
-#     array's own job script), then the merge's own job script after it: again the whole run.
+#     array's own job script), then the merge's own job script after it: again the whole run;
+#  3. FORM=parts: the tasks write parts, the job after them their index; dissolved by site_fid,
+#     the index's regions are the whole run's.
 # scripts/test.sh installs slurm-wlm and munge; without them, or not as root (slurmd must be
 # root to start jobs), the test is skipped (exit 77) with a warning.
 #   slurm_example_test.sh QTMVORONOI TESTDATA_DIR
@@ -162,5 +164,26 @@ wait_for "$merge"
 [ "$(squeue -h -t all -r -j "$rerun,$merge" -o %T | xargs)" = "COMPLETED COMPLETED" ] ||
   fail "the rerun or its merge did not complete"
 same_as_whole "$work/merged2"
+
+# 3. The parts form: every task writes its part, the job after them their index; dissolved by
+# site_fid, the index's regions are the whole run's (cells per site, areas to 1e-9 relative).
+rows() { ogr2ogr -f CSV /vsistdout/ -dialect sqlite -sql "$2" "$1"; }
+said=$(FORM=parts examples/slurm_tiles.sh 9 6 "$data/country_centres.csv" "$work/parts.vrt" "$work/parts" \
+         "${reading[@]}" -- -layers regions)
+echo "$said"
+read -r array merge < <(sed -n 's/^tile jobs: array \([0-9]*\) .*merge: job \([0-9]*\) .*/\1 \2/p' <<< "$said") || true
+[ -n "${merge:-}" ] || fail "no job ids in the example's output (parts)"
+wait_for "$array"
+wait_for "$merge"
+[ "$(squeue -h -t all -r -j "$array,$merge" -o %T | sort | uniq -c | xargs)" = "7 COMPLETED" ] ||
+  fail "not every job of the parts form completed"
+[ "$(find "$work/parts" -name '*.gpkg' | wc -l)" -eq 6 ] || fail "not 6 parts"
+paste -d, <(rows "$work/whole/regions.csv" "SELECT CAST(site_fid AS INTEGER), CAST(cells AS INTEGER),
+              CAST(area_m2 AS REAL) FROM regions WHERE CAST(cells AS INTEGER) > 0 ORDER BY 1") \
+          <(rows "$work/parts.vrt" "SELECT site_fid, SUM(cells), SUM(area_m2), COUNT(*) FROM regions GROUP BY site_fid
+              ORDER BY site_fid") |
+  awk -F, 'NR > 1 { gsub(/"/, ""); n++; if ($1 != $4 || $2 != $5 || ($3 - $6) ^ 2 > (1e-9 * $3) ^ 2) bad++; if ($7 > 1) cut++ }
+           END { exit (bad || n < 10 || !cut) }' || fail "the parts' regions, dissolved, are not the whole run's"
 echo "slurm_tiles.sh on a one-node Slurm: 6 array tasks and the merge = one whole run;" \
-     "a failed task holds the merge, and its rerun then the merge complete it"
+     "a failed task holds the merge, and its rerun then the merge complete it;" \
+     "6 parts and their index = the whole run's regions"

@@ -112,3 +112,35 @@ def test_a_gpu_gives_the_cpus_result(centres):
     assert_same_layers(gpu, q.voronoi(centres, 10, layers=LAYERS, device="cpu"))
     raster = q.voronoi(centres, 9, raster="qtm", device="cuda")
     np.testing.assert_array_equal(raster.values, q.voronoi(centres, 9, raster="qtm", device="cpu").values)
+
+
+def test_parts_and_their_index_dissolve_into_the_whole_run(tmp_path):
+    # -tile K/N -part from Python, then the index (-merge -of VRT): geopandas reads the index as one
+    # layer whose rows, dissolved by site_fid, have the whole run's cells and areas.
+    options = dict(level=6, layers=["regions"], device="cpu", s_srs="EPSG:4326",
+                   open_options=["X_POSSIBLE_NAMES=lon", "Y_POSSIBLE_NAMES=lat"])
+    q.run_voronoi(str(CENTRES_CSV), str(tmp_path / "whole.gpkg"), q.VoronoiOptions(**options))
+    (tmp_path / "parts").mkdir()
+    for k in (1, 2, 3):
+        part = q.VoronoiOptions(**options)
+        part.tile = (k, 3)
+        part.part = True
+        q.run_voronoi(str(CENTRES_CSV), str(tmp_path / "parts" / f"{k}.gpkg"), part)
+    index = q.VoronoiOptions()
+    index.merge = [str(tmp_path / "parts")]
+    index.format = "VRT"
+    summary = q.run_voronoi("", str(tmp_path / "index.vrt"), index)
+    assert summary.device == "index of 3 parts"
+    whole = gpd.read_file(tmp_path / "whole.gpkg")
+    try:  # fiona reads only the drivers it lists; GDAL's OGR_VRT is one to add
+        import fiona
+        fiona.supported_drivers.setdefault("OGR_VRT", "r")
+    except ImportError:
+        pass
+    parts = gpd.read_file(tmp_path / "index.vrt")
+    assert len(parts) > whole["cells"].gt(0).sum()
+    dissolved = parts.groupby("site_fid")[["cells", "area_m2"]].sum()
+    expected = whole[whole["cells"] > 0].set_index("site_fid")[["cells", "area_m2"]].sort_index()
+    assert list(dissolved.index) == list(expected.index)
+    assert (dissolved["cells"] == expected["cells"]).all()
+    assert np.allclose(dissolved["area_m2"], expected["area_m2"], rtol=1e-9, atol=0)

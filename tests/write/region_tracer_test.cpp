@@ -2,6 +2,7 @@
 // and each region covers exactly its cells.
 #include <gtest/gtest.h>
 
+#include <ogr_api.h>
 #include <ogr_geometry.h>
 
 #include <cmath>
@@ -10,6 +11,8 @@
 #include <vector>
 
 #include "grid/qtm.hpp"
+#include "grid/qtm_code_ranges.hpp"
+#include "write/region_measures.hpp"
 #include "write/region_tracer.hpp"
 
 namespace qtmv::write {
@@ -92,6 +95,74 @@ std::vector<std::int32_t> nearest_point_labels(int level, int sites, unsigned se
     labels[code] = best;
   }
   return labels;
+}
+
+/// The outlines of one range of whole rows, as a tile job's labeller gives them: the level's
+/// outline cells in the range, and the range's cells per site.
+label::Outlines tile_outlines(const label::Outlines& whole, grid::CodeRange range) {
+  label::Outlines tile;
+  tile.level = whole.level;
+  tile.site_count = whole.site_count;
+  tile.range = range;
+  for (const label::OutlineCell& c : whole.cells) {
+    if (c.code >= range.first && c.code < range.end) tile.cells.push_back(c);
+  }
+  tile.cells_per_site = label::count_cells_per_site(tile.cells, whole.level, whole.site_count, range.end);
+  return tile;
+}
+
+/// Splits the level in `tiles` ranges and traces each range's regions, cut at its edges: each
+/// piece valid and covering exactly its site's cells of the range (GEOS), the pieces of a site
+/// uniting into its whole region, and the pieces' areas (region_areas) adding up to its area.
+void check_tiles(int level, const std::vector<std::int32_t>& labels, std::int32_t sites, int tiles) {
+  SCOPED_TRACE(std::to_string(tiles) + " tiles");
+  const label::Outlines whole = label::outlines_of_dense(level, labels.data(), nullptr, sites);
+  const std::vector<Region> regions = trace_regions(whole);
+  const std::vector<double> areas = region_areas(whole);
+  std::vector<OGRMultiPolygon> pieces(static_cast<std::size_t>(sites));
+  std::vector<double> area_sums(static_cast<std::size_t>(sites), 0.0);
+  int cut = 0;
+  for (const grid::CodeRange& range : grid::split_in_rows(grid::whole_level(level), tiles, level)) {
+    const label::Outlines tile = tile_outlines(whole, range);
+    label::check_outlines(tile);
+    const std::vector<Region> parts = trace_regions(tile);
+    const std::vector<double> part_areas = region_areas(tile);
+    std::vector<double> cell_area(static_cast<std::size_t>(sites), 0.0);
+    for (Code code = range.first; code < range.end; ++code) cell_area[labels[code]] += drawn_cell_area(code, level);
+    for (std::int32_t s = 0; s < sites; ++s) {
+      const std::unique_ptr<OGRMultiPolygon> shape = to_ogr(parts[s]);
+      EXPECT_EQ(parts[s].empty(), tile.cells_per_site[s] == 0) << "site " << s;
+      EXPECT_TRUE(shape->IsValid()) << "site " << s << ": " << shape->exportToWkt();
+      EXPECT_NEAR(shape->get_Area(), cell_area[s], 1e-9 * kGlobeSquareDegrees) << "site " << s;
+      for (const OGRPolygon* p : *shape) pieces[s].addGeometry(p);
+      area_sums[s] += part_areas[s];
+      cut += parts[s].empty() || tile.cells_per_site[s] == whole.cells_per_site[s] ? 0 : 1;
+    }
+  }
+  EXPECT_GT(cut, 0);
+  for (std::int32_t s = 0; s < sites; ++s) {
+    const std::unique_ptr<OGRGeometry> joined(pieces[s].UnionCascaded());
+    ASSERT_TRUE(joined) << "site " << s;
+    const std::unique_ptr<OGRMultiPolygon> region = to_ogr(regions[s]);
+    const std::unique_ptr<OGRGeometry> difference(joined->SymDifference(region.get()));
+    ASSERT_TRUE(difference);
+    EXPECT_LT(difference->IsEmpty() ? 0.0 : OGR_G_Area(OGRGeometry::ToHandle(difference.get())), 1e-9) << "site " << s;
+    EXPECT_NEAR(area_sums[s], areas[s], 1e-9 * areas[s]) << "site " << s;
+  }
+}
+
+TEST(RegionTracer, TilesCutRegionsAtTheirEdges) {
+  for (int level : {3, 5}) {
+    SCOPED_TRACE("level " + std::to_string(level));
+    const std::vector<std::int32_t> nearest = nearest_point_labels(level, 25, 7);
+    for (int tiles : {2, 5, 16}) check_tiles(level, nearest, 25, tiles);
+  }
+  // Random labels: pieces that touch themselves at vertices along the tiles' edges too.
+  std::mt19937_64 rng(4);
+  std::uniform_int_distribution<std::int32_t> site(0, 2);
+  std::vector<std::int32_t> labels(grid::cell_count(4));
+  for (auto& l : labels) l = site(rng);
+  check_tiles(4, labels, 3, 7);
 }
 
 TEST(RegionTracer, OneSiteIsTheWholeRectangle) {

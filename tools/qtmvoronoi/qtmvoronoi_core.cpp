@@ -124,8 +124,9 @@ struct OptionAt {
 
 // What the checks after the options need to know of them.
 struct ParseState {
-  bool tr = false, ts = false, raster_named = false;
+  bool tr = false, ts = false, raster_named = false, layers_named = false;
   std::string output_option;  // the first option that shapes a dataset (a tile job writes none)
+  std::string raster_option;  // the first option of raster output (a part is vector output)
 };
 
 // One parser per option group, each true when the option is one of its group's.
@@ -298,6 +299,8 @@ bool parse_run_option(const OptionAt& at, Options& o) {
     run.tile_index = parse_int(at.arg, v.substr(0, slash), 1, run.tile_count, "K/N with K from 1 to N");
   } else if (name == "-merge") {
     run.merge.push_back(at.value());
+  } else if (name == "-part") {
+    run.part = true;
   } else if (name == "-overwrite") {
     run.overwrite = true;
   } else if (name == "-q" || name == "-quiet") {
@@ -316,7 +319,16 @@ void check_option_combinations(VoronoiOptions& run, const ParseState& state) {
   if (run.tile_count > 0 && !run.merge.empty()) {
     throw UsageError("-tile and -merge exclude each other: tile jobs come first, then one merge of their products");
   }
-  if (run.tile_count > 0 && !state.output_option.empty()) {
+  if (run.part && run.tile_count == 0) {
+    throw UsageError("-part is for a tile job: -tile K/N -part writes the tile's part of the output");
+  }
+  if (run.part && !state.raster_option.empty()) {
+    throw UsageError("-part: " + state.raster_option + " is for a raster; a part is vector output (raster parts are " +
+                     "not written: a raster is written by a whole run)");
+  }
+  // A part's layers: those that can be cut at a tile's edges (not voronoi_edges).
+  if (run.part && !state.layers_named) run.vector.layers = {"regions", "boundary_cells"};
+  if (run.tile_count > 0 && !run.part && !state.output_option.empty()) {
     const std::string name = option_name(state.output_option);
     if (name == "-co" || name == "-ot" || name == "-raster" || name == "-tr" || name == "-ts" || name == "-bands") {
       // -merge writes vector output: the raster's options belong to no run of the pair.
@@ -341,6 +353,13 @@ void check_option_combinations(VoronoiOptions& run, const ParseState& state) {
     run.raster.layout = write::RasterOptions::Layout::lonlat;
     run.kind = OutputKind::raster;
   }
+}
+
+// Whether the command line asks for an index of parts (-merge with -of VRT, or one .vrt name).
+bool is_part_index(const VoronoiOptions& run, const std::vector<std::string>& positional) {
+  if (run.merge.empty() || positional.empty()) return false;
+  if (!run.format.empty()) return EQUAL(run.format.c_str(), "VRT");
+  return positional.size() == 1 && EQUAL(CPLGetExtension(positional[0].c_str()), "vrt");
 }
 
 extern "C" void on_signal(int signal_number) { g_signal = signal_number; }
@@ -376,6 +395,11 @@ Options parse_command_line(const std::vector<std::string>& args) {
     }
     const std::string name = option_name(arg);
     if (shapes_output(name) && state.output_option.empty()) state.output_option = arg;
+    if (state.raster_option.empty() && (name == "-co" || name == "-ot" || name == "-raster" || name == "-tr" ||
+                                        name == "-ts" || name == "-bands")) {
+      state.raster_option = arg;
+    }
+    if (name == "-layers") state.layers_named = true;
     const OptionAt at{arg, name, args, i};
     if (!parse_reader_option(at, o.run.read) && !parse_labeller_option(at, o.run) && !parse_vector_option(at, o.run) &&
         !parse_raster_option(at, o.run, state) && !parse_run_option(at, o)) {
@@ -383,6 +407,15 @@ Options parse_command_line(const std::vector<std::string>& args) {
     }
   }
   check_option_combinations(o.run, state);
+  if (is_part_index(o.run, positional)) {
+    // -merge PARTS -of VRT index.vrt: the parts' index reads no source.
+    if (positional.size() > 1) {
+      throw UsageError("-merge of parts into an index (-of VRT) reads no source: give only the index's name, not '" +
+                       positional[0] + "' and '" + positional[1] + "'");
+    }
+    o.destination = positional[0];
+    return o;
+  }
   if (positional.size() < 2) {
     throw UsageError(positional.empty() ? "SRC_DATASOURCE and DST_DATASOURCE are missing" : "DST_DATASOURCE is missing");
   }

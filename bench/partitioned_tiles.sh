@@ -30,6 +30,9 @@ else
 fi
 export tool level tiles gpus source work layers CPU_ONLY
 now() { date +%s.%N; }
+# Arithmetic and the sums by awk and Python's sqlite3 (a GeoPackage is SQLite): the GPU machine has
+# neither bc nor GDAL's tools.
+calc() { awk "BEGIN { printf \"%.6f\", $1 }"; }
 # tile_jobs EXTRA SUFFIX: every tile job, PER_GPU * GPUS at a time; each names its device.
 tile_jobs() {
   local extra=$1 suffix=$2
@@ -42,7 +45,7 @@ tile_jobs() {
 t0=$(now)
 "$tool" -q -overwrite -level "$level" -device "$([ -n "${CPU_ONLY:-}" ] && echo cpu || echo cuda:0)" "${reading[@]}" -layers "$layers" "$source" "$work/whole.gpkg"
 t1=$(now)
-whole=$(echo "$t1 - $t0" | bc)
+whole=$(calc "$t1 - $t0")
 
 rm -rf "$work/tiles" && mkdir -p "$work/tiles"
 t0=$(now)
@@ -50,7 +53,7 @@ tile_jobs "" .qtmt
 t1=$(now)
 "$tool" -q -overwrite -level "$level" -merge "$work/tiles" "${reading[@]}" -layers "$layers" "$source" "$work/merged.gpkg"
 t2=$(now)
-one_tiles=$(echo "$t1 - $t0" | bc) one_merge=$(echo "$t2 - $t1" | bc)
+one_tiles=$(calc "$t1 - $t0") one_merge=$(calc "$t2 - $t1")
 
 rm -rf "$work/tiles" && mkdir -p "$work/tiles"
 t0=$(now)
@@ -58,17 +61,25 @@ tile_jobs "-part -layers $layers" .gpkg
 t1=$(now)
 "$tool" -q -overwrite -merge "$work/tiles" -of VRT "$work/index.vrt"
 t2=$(now)
-part_tiles=$(echo "$t1 - $t0" | bc) part_index=$(echo "$t2 - $t1" | bc)
+part_tiles=$(calc "$t1 - $t0") part_index=$(calc "$t2 - $t1")
 
 printf 'level %s, %s tiles over %s GPUs (%s at a time each)\n' "$level" "$tiles" "$gpus" "$per_gpu"
 printf '  whole run (cuda:0)        %8.2f s\n' "$whole"
 printf '  one-file: tiles %6.2f + merge %6.2f = %8.2f s (%.2fx faster than the whole run)\n' "$one_tiles" "$one_merge" \
-  "$(echo "$one_tiles + $one_merge" | bc)" "$(echo "$whole / ($one_tiles + $one_merge)" | bc -l)"
+  "$(calc "$one_tiles + $one_merge")" "$(calc "$whole / ($one_tiles + $one_merge)")"
 printf '  parts:    tiles %6.2f + index %6.2f = %8.2f s (%.2fx faster than the whole run)\n' "$part_tiles" "$part_index" \
-  "$(echo "$part_tiles + $part_index" | bc)" "$(echo "$whole / ($part_tiles + $part_index)" | bc -l)"
-sums() { ogr2ogr -f CSV /vsistdout/ -dialect sqlite -sql "SELECT SUM(cells), SUM(area_m2) FROM regions" "$1" | tail -n 1 | tr -d '"'; }
+  "$(calc "$part_tiles + $part_index")" "$(calc "$whole / ($part_tiles + $part_index)")"
+# sums FILE...: the regions' cells and area_m2 summed over the GeoPackages given, "CELLS,AREA".
+sums() {
+  python3 -c 'import sqlite3, sys
+cells = area = 0
+for f in sys.argv[1:]:
+    c, a = sqlite3.connect(f).execute("SELECT SUM(cells), SUM(area_m2) FROM regions").fetchone()
+    cells, area = cells + c, area + a
+print("%d,%r" % (cells, area))' "$@"
+}
 IFS=, read -r whole_cells whole_area < <(sums "$work/whole.gpkg")
-IFS=, read -r part_cells part_area < <(sums "$work/index.vrt")
+IFS=, read -r part_cells part_area < <(sums "$work"/tiles/*.gpkg)
 echo "  cells: whole $whole_cells, parts $part_cells; area_m2: whole $whole_area, parts $part_area"
 [ "$whole_cells" = "$part_cells" ] || { echo "the parts' cells differ from the whole run's" >&2; exit 1; }
 awk -v a="$whole_area" -v b="$part_area" 'BEGIN { exit !((a - b) ^ 2 <= (1e-9 * a) ^ 2) }' ||

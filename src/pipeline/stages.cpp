@@ -170,6 +170,8 @@ LabelledLevel merge_stage(const std::string& source, sites::SiteSet& sites, cons
   expect.site_count = static_cast<std::int32_t>(sites.table.sites.size());
   expect.site_fingerprints = site_fingerprints(sites.geometry.input());
   expect.site_keys = site_keys(sites.table);
+  expect.source_features = sites.summary.features;
+  expect.reading = reading_fingerprint(options.read);
   expect.source = "'" + source + "'";
   out.outlines = as_stage(progress, "", [&] {
     return merge_tile_products(plan.merge_files, expect,
@@ -188,7 +190,11 @@ void write_tile_stage(const std::string& path, const std::string& destination, c
   product.rule = options.rule;
   product.sites_fingerprint = sites_fingerprint(site_fingerprints(sites.geometry.input()));
   // A tile job that read only the sites near its tile names them in the whole source.
-  if (sites.subset) product.sites = site_keys(sites.table);
+  if (sites.subset) {
+    product.sites = site_keys(sites.table);
+    product.source_features = sites.source_features;
+    product.reading = reading_fingerprint(options.read);
+  }
   product.outlines = labels.outlines;
   try {
     write_tile_product(path, product);

@@ -24,7 +24,7 @@ namespace {
 
 constexpr char kMagic[8] = {'Q', 'T', 'M', 'V', 'T', 'I', 'L', 'E'};
 constexpr std::uint32_t kVersion = 2;
-constexpr std::size_t kHeaderBytes = 72;
+constexpr std::size_t kHeaderBytes = 88;
 constexpr std::size_t kCellBytes = 16;
 constexpr std::size_t kSiteKeyBytes = 16;
 
@@ -116,6 +116,21 @@ std::uint64_t sites_fingerprint(const std::vector<std::uint64_t>& per_site, cons
   return h.value();
 }
 
+std::uint64_t reading_fingerprint(const sites::SourceOptions& o) {
+  Hash64 h;
+  const auto add = [&h](const std::string& text) {
+    h.add_bytes(reinterpret_cast<const unsigned char*>(text.data()), text.size());
+  };
+  h.add(o.layers.size());
+  for (const std::string& layer : o.layers) add(layer);
+  for (const std::string& text : {o.where, o.sql, o.dialect, o.source_srs}) add(text);
+  h.add(o.open_options.size());
+  for (const std::string& option : o.open_options) add(option);
+  h.add(static_cast<std::uint64_t>(o.edges) << 16 | static_cast<std::uint64_t>(o.wrap) << 8 |
+        static_cast<std::uint64_t>(o.strict) << 1 | static_cast<std::uint64_t>(o.make_valid));
+  return h.value();
+}
+
 void write_tile_product(const std::string& path, const TileProduct& product) {
   const label::Outlines& o = product.outlines;
   if (!product.sites.empty() && product.sites.size() != static_cast<std::size_t>(o.site_count)) {
@@ -141,6 +156,8 @@ void write_tile_product(const std::string& path, const TileProduct& product) {
   put<std::uint64_t>(header, o.range.end);
   put<std::uint64_t>(header, o.cells.size());
   put<std::uint64_t>(header, product.sites.size());
+  put<std::uint64_t>(header, product.sites.empty() ? 0 : product.source_features);
+  put<std::uint64_t>(header, product.sites.empty() ? 0 : product.reading);
   if (header.size() != kHeaderBytes) throw std::logic_error("tile product header size");
 
   gdal::ErrorCapture errors;
@@ -203,6 +220,8 @@ class TileReader {
     range.end = get<std::uint64_t>(header_, at);
     cells = get<std::uint64_t>(header_, at);
     const auto listed = get<std::uint64_t>(header_, at);
+    source_features = get<std::uint64_t>(header_, at);
+    reading = get<std::uint64_t>(header_, at);
     if (!grid::is_valid_level(level) || rule_code > 1 || site_count <= 0 || count < 1 || index < 1 || index > count ||
         (listed != 0 && listed != static_cast<std::uint64_t>(site_count)) ||
         count > grid::most_row_parts(level) || cells > grid::cell_count(level) ||
@@ -275,7 +294,7 @@ class TileReader {
   int level = 0, index = 0, count = 0;
   label::Rule rule = label::Rule::exact;
   std::int32_t site_count = 0;
-  std::uint64_t sites_fingerprint = 0, cells = 0;
+  std::uint64_t sites_fingerprint = 0, cells = 0, source_features = 0, reading = 0;
   grid::CodeRange range;
   std::vector<SiteKey> sites;  ///< the sites listed (empty: the whole source's)
 
@@ -343,6 +362,15 @@ class WholeSites {
   std::vector<std::int32_t> ids_of(const TileReader& tile) const {
     std::vector<std::int32_t> ids;
     if (tile.sites.empty()) return ids;
+    // The sites it did not read are not named: the same source read the same way has them.
+    if (tile.reading != expect_.reading || tile.source_features != expect_.source_features) {
+      throw tile.fail("a tile of other sites than " + expect_.source + " read with these options (" +
+                      std::to_string(tile.source_features) + " features, against " +
+                      std::to_string(expect_.source_features) + " read now" +
+                      (tile.reading != expect_.reading ? ", with other reading options" : "") +
+                      "): give the merge the source and the reading options (-l, -where, -s_srs, -oo, -edges, "
+                      "-wrap, ...) of the tile jobs");
+    }
     sort_once();
     ids.reserve(tile.sites.size());
     for (const SiteKey& key : tile.sites) {

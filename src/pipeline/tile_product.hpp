@@ -8,10 +8,11 @@
 // layer and FID, in its site order; the merge maps them to the whole source's sites.
 //
 // File layout (little-endian, version 2):
-//   header, 72 bytes: "QTMVTILE", u32 version, u32 level, u32 rule (0 exact, 1 cell),
+//   header, 88 bytes: "QTMVTILE", u32 version, u32 level, u32 rule (0 exact, 1 cell),
 //     u32 tile index (1..N), u32 tile count N, i32 site count, u64 sites' fingerprint,
 //     u64 first code, u64 end code, u64 outline cells, u64 sites listed (0: the tile's sites are
-//     the whole source's; else its site count);
+//     the whole source's; else its site count), u64 the source's features (of its layers, after
+//     -where; 0 when not listed), u64 fingerprint of the reading options (0 when not listed);
 //   the sites listed, 16 bytes each: i64 FID, u32 source layer, u32 0;
 //   outline cells, 16 bytes each: u64 code, i32 site, u32 boundary (0 or 1);
 //   cells per site, u64 each (site count of them);
@@ -26,6 +27,7 @@
 
 #include "label/label_input.hpp"
 #include "label/outline_cells.hpp"
+#include "sites/site_options.hpp"
 
 namespace qtmv::pipeline {
 
@@ -49,7 +51,15 @@ struct TileProduct {
   /// The tile's sites in the whole source, in site order (a subset of it, in its order); empty:
   /// the tile's sites are the whole source's.
   std::vector<SiteKey> sites;
+  /// With `sites`: the features of the whole source (after -where), and reading_fingerprint of
+  /// the options it was read with; a merge must read the same (a site the tile did not read
+  /// cannot be checked by its geometry).
+  std::uint64_t source_features = 0;
+  std::uint64_t reading = 0;
 };
+
+/// A fingerprint of the options that decide which sites a source gives and their geometry.
+std::uint64_t reading_fingerprint(const sites::SourceOptions& options);
 
 /// Per site, a 64-bit fingerprint of its geometry as the labeller is given it (its pieces, in
 /// order): equal for a site read alone or among others.
@@ -70,6 +80,8 @@ struct MergeExpectation {
   std::int32_t site_count = 0;
   std::vector<std::uint64_t> site_fingerprints;  ///< of the sites read now (site_fingerprints)
   std::vector<SiteKey> site_keys;                ///< of the sites read now, in site order
+  std::uint64_t source_features = 0;             ///< features read now (after -where)
+  std::uint64_t reading = 0;                     ///< reading_fingerprint of the merge's options
   std::string source;  ///< for messages: the source the merge read
 };
 

@@ -120,6 +120,7 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   if (options.tile_range.end != 0) {
     selection = select_tile_features(source, options, errors, wgs84);
     out.subset = selection.used;
+    out.source_features = selection.source_features;
     trace_printf(TraceStage::read, "tile's sites: %s%s", selection.used ? "" : "every feature read: ",
                  selection.why.c_str());
   }

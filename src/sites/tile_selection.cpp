@@ -261,7 +261,10 @@ TileSelection select_tile_features(const OgrSource& source, const ReadOptions& o
       return read_all("-where");  // the read says what is wrong with it
     }
     if (const std::string why = prepare(f, options, errors, wgs84); !why.empty()) return read_all("layer '" + f.name + "': " + why);
-    total += static_cast<double>(std::max<GIntBig>(0, f.layer->GetFeatureCount(TRUE)));
+    // The merge checks it against the features it reads (a site added since is not listed).
+    const GIntBig count = f.layer->GetFeatureCount(TRUE);
+    if (count < 0) return read_all("layer '" + f.name + "': its features cannot be counted");
+    total += static_cast<double>(count);
   }
   const int level = options.level;
   const int coarse = coarse_level(level, total);
@@ -311,6 +314,7 @@ TileSelection select_tile_features(const OgrSource& source, const ReadOptions& o
   }
   errors.take();
   out.used = true;
+  out.source_features = static_cast<std::uint64_t>(total);
   char text[256];
   std::snprintf(text, sizeof text,
                 "%zu of %.0f features (%llu given by %llu filtered reads in %d rounds; %zu caps of level %d), "

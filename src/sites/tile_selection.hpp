@@ -33,6 +33,7 @@ namespace qtmv::sites {
 struct TileSelection {
   bool used = false;  ///< false: every feature is read (`why` says why)
   std::string why;    ///< why not, or what was read (for the read trace)
+  std::uint64_t source_features = 0;  ///< of the source's layers (after -where), as GDAL counts them
   std::vector<std::vector<OGRFeatureUniquePtr>> features;  ///< per layer of the source, by FID
 };
 

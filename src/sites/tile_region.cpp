@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "common/openmp_threads.hpp"
+
 namespace qtmv::sites {
 
 namespace {
@@ -101,11 +103,22 @@ std::vector<RegionCap> tile_caps(grid::CodeRange range, int level, int coarse, d
   // A cell's diameter at `level` is below 90 / 2^level degrees times 1.5: twice that is room for
   // a neighbour's centre, and for the cell-rule distance between cell centres.
   const double cell = 2.0 * 90.0 / static_cast<double>(grid::rows_per_octant(level)) * kRadiansPerDegree;
-  std::vector<RegionCap> caps;
-  for (grid::Code code = 0; code < grid::cell_count(coarse); ++code) {
-    const grid::Cell c = grid::cell_of(code, coarse);
-    if (!grid::rows_meet(range, c, coarse, level)) continue;
-    RegionCap cap;
+  // The coarse cells of the rows that meet the range (a row's cells meet it alike), in code order.
+  std::vector<grid::Code> codes;
+  for (int octant = 0; octant < grid::kOctants; ++octant) {
+    for (std::uint32_t row = 0; row < grid::rows_per_octant(coarse); ++row) {
+      const grid::Cell first{octant, row, 0};
+      if (!grid::rows_meet(range, first, coarse, level)) continue;
+      const grid::Code code = grid::code_of(first, coarse);
+      for (std::uint32_t col = 0; col <= 2 * row; ++col) codes.push_back(code + col);
+    }
+  }
+  std::vector<RegionCap> caps(codes.size());
+  const auto n = static_cast<std::int64_t>(codes.size());
+#pragma omp parallel for schedule(static) num_threads(thread_count(0))
+  for (std::int64_t k = 0; k < n; ++k) {
+    const grid::Cell c = grid::cell_of(codes[static_cast<std::size_t>(k)], coarse);
+    RegionCap& cap = caps[static_cast<std::size_t>(k)];
     const grid::LonLat centre = grid::cell_centre(c, coarse);
     cap.lon = centre.lon;
     cap.lat = centre.lat;
@@ -121,7 +134,6 @@ std::vector<RegionCap> tile_caps(grid::CodeRange range, int level, int coarse, d
     cap.reach = cap.radius + first_reach;
     cap.octant = c.octant;
     cap.row = c.row;
-    caps.push_back(cap);
   }
   return caps;
 }
@@ -234,7 +246,9 @@ int PointIndex::lon_bucket(double lon) const {
   return std::max(0, std::min(lons_ - 1, static_cast<int>(std::floor((grid::normalise_lon(lon) + 180.0) / step_))));
 }
 
-double PointIndex::nearest_scanned(const grid::Vec3& centre, double lon, double lat, double angle) const {
+double PointIndex::nearest_scanned(const grid::Vec3& centre, double lon, double lat, double angle, double enough) const {
+  // Chords are monotone in the angle: compared as they are, the angle taken once at the end.
+  const double enough_chord2 = enough > 0 ? 4.0 * std::pow(std::sin(std::min(enough, M_PI) / 2), 2) : -1.0;
   const RawBox box = cap_box(lon, lat, angle);
   const int row0 = lat_bucket(box.lat0), row1 = lat_bucket(box.lat1);
   // Whole buckets: one more on each side in longitude (the buckets' edges are rounded).
@@ -249,27 +263,33 @@ double PointIndex::nearest_scanned(const grid::Vec3& centre, double lon, double 
       const int col = ((col0 + k) % lons_ + lons_) % lons_;
       const std::size_t b = static_cast<std::size_t>(row) * lons_ + col;
       for (std::uint32_t p = first_[b]; p < first_[b + 1]; ++p) nearest = std::min(nearest, grid::chord2(centre, points_[p]));
+      if (nearest < enough_chord2) break;
     }
+    if (nearest < enough_chord2) break;
   }
   // The chord's angle; float64's rounding of it is far below the callers' margins.
   return nearest == HUGE_VAL ? HUGE_VAL : 2.0 * std::asin(std::min(1.0, std::sqrt(nearest) / 2.0));
 }
 
-double PointIndex::nearest(const grid::Vec3& centre, double lon, double lat, double start) const {
+double PointIndex::nearest(const grid::Vec3& centre, double lon, double lat, double start, double enough) const {
   if (points_.empty()) return HUGE_VAL;
   // Every point within `angle` is in the buckets scanned: a nearest found within it is the nearest.
   for (double angle = std::max(start, step_ * kRadiansPerDegree);; angle *= 2) {
-    const double found = nearest_scanned(centre, lon, lat, angle);
+    const double found = nearest_scanned(centre, lon, lat, angle, enough);
     if (found <= angle || angle >= M_PI) return found;
   }
 }
 
 std::size_t verify_caps(std::vector<RegionCap>& caps, const PointIndex& points) {
   std::size_t left = 0;
-  for (RegionCap& cap : caps) {
+  const auto n = static_cast<std::int64_t>(caps.size());
+  // Each cap on its own: the same result whatever the threads.
+#pragma omp parallel for schedule(dynamic, 4096) reduction(+ : left) num_threads(thread_count(0))
+  for (std::int64_t k = 0; k < n; ++k) {
+    RegionCap& cap = caps[static_cast<std::size_t>(k)];
     if (cap.verified) continue;
     const double beyond = cap.reach - cap.radius;  // how far beyond the cap every site was read
-    const double nearest = points.nearest(cap.centre, cap.lon, cap.lat, beyond);
+    const double nearest = points.nearest(cap.centre, cap.lon, cap.lat, beyond, beyond - 2 * kMarginRadians);
     cap.verified = nearest < beyond - kMarginRadians;
     if (cap.verified) continue;
     // Read next as far as the nearest site read (which then verifies it), or twice as far.

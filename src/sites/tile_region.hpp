@@ -53,11 +53,12 @@ class PointIndex {
   /// `sphere_points`: about how many points the sphere would hold at their density.
   PointIndex(const std::vector<grid::LonLat>& points, double sphere_points);
   /// The angle (radians) from `centre` (at lon, lat degrees) to the nearest point; HUGE_VAL
-  /// when there is none. `start`: about where to look first (radians).
-  double nearest(const grid::Vec3& centre, double lon, double lat, double start) const;
+  /// when there is none. `start`: about where to look first (radians); `enough`: any point
+  /// closer than this angle will do (0: the nearest).
+  double nearest(const grid::Vec3& centre, double lon, double lat, double start, double enough = 0) const;
 
  private:
-  double nearest_scanned(const grid::Vec3& centre, double lon, double lat, double angle) const;
+  double nearest_scanned(const grid::Vec3& centre, double lon, double lat, double angle, double enough) const;
   int lat_bucket(double lat) const;
   int lon_bucket(double lon) const;
   double step_ = 1;  // degrees per bucket

@@ -205,9 +205,10 @@ void add_points(LayerFilter& f, const OGRFeature& feature, bool polygons, std::v
   for (std::size_t k = 0; k < x.size(); ++k) points.push_back({x[k], y[k]});
 }
 
-/// Reads the features of `f` in `env`; false for one without a FID.
+/// Reads the features of `f` in `env`; false for one without a FID, or when GDAL reports a
+/// failure (the whole read then meets it, and says so as a whole run does).
 bool read_envelope(LayerFilter& f, const OGREnvelope& env, bool polygons, std::vector<grid::LonLat>& points,
-                   std::uint64_t& returned) {
+                   std::uint64_t& returned, gdal::ErrorCapture& errors) {
   f.layer->SetSpatialFilterRect(env.MinX, env.MinY, env.MaxX, env.MaxY);
   f.layer->ResetReading();
   while (OGRFeatureUniquePtr feature{f.layer->GetNextFeature()}) {
@@ -217,7 +218,7 @@ bool read_envelope(LayerFilter& f, const OGREnvelope& env, bool polygons, std::v
     add_points(f, *feature, polygons, points);
     f.features.emplace_back(fid, std::move(feature));
   }
-  return true;
+  return !errors.failed();
 }
 
 /// The features of `f` by FID, each once.
@@ -293,8 +294,8 @@ TileSelection select_tile_features(const OgrSource& source, const ReadOptions& o
         if (!layer_envelopes(f, box, envelopes)) return read_all("layer '" + f.name + "': its CRS does not hold the tile's surroundings");
         for (const OGREnvelope& env : envelopes) {
           ++reads;
-          if (!read_envelope(f, env, !options.make_valid, points, returned)) {
-            return read_all("layer '" + f.name + "': features without FIDs");
+          if (!read_envelope(f, env, !options.make_valid, points, returned, errors)) {
+            return read_all("layer '" + f.name + "': " + (errors.failed() ? "GDAL failed reading it" : "features without FIDs"));
           }
         }
       }

@@ -144,12 +144,17 @@ VoronoiOptions csv_options(int level) {
   return o;
 }
 
+/// The bytes of `file`.
+std::string contents_of(const std::string& file) {
+  std::ifstream in(file, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
 /// The bytes of each file of `dir`, by name.
 std::map<std::string, std::string> contents(const std::string& dir) {
   std::map<std::string, std::string> out;
   for (const auto& e : fs::directory_iterator(dir)) {
-    std::ifstream in(e.path(), std::ios::binary);
-    out[e.path().filename().string()] = std::string(std::istreambuf_iterator<char>(in), {});
+    out[e.path().filename().string()] = contents_of(e.path().string());
   }
   return out;
 }
@@ -334,6 +339,10 @@ TEST(TileSites, MergeRefusesTilesOfOtherSitesOrOldVersions) {
     return dir + "/" + name;
   };
   const std::string t1 = tile(1, options, "1.qtmt"), t3 = tile(3, options, "3.qtmt");
+  // The selection and its product do not depend on the threads.
+  VoronoiOptions one_thread = options;
+  one_thread.threads = 1;
+  EXPECT_EQ(contents_of(tile(1, one_thread, "1t.qtmt")), contents_of(t1));
   VoronoiOptions other = options;
   other.read.where = "id > 10";
   const std::string other2 = tile(2, other, "other2.qtmt");
@@ -359,8 +368,7 @@ TEST(TileSites, MergeRefusesTilesOfOtherSitesOrOldVersions) {
   EXPECT_NO_THROW(run_voronoi(path, dir + "/out", merge));
 
   // A version 1 product (before tiles listed their sites) is refused, saying so.
-  std::ifstream in(t1, std::ios::binary);
-  std::string bytes((std::istreambuf_iterator<char>(in)), {});
+  std::string bytes = contents_of(t1);
   bytes[8] = 1;
   const std::string old = dir + "/old.qtmt";
   std::ofstream(old, std::ios::binary) << bytes;

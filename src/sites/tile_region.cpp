@@ -49,6 +49,33 @@ RawBox cap_box(double lon, double lat, double angle) {
   return box;
 }
 
+/// The part of cap_box(lon, lat, angle) between latitudes lat0 and lat1 (degrees): only the
+/// longitudes that the cap reaches there, which near a pole are far fewer than the whole cap's.
+RawBox cap_slice(double lon, double lat, double angle, double lat0, double lat1) {
+  RawBox box = cap_box(lon, lat, angle);
+  box.lat0 = lat0;
+  box.lat1 = lat1;
+  if (box.all_lon && angle >= M_PI / 2) return box;
+  // The half-width at latitude p: acos((cos a - sin p sin c) / (cos p cos c)), largest at
+  // asin(sin c / cos a) and falling away from it on either side (every longitude where the cap
+  // holds a pole there); so its largest in [lat0, lat1] is at one of these.
+  const double c = lat * kRadiansPerDegree, a = angle;
+  const double top = asin(std::min(1.0, std::sin(c) / std::cos(a))) / kRadiansPerDegree;
+  double half = 0;
+  for (const double p_deg : {lat0, lat1, std::max(lat0, std::min(lat1, top))}) {
+    const double p = std::max(lat - angle / kRadiansPerDegree, std::min(lat + angle / kRadiansPerDegree, p_deg)) * kRadiansPerDegree;
+    const double across = std::cos(p) * std::cos(c);
+    if (across < 1e-12) return box;  // at a pole: the whole cap's longitudes
+    const double g = (std::cos(a) - std::sin(p) * std::sin(c)) / across;
+    if (g <= -1.0) return RawBox{0, 0, lat0, lat1, true};
+    half = std::max(half, std::acos(std::min(1.0, g)));
+  }
+  // acos is steep near 1: far more than its rounding there.
+  half = half / kRadiansPerDegree + 1e-5;
+  if (half >= 180.0) return RawBox{0, 0, lat0, lat1, true};
+  return RawBox{lon - half, lon + half, lat0, lat1};
+}
+
 /// The smallest box holding both (b shifted by 360 degrees where that is narrower).
 RawBox join(const RawBox& a, const RawBox& b) {
   RawBox out{0, 0, std::min(a.lat0, b.lat0), std::max(a.lat1, b.lat1)};
@@ -162,39 +189,80 @@ void add_to_slice(std::vector<RawBox>& slice, RawBox part) {
 
 }  // namespace
 
-std::vector<LonLatBox> reach_boxes(const std::vector<RegionCap>& caps) {
-  // Slices of latitude, each a few boxes that hold the caps' boxes that meet it: disjoint, so
-  // that no feature is read twice; thin beside the caps, so that their longitudes waste little.
+double ReadRegion::step_for(const std::vector<RegionCap>& caps) {
   double thinnest = 180.0;
   for (const RegionCap& cap : caps) {
     if (!cap.verified) thinnest = std::min(thinnest, (cap.radius + cap.reach) / kRadiansPerDegree);
   }
-  const double step = std::max(0.05, std::min(5.0, thinnest / 2));
-  const int count = static_cast<int>(std::ceil(180.0 / step));
-  std::vector<std::vector<RawBox>> slices(static_cast<std::size_t>(count));
-  for (const RegionCap& cap : caps) {
-    if (cap.verified) continue;
-    const RawBox box = cap_box(cap.lon, cap.lat, cap.radius + cap.reach + kMarginRadians);
-    const int first = std::max(0, static_cast<int>(std::floor((box.lat0 + 90.0) / step)));
-    const int last = std::min(count - 1, static_cast<int>(std::floor((box.lat1 + 90.0) / step)));
-    for (int k = first; k <= last; ++k) {
-      RawBox part = box;
-      part.lat0 = -90.0 + k * step;
-      part.lat1 = std::min(90.0, -90.0 + (k + 1) * step);
-      add_to_slice(slices[static_cast<std::size_t>(k)], part);
+  return std::max(0.05, std::min(5.0, thinnest / 2));
+}
+
+ReadRegion::ReadRegion(double step)
+    : step_(step), count_(static_cast<int>(std::ceil(180.0 / step))), read_(static_cast<std::size_t>(count_)) {}
+
+void ReadRegion::subtract_read(int slice, Interval piece, std::vector<Interval>& out) const {
+  for (const Interval& done : read_[static_cast<std::size_t>(slice)]) {  // sorted, disjoint
+    if (done.second < piece.first) continue;
+    if (done.first > piece.second) break;
+    if (done.first > piece.first) out.push_back({piece.first, done.first});
+    piece.first = std::max(piece.first, done.second);
+    if (piece.first >= piece.second) return;
+  }
+  out.push_back(piece);
+}
+
+void ReadRegion::mark_read(int slice, Interval piece) {
+  std::vector<Interval>& done = read_[static_cast<std::size_t>(slice)];
+  done.push_back(piece);
+  std::sort(done.begin(), done.end());
+  std::size_t kept = 0;
+  for (const Interval& i : done) {
+    if (kept > 0 && i.first <= done[kept - 1].second) {
+      done[kept - 1].second = std::max(done[kept - 1].second, i.second);
+    } else {
+      done[kept++] = i;
     }
   }
-  // Then a slice's box joins the one of the slice before that it meets while the join's area
-  // stays within a tenth of theirs.
+  done.resize(kept);
+}
+
+std::vector<LonLatBox> ReadRegion::next_boxes(const std::vector<RegionCap>& caps) {
+  // Each slice's part of the caps' boxes (joined where they nearly meet), less what was read.
+  std::vector<std::vector<RawBox>> needed(static_cast<std::size_t>(count_));
+  for (const RegionCap& cap : caps) {
+    if (cap.verified) continue;
+    const double angle = cap.radius + cap.reach + kMarginRadians;
+    const RawBox box = cap_box(cap.lon, cap.lat, angle);
+    const int first = std::max(0, static_cast<int>(std::floor((box.lat0 + 90.0) / step_)));
+    const int last = std::min(count_ - 1, static_cast<int>(std::floor((box.lat1 + 90.0) / step_)));
+    // A narrow cap's slices are about its box: worth their trigonometry only for a wide one.
+    const bool wide = box.all_lon || box.lon1 - box.lon0 > 5.0;
+    for (int k = first; k <= last; ++k) {
+      const double lat0 = -90.0 + k * step_, lat1 = std::min(90.0, -90.0 + (k + 1) * step_);
+      add_to_slice(needed[static_cast<std::size_t>(k)], wide ? cap_slice(cap.lon, cap.lat, angle, lat0, lat1) : box);
+    }
+  }
+  // Then a slice's new box joins the one of the slice before that it meets while the join's
+  // area stays within a tenth of theirs.
   struct Open {
     RawBox box;
     double useful;  // its slices' areas
   };
   std::vector<RawBox> done;
   std::vector<Open> open, next;
-  for (const std::vector<RawBox>& slice : slices) {
+  std::vector<LonLatBox> split;
+  std::vector<Interval> fresh;
+  for (int k = 0; k < count_; ++k) {
+    const double lat0 = -90.0 + k * step_, lat1 = std::min(90.0, -90.0 + (k + 1) * step_);
+    fresh.clear();
+    for (const RawBox& box : needed[static_cast<std::size_t>(k)]) {
+      split.clear();
+      split_at_antimeridian(box, split);
+      for (const LonLatBox& part : split) subtract_read(k, {part.lon0, part.lon1}, fresh);
+    }
     next.clear();
-    for (const RawBox& box : slice) {
+    for (const Interval& lon : fresh) {
+      const RawBox box{lon.first, lon.second, lat0, lat1};
       const double area = box.area();
       bool joined = false;
       for (Open& o : open) {
@@ -216,6 +284,13 @@ std::vector<LonLatBox> reach_boxes(const std::vector<RegionCap>& caps) {
   for (const Open& o : open) done.push_back(o.box);
   std::vector<LonLatBox> out;
   for (const RawBox& box : done) split_at_antimeridian(box, out);
+  // What is read now counts as read: slice by slice of each box.
+  for (const LonLatBox& box : out) {
+    // Its latitudes are slices' edges (the last one's is 90).
+    const int first = std::max(0, static_cast<int>(std::floor((box.lat0 + 90.0) / step_ + 0.5)));
+    const int last = box.lat1 >= 90.0 ? count_ : std::min(count_, static_cast<int>(std::floor((box.lat1 + 90.0) / step_ + 0.5)));
+    for (int k = first; k < last; ++k) mark_read(k, {box.lon0, box.lon1});
+  }
   return out;
 }
 

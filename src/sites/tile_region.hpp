@@ -6,6 +6,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "grid/qtm.hpp"
@@ -43,9 +44,26 @@ double site_spacing(double sites);
 /// with reach `first_reach` (radians) beyond its radius at least.
 std::vector<RegionCap> tile_caps(grid::CodeRange range, int level, int coarse, double first_reach);
 
-/// Boxes that together hold every point within radius + reach of each cap not yet verified: the
-/// caps' boxes joined row by row and then wherever the join adds little area; split at +-180.
-std::vector<LonLatBox> reach_boxes(const std::vector<RegionCap>& caps);
+/// What a tile's selection has read, slice by slice of latitude: the boxes it reads next hold,
+/// with those read before, every point within radius + reach of each cap not yet verified, and
+/// read nothing twice but where boxes join (a few per cent) or touch.
+class ReadRegion {
+ public:
+  /// Slices of `step` degrees of latitude (step_for the first round's caps).
+  explicit ReadRegion(double step);
+  /// Half the thinnest reach of the unverified caps, between 0.05 and 5 degrees.
+  static double step_for(const std::vector<RegionCap>& caps);
+  /// The boxes to read next (split at +-180); from now on they count as read.
+  std::vector<LonLatBox> next_boxes(const std::vector<RegionCap>& caps);
+
+ private:
+  using Interval = std::pair<double, double>;  // longitudes (degrees), within [-180, 180]
+  void subtract_read(int slice, Interval piece, std::vector<Interval>& out) const;
+  void mark_read(int slice, Interval piece);
+  double step_;
+  int count_;
+  std::vector<std::vector<Interval>> read_;  // per slice: sorted, disjoint
+};
 
 /// The points of the sites read (degrees), bucketed by latitude and longitude.
 class PointIndex {

@@ -271,20 +271,21 @@ TileSelection select_tile_features(const OgrSource& source, const ReadOptions& o
   const int coarse = coarse_level(level, total);
   double boxes_s = 0, read_s = 0, verify_s = 0;
   auto t_caps = std::chrono::steady_clock::now();
-  std::vector<RegionCap> caps = tile_caps(options.tile_range, level, coarse, 1.5 * site_spacing(total));
+  std::vector<RegionCap> caps = tile_caps(options.tile_range, level, coarse, 0.5 * site_spacing(total));
   const double caps_s = seconds_since(t_caps);
+  ReadRegion region(ReadRegion::step_for(caps));
   std::vector<grid::LonLat> points;
   std::uint64_t returned = 0, reads = 0;
   int rounds = 0;
   for (std::size_t left = caps.size(); left > 0; ++rounds) {
     report_progress(options.progress, 0.0, "selecting sites");
     auto t0 = std::chrono::steady_clock::now();
-    const std::vector<LonLatBox> boxes = reach_boxes(caps);
+    const std::vector<LonLatBox> boxes = region.next_boxes(caps);
     boxes_s += seconds_since(t0);
     t0 = std::chrono::steady_clock::now();
-    for (const LonLatBox& box : boxes) {
+    for (const RegionCap& cap : caps) {
       // A cap that reaches round the sphere: the whole source is cheaper read once.
-      if (box.lon0 <= -180.0 && box.lon1 >= 180.0 && box.lat0 <= -90.0 && box.lat1 >= 90.0) {
+      if (!cap.verified && cap.radius + cap.reach >= M_PI) {
         return read_all("a cap of the tile reaches round the sphere (too few sites near it)");
       }
     }

@@ -1,7 +1,8 @@
 // The region of a tile job's sites (sites/tile_region.hpp) against brute force: the caps hold
 // every cell of the tile and its neighbours; the boxes hold every point within each cap's radius
 // and reach, across +-180 and over the poles; the nearest point is the nearest; a cap is
-// verified exactly when a point lies within its reach, else it reaches as far as its nearest.
+// verified exactly when a point lies within its reach, else it reaches as far as its nearest;
+// later rounds read only what the rounds before did not.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -61,13 +62,13 @@ TEST(TileRegion, CapsHoldTheTilesCellsAndTheirNeighbours) {
 TEST(TileRegion, BoxesHoldEveryPointWithinReach) {
   std::mt19937_64 rng(38);
   std::uniform_real_distribution<double> u(0, 1);
-  for (int round = 0; round < 40; ++round) {
+  for (int round = 0; round < 300; ++round) {
     // A few caps anywhere, polar and at +-180 among them, of any size.
     std::vector<RegionCap> caps;
     for (int c = 0; c < 1 + round % 5; ++c) {
       RegionCap cap;
       cap.lon = round % 3 == 0 ? 179.5 - 359 * (c % 2) : u(rng) * 360 - 180;
-      cap.lat = round % 4 == 0 ? 88 - 176 * (c % 2) : std::asin(u(rng) * 2 - 1) * 180 / M_PI;
+      cap.lat = round % 4 == 0 ? 88 - 176 * (c % 2) + u(rng) : std::asin(u(rng) * 2 - 1) * 180 / M_PI;
       cap.centre = grid::unit_vector(cap.lon, cap.lat);
       cap.radius = 0.001 + 0.05 * u(rng);
       cap.reach = cap.radius + std::pow(10.0, -3 + 3.5 * u(rng));  // 0.001 .. 3 radians beyond
@@ -77,20 +78,29 @@ TEST(TileRegion, BoxesHoldEveryPointWithinReach) {
     caps.push_back(caps.front());
     caps.back().verified = true;  // verified caps ask for nothing
     caps.back().reach = 10;
-    const std::vector<LonLatBox> boxes = reach_boxes(caps);
-    for (const LonLatBox& b : boxes) {
-      EXPECT_LE(b.lon0, b.lon1);
-      EXPECT_GE(b.lon0, -180.0);
-      EXPECT_LE(b.lon1, 180.0);
-    }
-    for (const RegionCap& cap : caps) {
-      if (cap.verified) continue;
-      const double angle = std::min(M_PI, cap.radius + cap.reach);
-      for (int k = 0; k < 400; ++k) {
-        const grid::LonLat p = offset(cap.lon, cap.lat, angle * (k < 200 ? 1.0 : u(rng)), u(rng) * 2 * M_PI);
-        ASSERT_TRUE(in_boxes(boxes, p)) << "round " << round << ": " << p.lon << " " << p.lat << " within "
-                                        << angle << " of " << cap.lon << " " << cap.lat;
+    // Rounds that reach farther: each reads what the rounds before did not.
+    ReadRegion region(ReadRegion::step_for(caps));
+    std::vector<LonLatBox> boxes;
+    for (int reading = 0; reading < 3; ++reading) {
+      const std::vector<LonLatBox> next = region.next_boxes(caps);
+      for (const LonLatBox& b : next) {
+        EXPECT_LE(b.lon0, b.lon1);
+        EXPECT_GE(b.lon0, -180.0);
+        EXPECT_LE(b.lon1, 180.0);
       }
+      boxes.insert(boxes.end(), next.begin(), next.end());
+      for (const RegionCap& cap : caps) {
+        if (cap.verified) continue;
+        const double angle = std::min(M_PI, cap.radius + cap.reach);
+        for (int k = 0; k < 300; ++k) {
+          const grid::LonLat p = offset(cap.lon, cap.lat, angle * (k < 150 ? 1.0 : u(rng)), u(rng) * 2 * M_PI);
+          ASSERT_TRUE(in_boxes(boxes, p)) << "round " << round << ", reading " << reading << ": " << p.lon << " "
+                                          << p.lat << " within " << angle << " of " << cap.lon << " " << cap.lat;
+        }
+      }
+      // Asked again for the same reach, nothing is left to read.
+      EXPECT_TRUE(region.next_boxes(caps).empty());
+      for (RegionCap& cap : caps) cap.reach = cap.radius + 1.7 * (cap.reach - cap.radius);
     }
   }
 }

@@ -179,6 +179,9 @@ TilesRead expect_tiles_merge_into_whole(const std::string& source, const Voronoi
   TilesRead read;
   read.whole_sites = run_voronoi(source, dir + "/whole", options).sites;
   CPLSetConfigOption("QTMV_TRACE", "read");
+  // The sources here are small: selected all the same (unless a case asks for ALL).
+  const bool all = CPLGetConfigOption("QTMV_TILE_SITES", nullptr) != nullptr;
+  if (!all) CPLSetConfigOption("QTMV_TILE_SITES", "NEAR");
   for (int k = 1; k <= n; ++k) {
     VoronoiOptions tile = options;
     tile.tile_index = k;
@@ -198,6 +201,7 @@ TilesRead expect_tiles_merge_into_whole(const std::string& source, const Voronoi
     if (!read.whole.empty()) std::printf("tile %d/%d read every site: %s\n", k, n, read.whole.back().c_str());
   }
   CPLSetConfigOption("QTMV_TRACE", nullptr);
+  if (!all) CPLSetConfigOption("QTMV_TILE_SITES", nullptr);
   VoronoiOptions merge = options;
   merge.merge = {dir + "/tiles"};
   run_voronoi(source, dir + "/merged", merge);
@@ -314,6 +318,17 @@ TEST(TileSites, FarSitesWidenTheReachAndOthersAreReadWhole) {
   EXPECT_GE(read.most_rounds, 2);
   EXPECT_LT(read.tile_sites, read.whole_sites * 8);
 
+  // A few features are read whole unless QTMV_TILE_SITES=NEAR.
+  CPLSetConfigOption("QTMV_TRACE", "read");
+  std::string trace;
+  VoronoiOptions small = csv_options(7);
+  small.tile_index = 1;
+  small.tile_count = 2;
+  small.messages = [&](Severity, const std::string& m) { trace += m + "\n"; };
+  EXPECT_EQ(run_voronoi(path, dir + "/small.qtmt", small).sites, spec.wkt.size());
+  CPLSetConfigOption("QTMV_TRACE", nullptr);
+  EXPECT_NE(trace.find("every feature read: few features"), std::string::npos) << trace;
+
   // A CSV has no spatial index; -sql is read whole; so is everything under QTMV_TILE_SITES=ALL.
   VoronoiOptions options = csv_options(7);
   options.read.sql = "SELECT * FROM clustered WHERE id < 3000";
@@ -335,7 +350,10 @@ TEST(TileSites, MergeRefusesTilesOfOtherSitesOrOldVersions) {
     VoronoiOptions t = o;
     t.tile_index = k;
     t.tile_count = 3;
+    const bool all = CPLGetConfigOption("QTMV_TILE_SITES", nullptr) != nullptr;
+    if (!all) CPLSetConfigOption("QTMV_TILE_SITES", "NEAR");  // a small source
     run_voronoi(path, dir + "/" + name, t);
+    if (!all) CPLSetConfigOption("QTMV_TILE_SITES", nullptr);
     return dir + "/" + name;
   };
   const std::string t1 = tile(1, options, "1.qtmt"), t3 = tile(3, options, "3.qtmt");

@@ -97,6 +97,13 @@ void check_raster_fids(const sites::SiteTable& table) {
                      "them apart; write vector output (its rows keep every site), or give the sites unique FIDs");
 }
 
+/// Each site's layer and FID, in site order.
+std::vector<SiteKey> site_keys(const sites::SiteTable& table) {
+  std::vector<SiteKey> keys(table.sites.size());
+  for (std::size_t s = 0; s < keys.size(); ++s) keys[s] = {table.sites[s].fid, table.sites[s].layer};
+  return keys;
+}
+
 }  // namespace
 
 sites::SiteSet read_stage(const std::string& source, const VoronoiOptions& options, const RunPlan& plan,
@@ -113,6 +120,8 @@ sites::SiteSet read_stage(const std::string& source, const VoronoiOptions& optio
   // the final one instead.
   read_options.warn_sites_without_cell = false;
   read_options.messages = options.messages;
+  // A tile job reads only the sites that can own a cell of its tile (sites/tile_selection.hpp).
+  if (plan.tile_count > 0) read_options.tile_range = plan.label.range;
   if (!progress.report(0.0, plan.read_end, 0.0, "read")) throw Interrupted();
   return as_stage(progress, "", [&] { return sites::read_sites(source, read_options); });
 }
@@ -159,7 +168,10 @@ LabelledLevel merge_stage(const std::string& source, sites::SiteSet& sites, cons
   expect.level = plan.level;
   expect.rule = options.rule;
   expect.site_count = static_cast<std::int32_t>(sites.table.sites.size());
-  expect.sites_fingerprint = input_fingerprint(sites.geometry.input());
+  expect.site_fingerprints = site_fingerprints(sites.geometry.input());
+  expect.site_keys = site_keys(sites.table);
+  expect.source_features = sites.summary.features;
+  expect.reading = reading_fingerprint(options.read);
   expect.source = "'" + source + "'";
   out.outlines = as_stage(progress, "", [&] {
     return merge_tile_products(plan.merge_files, expect,
@@ -176,7 +188,13 @@ void write_tile_stage(const std::string& path, const std::string& destination, c
   product.index = plan.tile_index;
   product.count = plan.tile_count;
   product.rule = options.rule;
-  product.sites_fingerprint = input_fingerprint(sites.geometry.input());
+  product.sites_fingerprint = sites_fingerprint(site_fingerprints(sites.geometry.input()));
+  // A tile job that read only the sites near its tile names them in the whole source.
+  if (sites.subset) {
+    product.sites = site_keys(sites.table);
+    product.source_features = sites.source_features;
+    product.reading = reading_fingerprint(options.read);
+  }
   product.outlines = labels.outlines;
   try {
     write_tile_product(path, product);

@@ -10,6 +10,7 @@
 #include <map>
 #include <memory>
 #include <stdexcept>
+#include <utility>
 
 #include "common/host_info.hpp"
 #include "common/run_context.hpp"
@@ -22,9 +23,10 @@ namespace qtmv::pipeline {
 namespace {
 
 constexpr char kMagic[8] = {'Q', 'T', 'M', 'V', 'T', 'I', 'L', 'E'};
-constexpr std::uint32_t kVersion = 1;
-constexpr std::size_t kHeaderBytes = 64;
+constexpr std::uint32_t kVersion = 2;
+constexpr std::size_t kHeaderBytes = 88;
 constexpr std::size_t kCellBytes = 16;
+constexpr std::size_t kSiteKeyBytes = 16;
 
 static_assert(sizeof(label::OutlineCell) == kCellBytes, "outline cells are written as they are held");
 
@@ -91,38 +93,56 @@ std::string rule_name(label::Rule rule) { return rule == label::Rule::exact ? "e
 
 }  // namespace
 
-std::uint64_t input_fingerprint(const label::LabelInput& in) {
-  Hash64 h;
-  h.add(static_cast<std::uint64_t>(in.level));
-  h.add(static_cast<std::uint64_t>(in.site_count));
-  h.add(in.piece_count);
+std::vector<std::uint64_t> site_fingerprints(const label::LabelInput& in) {
+  // Each site's pieces in array order: a site's pieces are made from its feature alone, so they
+  // are the same whichever other sites are read with it.
+  std::vector<Hash64> per_site(static_cast<std::size_t>(std::max(in.site_count, 0)));
   for (std::size_t k = 0; k < in.piece_count; ++k) {
     const label::SitePiece& p = in.pieces[k];
+    if (p.site < 0 || p.site >= in.site_count) continue;
+    Hash64& h = per_site[static_cast<std::size_t>(p.site)];
     for (const double v : {p.a.x, p.a.y, p.a.z, p.b.x, p.b.y, p.b.z}) h.add_double(v);
-    h.add(static_cast<std::uint64_t>(p.site));
   }
-  h.add(in.site_cell_count);
-  for (std::size_t k = 0; k < in.site_cell_count; ++k) {
-    const label::SiteCell& c = in.site_cells[k];
-    h.add(c.code);
-    h.add(static_cast<std::uint64_t>(c.site));
-  }
-  h.add(in.fixed_cell_count);
-  for (std::size_t k = 0; k < in.fixed_cell_count; ++k) {
-    h.add(in.fixed_cells[k].code);
-    h.add(static_cast<std::uint64_t>(in.fixed_cells[k].site));
-  }
-  h.add(in.fixed_node_count);
-  for (std::size_t k = 0; k < in.fixed_node_count; ++k) {
-    const label::FixedNode& n = in.fixed_nodes[k];
-    h.add(n.code);
-    h.add(static_cast<std::uint64_t>(n.level) << 32 | static_cast<std::uint32_t>(n.site));
-  }
+  std::vector<std::uint64_t> out(per_site.size());
+  for (std::size_t s = 0; s < out.size(); ++s) out[s] = per_site[s].value();
+  return out;
+}
+
+std::uint64_t sites_fingerprint(const std::vector<std::uint64_t>& per_site, const std::vector<std::int32_t>* ids) {
+  Hash64 h;
+  const std::size_t n = ids ? ids->size() : per_site.size();
+  h.add(n);
+  for (std::size_t k = 0; k < n; ++k) h.add(per_site[ids ? static_cast<std::size_t>((*ids)[k]) : k]);
+  return h.value();
+}
+
+std::uint64_t reading_fingerprint(const sites::SourceOptions& o) {
+  Hash64 h;
+  const auto add = [&h](const std::string& text) {
+    h.add_bytes(reinterpret_cast<const unsigned char*>(text.data()), text.size());
+  };
+  h.add(o.layers.size());
+  for (const std::string& layer : o.layers) add(layer);
+  for (const std::string& text : {o.where, o.sql, o.dialect, o.source_srs}) add(text);
+  h.add(o.open_options.size());
+  for (const std::string& option : o.open_options) add(option);
+  h.add(static_cast<std::uint64_t>(o.edges) << 16 | static_cast<std::uint64_t>(o.wrap) << 8 |
+        static_cast<std::uint64_t>(o.strict) << 1 | static_cast<std::uint64_t>(o.make_valid));
   return h.value();
 }
 
 void write_tile_product(const std::string& path, const TileProduct& product) {
   const label::Outlines& o = product.outlines;
+  if (!product.sites.empty() && product.sites.size() != static_cast<std::size_t>(o.site_count)) {
+    throw std::logic_error("a tile product lists all its sites or none");
+  }
+  std::vector<unsigned char> listed;
+  listed.reserve(product.sites.size() * kSiteKeyBytes);
+  for (const SiteKey& key : product.sites) {
+    put<std::int64_t>(listed, key.fid);
+    put<std::uint32_t>(listed, key.layer);
+    put<std::uint32_t>(listed, 0u);
+  }
   std::vector<unsigned char> header;
   header.insert(header.end(), kMagic, kMagic + sizeof kMagic);
   put<std::uint32_t>(header, kVersion);
@@ -135,6 +155,9 @@ void write_tile_product(const std::string& path, const TileProduct& product) {
   put<std::uint64_t>(header, o.range.first);
   put<std::uint64_t>(header, o.range.end);
   put<std::uint64_t>(header, o.cells.size());
+  put<std::uint64_t>(header, product.sites.size());
+  put<std::uint64_t>(header, product.sites.empty() ? 0 : product.source_features);
+  put<std::uint64_t>(header, product.sites.empty() ? 0 : product.reading);
   if (header.size() != kHeaderBytes) throw std::logic_error("tile product header size");
 
   gdal::ErrorCapture errors;
@@ -148,6 +171,7 @@ void write_tile_product(const std::string& path, const TileProduct& product) {
     ok = VSIFWriteL(data, 1, size, file.get()) == size;
   };
   write(header.data(), header.size());
+  write(listed.data(), listed.size());
   // Checksummed in the chunks it is written in, as the reader reads them.
   write(o.cells.data(), o.cells.size() * kCellBytes);
   write(o.cells_per_site.data(), o.cells_per_site.size() * sizeof(std::uint64_t));
@@ -170,15 +194,21 @@ class TileReader {
     const File file(VSIFOpenL(path_.c_str(), "rb"));
     if (!file) throw fail("cannot open the tile product" + said(errors));
     const auto size = static_cast<std::uint64_t>(stat.st_size);
-    if (size < kHeaderBytes || VSIFReadL(header_, 1, kHeaderBytes, file.get()) != kHeaderBytes ||
-        std::memcmp(header_, kMagic, sizeof kMagic) != 0) {
+    // The magic and version first: a version 1 product is shorter than this version's header.
+    constexpr std::size_t kLead = sizeof kMagic + sizeof(std::uint32_t);
+    if (size < kLead || VSIFReadL(header_, 1, kLead, file.get()) != kLead || std::memcmp(header_, kMagic, sizeof kMagic) != 0) {
       throw fail("not a qtmvoronoi tile product (made by qtmvoronoi -tile K/N)");
     }
     std::size_t at = sizeof kMagic;
     const auto version = get<std::uint32_t>(header_, at);
     if (version != kVersion) {
+      // Version 1 named no sites: its fingerprint was of the whole input, which this version
+      // does not compute.
       throw fail("a tile product of version " + std::to_string(version) + "; this qtmvoronoi reads version " +
                  std::to_string(kVersion) + ": run the tile jobs again with this version");
+    }
+    if (size < kHeaderBytes || VSIFReadL(header_ + kLead, 1, kHeaderBytes - kLead, file.get()) != kHeaderBytes - kLead) {
+      throw fail("truncated tile product (its header is cut short)");
     }
     level = static_cast<int>(get<std::uint32_t>(header_, at));
     const auto rule_code = get<std::uint32_t>(header_, at);
@@ -189,29 +219,49 @@ class TileReader {
     range.first = get<std::uint64_t>(header_, at);
     range.end = get<std::uint64_t>(header_, at);
     cells = get<std::uint64_t>(header_, at);
+    const auto listed = get<std::uint64_t>(header_, at);
+    source_features = get<std::uint64_t>(header_, at);
+    reading = get<std::uint64_t>(header_, at);
     if (!grid::is_valid_level(level) || rule_code > 1 || site_count <= 0 || count < 1 || index < 1 || index > count ||
+        (listed != 0 && listed != static_cast<std::uint64_t>(site_count)) ||
         count > grid::most_row_parts(level) || cells > grid::cell_count(level) ||
         !(range == grid::tile_range(level, index, count))) {
       throw fail("corrupt tile product (its header holds impossible values)");
     }
     rule = rule_code == 0 ? label::Rule::exact : label::Rule::cell;
-    const std::uint64_t expected = kHeaderBytes + cells * kCellBytes +
+    const std::uint64_t expected = kHeaderBytes + listed * kSiteKeyBytes + cells * kCellBytes +
                                    static_cast<std::uint64_t>(site_count) * sizeof(std::uint64_t) + sizeof(std::uint64_t);
     if (size < expected) {
       throw fail("truncated tile product (" + std::to_string(size) + " bytes of " + std::to_string(expected) +
                  "): was its tile job stopped, or the copy cut short?");
     }
     if (size > expected) throw fail("corrupt tile product (" + std::to_string(size - expected) + " bytes too many)");
+    listed_bytes_.resize(listed * kSiteKeyBytes);
+    if (!listed_bytes_.empty() && VSIFReadL(listed_bytes_.data(), 1, listed_bytes_.size(), file.get()) != listed_bytes_.size()) {
+      throw fail("reading failed" + said(errors));
+    }
+    sites.resize(listed);
+    std::size_t k = 0;
+    for (SiteKey& key : sites) {
+      key.fid = get<std::int64_t>(listed_bytes_.data(), k);
+      key.layer = get<std::uint32_t>(listed_bytes_.data(), k);
+      k += sizeof(std::uint32_t);
+    }
   }
 
-  /// Appends the outline cells to *cells and adds the cells per site to *per_site (site_count of
-  /// them), checking the checksum. The caller checks the cells (check_outlines).
-  void read_body(label::OutlineCells* out, std::vector<std::uint64_t>* per_site) {
+  /// Appends the outline cells to *cells and adds the cells per site to *per_site, checking the
+  /// checksum; the tile's site s is the merge's site whole_id[s] (all the tile's sites; empty: the
+  /// same ids). The caller checks the cells (check_outlines).
+  void read_body(label::OutlineCells* out, std::vector<std::uint64_t>* per_site, std::size_t whole_sites,
+                 const std::vector<std::int32_t>& whole_id) {
     gdal::ErrorCapture errors;
     const File file(VSIFOpenL(path_.c_str(), "rb"));
-    if (!file || VSIFSeekL(file.get(), kHeaderBytes, SEEK_SET) != 0) throw fail("cannot open the tile product" + said(errors));
+    if (!file || VSIFSeekL(file.get(), kHeaderBytes + listed_bytes_.size(), SEEK_SET) != 0) {
+      throw fail("cannot open the tile product" + said(errors));
+    }
     Hash64 checksum;
     checksum.add_bytes(header_, kHeaderBytes);
+    if (!listed_bytes_.empty()) checksum.add_bytes(listed_bytes_.data(), listed_bytes_.size());
     const std::size_t at = out->size();
     out->resize(at + cells);
     std::vector<std::uint64_t> counts(static_cast<std::size_t>(site_count));
@@ -225,8 +275,17 @@ class TileReader {
     checksum.add_bytes(reinterpret_cast<const unsigned char*>(counts.data()), counts.size() * sizeof(std::uint64_t));
     read(&stored, sizeof stored);
     if (stored != checksum.value()) throw fail("corrupt tile product (its checksum does not match its contents)");
-    per_site->resize(counts.size(), 0);
-    for (std::size_t s = 0; s < counts.size(); ++s) (*per_site)[s] += counts[s];
+    per_site->resize(whole_sites, 0);
+    if (whole_id.empty()) {
+      for (std::size_t s = 0; s < counts.size(); ++s) (*per_site)[s] += counts[s];
+      return;
+    }
+    for (std::size_t s = 0; s < counts.size(); ++s) (*per_site)[static_cast<std::size_t>(whole_id[s])] += counts[s];
+    for (std::size_t k = at; k < out->size(); ++k) {
+      label::OutlineCell& cell = (*out)[k];
+      if (cell.site < 0 || cell.site >= site_count) throw fail("corrupt tile product (a cell of site " + std::to_string(cell.site) + ")");
+      cell.site = whole_id[static_cast<std::size_t>(cell.site)];
+    }
   }
 
   VoronoiError fail(const std::string& why) const { return VoronoiError("'" + path_ + "': " + why); }
@@ -235,12 +294,14 @@ class TileReader {
   int level = 0, index = 0, count = 0;
   label::Rule rule = label::Rule::exact;
   std::int32_t site_count = 0;
-  std::uint64_t sites_fingerprint = 0, cells = 0;
+  std::uint64_t sites_fingerprint = 0, cells = 0, source_features = 0, reading = 0;
   grid::CodeRange range;
+  std::vector<SiteKey> sites;  ///< the sites listed (empty: the whole source's)
 
  private:
   std::string path_;
   unsigned char header_[kHeaderBytes];
+  std::vector<unsigned char> listed_bytes_;
 };
 
 }  // namespace
@@ -300,6 +361,70 @@ std::vector<std::string> merge_input_files(const std::vector<std::string>& paths
   return files;
 }
 
+namespace {
+
+/// The merge's sites by layer and FID: where a tile's listed sites are.
+class WholeSites {
+ public:
+  explicit WholeSites(const MergeExpectation& expect) : expect_(expect) {}
+
+  /// The merge's id of each of the tile's sites (empty when it lists none: they must then be the
+  /// merge's, which the fingerprint checks). Throws VoronoiError for a site the merge has not, or
+  /// sites in another order than the merge's.
+  std::vector<std::int32_t> ids_of(const TileReader& tile) const {
+    std::vector<std::int32_t> ids;
+    if (tile.sites.empty()) return ids;
+    // The sites it did not read are not named: the same source read the same way has them.
+    if (tile.reading != expect_.reading || tile.source_features != expect_.source_features) {
+      throw tile.fail("a tile of other sites than " + expect_.source + " read with these options (" +
+                      std::to_string(tile.source_features) + " features, against " +
+                      std::to_string(expect_.source_features) + " read now" +
+                      (tile.reading != expect_.reading ? ", with other reading options" : "") +
+                      "): give the merge the source and the reading options (-l, -where, -s_srs, -oo, -edges, "
+                      "-wrap, ...) of the tile jobs");
+    }
+    sort_once();
+    ids.reserve(tile.sites.size());
+    for (const SiteKey& key : tile.sites) {
+      const auto found = std::lower_bound(by_key_.begin(), by_key_.end(), std::make_pair(key, std::int32_t{-1}),
+                                          [](const auto& a, const auto& b) { return a.first < b.first; });
+      if (found == by_key_.end() || found->first < key || key < found->first) {
+        throw tile.fail("a tile of other sites than " + expect_.source + " read with these options (its site FID " +
+                        std::to_string(key.fid) + " of layer " + std::to_string(key.layer + 1) +
+                        " is not among them): give the merge the source and the reading options of the tile jobs");
+      }
+      if (duplicated_) {
+        throw tile.fail("its sites are named by their FIDs, but " + expect_.source +
+                        " has several sites with one FID: run the tile jobs with --config QTMV_TILE_SITES ALL");
+      }
+      if (!ids.empty() && found->second <= ids.back()) {
+        throw tile.fail("its sites were read in another order than " + expect_.source +
+                        " gives them now (not by FID): run the tile jobs with --config QTMV_TILE_SITES ALL");
+      }
+      ids.push_back(found->second);
+    }
+    return ids;
+  }
+
+ private:
+  void sort_once() const {
+    if (sorted_) return;
+    sorted_ = true;
+    by_key_.reserve(expect_.site_keys.size());
+    for (std::size_t s = 0; s < expect_.site_keys.size(); ++s) by_key_.emplace_back(expect_.site_keys[s], static_cast<std::int32_t>(s));
+    std::sort(by_key_.begin(), by_key_.end());
+    for (std::size_t k = 1; k < by_key_.size(); ++k) {
+      if (!(by_key_[k - 1].first < by_key_[k].first)) duplicated_ = true;
+    }
+  }
+
+  const MergeExpectation& expect_;
+  mutable bool sorted_ = false, duplicated_ = false;
+  mutable std::vector<std::pair<SiteKey, std::int32_t>> by_key_;
+};
+
+}  // namespace
+
 std::vector<std::string> tile_product_files(const std::vector<std::string>& paths) {
   return merge_input_files(paths, kTileProductExtension,
                            std::string("a directory without ") + kTileProductExtension + " files");
@@ -310,6 +435,8 @@ label::Outlines merge_tile_products(const std::vector<std::string>& files, const
   if (files.empty()) throw VoronoiError("-merge: no tile products given");
   // Every header first: a tile that does not belong, or one missing, fails before the reading.
   std::map<int, std::unique_ptr<TileReader>> tiles;  // by index
+  std::map<int, std::vector<std::int32_t>> whole_ids;  // of the tiles that list their sites
+  const WholeSites whole(expect);
   int count = 0;
   std::string count_from;
   for (const std::string& file : files) {
@@ -322,7 +449,9 @@ label::Outlines merge_tile_products(const std::vector<std::string>& files, const
       throw tile->fail("a tile labelled with -distance " + rule_name(tile->rule) + "; this merge uses -distance " +
                        rule_name(expect.rule));
     }
-    if (tile->site_count != expect.site_count || tile->sites_fingerprint != expect.sites_fingerprint) {
+    std::vector<std::int32_t> ids = whole.ids_of(*tile);
+    if ((tile->sites.empty() && tile->site_count != expect.site_count) ||
+        tile->sites_fingerprint != sites_fingerprint(expect.site_fingerprints, tile->sites.empty() ? nullptr : &ids)) {
       throw tile->fail("a tile of other sites than " + expect.source + " read with these options (" +
                        std::to_string(tile->site_count) + " sites, against " + std::to_string(expect.site_count) +
                        " read now): give the merge the source and the reading options (-l, -where, -sql, -s_srs, "
@@ -341,6 +470,7 @@ label::Outlines merge_tile_products(const std::vector<std::string>& files, const
       throw tile->fail("tile " + std::to_string(index) + "/" + std::to_string(count) + " again; '" +
                        same->second->path() + "' is that tile too");
     }
+    whole_ids.emplace(index, std::move(ids));
     tiles.emplace(index, std::move(tile));
   }
   if (static_cast<int>(tiles.size()) != count) {
@@ -360,7 +490,8 @@ label::Outlines merge_tile_products(const std::vector<std::string>& files, const
   std::size_t done = 0;
   for (auto& [index, tile] : tiles) {
     const std::size_t from = joined.cells.size();
-    tile->read_body(&joined.cells, &joined.cells_per_site);
+    tile->read_body(&joined.cells, &joined.cells_per_site, static_cast<std::size_t>(expect.site_count), whole_ids[index]);
+    whole_ids.erase(index);
     // The tile's cells must lie in its codes, in order (the whole is checked below).
     for (std::size_t k = from; k < joined.cells.size(); ++k) {
       const grid::Code code = joined.cells[k].code;

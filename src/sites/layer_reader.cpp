@@ -102,7 +102,8 @@ void add_time(double& total, double seconds) {
 class LayerReader {
  public:
   LayerReader(const OgrSource& source, std::size_t layer_number, std::string where_from, const ReadOptions& options,
-              gdal::ErrorCapture& errors, const OGRSpatialReference& wgs84, ReadTotals& totals);
+              gdal::ErrorCapture& errors, const OGRSpatialReference& wgs84, ReadTotals& totals,
+              std::vector<OGRFeatureUniquePtr>* selected);
   /// Reads the features, builds their sites, then says what the layer's reading found.
   void read();
 
@@ -124,6 +125,12 @@ class LayerReader {
   bool to_lonlat(GIntBig fid, grid::LonLat* points, std::size_t count);
   void skip(GIntBig fid, const std::string& reason, std::uint64_t& counter);
   void finish();
+  /// The next feature: the layer's, or the selection's; null at the end.
+  OGRFeatureUniquePtr next_feature();
+  /// The features to read; -1 while not known.
+  GIntBig feature_count() {
+    return selected_ ? static_cast<GIntBig>(selected_->size()) : feature_count_.get();
+  }
 
   const ReadOptions& options_;
   gdal::ErrorCapture& errors_;
@@ -137,6 +144,8 @@ class LayerReader {
   const std::uint32_t layer_index_;  // the layer's source in the site table
   PolygonValidityCheck validity_;
   FeatureCount feature_count_;
+  std::vector<OGRFeatureUniquePtr>* const selected_;  // null: the layer's features
+  std::size_t next_selected_ = 0;
   ThreadTransforms transforms_;
   // GDAL reads the features on this thread, which reports them and makes them jobs in feature
   // order; their parts, coordinate checks, transformation and polygon validity are found, and
@@ -152,7 +161,7 @@ class LayerReader {
 
 LayerReader::LayerReader(const OgrSource& source, std::size_t layer_number, std::string where_from,
                          const ReadOptions& options, gdal::ErrorCapture& errors, const OGRSpatialReference& wgs84,
-                         ReadTotals& totals)
+                         ReadTotals& totals, std::vector<OGRFeatureUniquePtr>* selected)
     : options_(options),
       errors_(errors),
       totals_(totals),
@@ -168,11 +177,12 @@ LayerReader::LayerReader(const OgrSource& source, std::size_t layer_number, std:
       layer_index_(totals.out.table.add_source(layer_->GetLayerDefn(), source.name, source.layers[layer_number].name)),
       validity_(options, crs_.source, where_from_),
       feature_count_(source, layer_number, options, totals.builders.threads()),
+      selected_(selected),
       transforms_(crs_.transform.get(), totals.builders.threads()) {}
 
 void LayerReader::read() {
   errors_.take();
-  layer_->ResetReading();
+  if (!selected_) layer_->ResetReading();
   std::size_t chunks = 0;  // chunks read so far
   for (std::size_t r = 0; step(r, chunks); ++r) {
   }
@@ -236,13 +246,13 @@ bool LayerReader::step(std::size_t r, std::size_t& chunks) {
 /// Reads the next chunk of features (this thread: GDAL's messages are caught here).
 void LayerReader::read_chunk(FeatureChunk& chunk) {
   if (!reserved_) {
-    if (const GIntBig count = feature_count_.get(); count > 0) {
+    if (const GIntBig count = feature_count(); count > 0) {
       totals_.out.table.sites.reserve(totals_.out.table.sites.size() + static_cast<std::size_t>(count));
       reserved_ = true;
     }
   }
   while (!chunk.full()) {
-    OGRFeatureUniquePtr feature(layer_->GetNextFeature());
+    OGRFeatureUniquePtr feature = next_feature();
     if (!feature) {
       read_all_ = true;
       return;
@@ -250,7 +260,7 @@ void LayerReader::read_chunk(FeatureChunk& chunk) {
     ++summary_.features;
     if (options_.progress && summary_.features % 256 == 0) {
       // The layer's start while its count is not known (yet): a stop is still asked for.
-      const GIntBig count = feature_count_.get();
+      const GIntBig count = feature_count();
       const double done = count > 0 ? std::min(1.0, static_cast<double>(summary_.features - features_before_) / count) : 0.0;
       if (!options_.progress((static_cast<double>(layer_number_) + done) / static_cast<double>(layer_count_),
                              "reading sites")) {
@@ -259,6 +269,12 @@ void LayerReader::read_chunk(FeatureChunk& chunk) {
     }
     chunk.add(std::move(feature), errors_);
   }
+}
+
+OGRFeatureUniquePtr LayerReader::next_feature() {
+  if (!selected_) return OGRFeatureUniquePtr(layer_->GetNextFeature());
+  if (next_selected_ == selected_->size()) return nullptr;
+  return std::move((*selected_)[next_selected_++]);
 }
 
 void LayerReader::settle_chunk(Slot& slot) {
@@ -405,7 +421,8 @@ ReadTotals::ReadTotals(SiteSet& out, const ReadOptions& options, int threads, bo
 }
 
 void read_layer(const OgrSource& source, std::size_t layer_number, const ReadOptions& options,
-                gdal::ErrorCapture& errors, const OGRSpatialReference& wgs84, ReadTotals& totals) {
+                gdal::ErrorCapture& errors, const OGRSpatialReference& wgs84, ReadTotals& totals,
+                std::vector<OGRFeatureUniquePtr>* selected) {
   OGRLayer* const layer = source.layers[layer_number].layer;
   std::string where_from = "'" + source.name + "', layer '" + source.layers[layer_number].name + "'";
   warn_missing_dbf(source, where_from, options);
@@ -415,7 +432,7 @@ void read_layer(const OgrSource& source, std::size_t layer_number, const ReadOpt
       throw ReadError(with_gdal_message(where_from + ": bad -where: " + options.where, errors.take()));
     }
   }
-  LayerReader reader(source, layer_number, std::move(where_from), options, errors, wgs84, totals);
+  LayerReader reader(source, layer_number, std::move(where_from), options, errors, wgs84, totals, selected);
   reader.read();
 }
 

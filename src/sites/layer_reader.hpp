@@ -7,6 +7,7 @@
 
 #include <cstddef>
 #include <string>
+#include <vector>
 
 #include <ogr_spatialref.h>
 
@@ -36,7 +37,10 @@ struct ReadTotals {
 /// Coordinates go to `wgs84` (traditional GIS order). Warnings go to options.messages; GDAL's
 /// messages are caught by `errors`. Throws ReadError (bad -where or -s_srs, no transformation, a
 /// skipped feature under -strict, reading failed, no usable site) and Interrupted.
+/// `selected`, if given, holds the features to read instead of the layer's (a tile job's,
+/// tile_selection.hpp); they are taken from it.
 void read_layer(const OgrSource& source, std::size_t layer_number, const ReadOptions& options,
-                gdal::ErrorCapture& errors, const OGRSpatialReference& wgs84, ReadTotals& totals);
+                gdal::ErrorCapture& errors, const OGRSpatialReference& wgs84, ReadTotals& totals,
+                std::vector<OGRFeatureUniquePtr>* selected = nullptr);
 
 }  // namespace qtmv::sites

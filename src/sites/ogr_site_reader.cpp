@@ -16,6 +16,7 @@
 #include "sites/ogr_source.hpp"
 #include "sites/read_times.hpp"
 #include "sites/site_cells.hpp"
+#include "sites/tile_selection.hpp"
 
 namespace qtmv::sites {
 
@@ -114,8 +115,18 @@ SiteSet read_sites(const std::string& dataset_name, const ReadOptions& options) 
   wgs84.importFromEPSG(4326);
   wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
   report_progress(options.progress, 0.0, "reading sites");
+  // A tile job: the features near its tile, where the source can say which they are.
+  TileSelection selection;
+  if (options.tile_range.end != 0) {
+    selection = select_tile_features(source, options, errors, wgs84);
+    out.subset = selection.used;
+    out.source_features = selection.source_features;
+    trace_printf(TraceStage::read, "tile's sites: %s%s", selection.used ? "" : "every feature read: ",
+                 selection.why.c_str());
+  }
   for (std::size_t layer_number = 0; layer_number < source.layers.size(); ++layer_number) {
-    read_layer(source, layer_number, options, errors, wgs84, totals);
+    read_layer(source, layer_number, options, errors, wgs84, totals,
+               selection.used ? &selection.features[layer_number] : nullptr);
   }
   report_progress(options.progress, 1.0, "reading sites");
 

@@ -41,6 +41,10 @@ struct SiteSet {
   SiteGeometry geometry;  ///< pieces, site cells and fixed cells (claims resolved by options.distance)
   SiteTable table;        ///< per site: FID, attributes, cell counts
   ReadSummary summary;
+  /// A tile job's sites only (ReadOptions::tile_range): those that can own a cell of its tile,
+  /// in the order of the whole source; their layer and FID name them in it.
+  bool subset = false;
+  std::uint64_t source_features = 0;  ///< with `subset`: the features of the whole source (after -where)
 };
 
 /// Reads the sites of `dataset` at options.level. Warnings (a skipped feature, a layer without

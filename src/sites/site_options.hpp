@@ -61,6 +61,9 @@ struct ReadOptions : SourceOptions {
   /// reports them in feature order; the others check, transform, trace and fill them beside
   /// it); 0: all (OpenMP's default). The result is the same for any.
   int threads = 0;
+  /// A tile job's codes (-tile K/N, whole rows of `level`): only the sites that can own one of
+  /// them are read where the source allows (tile_selection.hpp); empty (the default): every site.
+  grid::CodeRange tile_range;
   ProgressFunc progress;         ///< may be empty
   MessageSink messages;          ///< may be empty (messages are then dropped)
 };

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -312,23 +313,23 @@ OctantSteps::OctantSteps(const label::Outlines& outlines) {
 
 RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertices,
                            const std::function<void(double)>& step_done, RegionEdgeObserver* observer)
-    : level_(outlines.level), vertices_(vertices) {
+    : outlines_(outlines), vertices_(vertices) {
   const auto done = [&](double fraction) {
     if (step_done) step_done(fraction);
   };
-  const int level = outlines.level;
-  grid::require_level(level);
+  grid::require_level(outlines.level);
   const label::OutlineCells& cells = outlines.cells;
+  const std::size_t n = cells.size();
+  const auto sites = static_cast<std::size_t>(outlines.site_count);
 
-  // The outline cells with region edges, each thread's in a list of its own: the cells' indices
-  // in the outlines here (so that bucketing reads each cell's site and code in order).
-  const int team = thread_count(0);
-  std::vector<CellEdgesList> parts(static_cast<std::size_t>(team));
+  // Each outline cell's edge mask (written by the one thread that visits it; not zeroed: every
+  // cell is visited), and each site's count of cells with edges.
+  masks_.resize(n);
+  std::vector<std::size_t> count(sites + 1, 0);
   FirstException failure;
   const OctantSteps steps(outlines);
-#pragma omp parallel num_threads(team)
+#pragma omp parallel num_threads(thread_count(0))
   {
-    CellEdgesList& local = parts[static_cast<std::size_t>(thread_index())];
     std::unique_ptr<RegionEdgeObserver::Local> seen;
     label::NearSearch search[8];
     failure.run([&] {
@@ -339,13 +340,17 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertice
       failure.run([&] {
         steps.visit(static_cast<std::size_t>(step), search, [&](std::size_t k, label::NearSearch& near) {
           const std::int32_t site = cells[k].site;
-          CellEdges mask = 0;
+          std::uint8_t mask = 0;
           const auto add = [&](int e, const LonLat& from, const LonLat& to, std::int32_t other) {
-            mask |= CellEdges{1} << e;
+            mask = static_cast<std::uint8_t>(mask | 1u << e);
             if (seen) seen->edge(site, from, to, other);
           };
           visit_region_edges(outlines, k, near, add);
-          if (mask != 0) local.push_back(static_cast<CellEdges>(k) << kEdgeMaskBits | mask);
+          masks_[k] = mask;
+          if (mask != 0) {
+#pragma omp atomic
+            ++count[static_cast<std::size_t>(site)];
+          }
         });
       });
     }
@@ -356,39 +361,37 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertice
   failure.rethrow();
   done(0.5);
 
-  // Bucketed by site, indices made codes: each thread's counts, then their places.
-  const auto sites = static_cast<std::size_t>(outlines.site_count);
-  const std::size_t threads = parts.size();
-  constexpr CellEdges kMask = (CellEdges{1} << kEdgeMaskBits) - 1;
-  const auto site_of_entry = [&](CellEdges entry) { return static_cast<std::size_t>(cells[entry >> kEdgeMaskBits].site); };
-  std::vector<std::vector<std::size_t>> place(threads, std::vector<std::size_t>(sites + 1, 0));
-#pragma omp parallel for schedule(static, 1) num_threads(thread_count(0))
-  for (std::int64_t t = 0; t < static_cast<std::int64_t>(threads); ++t) {
-    for (const CellEdges e : parts[static_cast<std::size_t>(t)]) ++place[static_cast<std::size_t>(t)][site_of_entry(e)];
-  }
-  std::vector<std::size_t> start(sites + 1, 0);
+  // Bucketed by site: the counts made starts, then each cell placed at its site's next slot (the
+  // order within a site is the threads'; trace() sorts a site's cells by code).
   std::size_t at = 0;
   for (std::size_t s = 0; s < sites; ++s) {
-    start[s] = at;
-    for (std::size_t t = 0; t < threads; ++t) {
-      const std::size_t count = place[t][s];
-      place[t][s] = at;
-      at += count;
-    }
+    const std::size_t c = count[s];
+    count[s] = at;
+    at += c;
   }
-  start[sites] = at;
+  count[sites] = at;
+  start_ = count;  // count becomes each site's next slot
+  const bool narrow = n <= std::numeric_limits<std::uint32_t>::max();
   // Not zeroed (gigabytes at the finer levels, on one core): every slot is written below, on all cores.
-  cells_.resize(at);
-#pragma omp parallel for schedule(static, 1) num_threads(thread_count(0))
-  for (std::int64_t t = 0; t < static_cast<std::int64_t>(threads); ++t) {
-    std::vector<std::size_t>& next = place[static_cast<std::size_t>(t)];
-    for (const CellEdges e : parts[static_cast<std::size_t>(t)]) {
-      const label::OutlineCell& cell = cells[e >> kEdgeMaskBits];
-      cells_[next[static_cast<std::size_t>(cell.site)]++] = cell.code << kEdgeMaskBits | (e & kMask);
-    }
-    CellEdgesList().swap(parts[static_cast<std::size_t>(t)]);
+  if (narrow) {
+    narrow_.resize(at);
+  } else {
+    wide_.resize(at);
   }
-  start_ = std::move(start);
+  const auto cell_count = static_cast<std::int64_t>(n);
+#pragma omp parallel for schedule(static) num_threads(thread_count(0))
+  for (std::int64_t k = 0; k < cell_count; ++k) {
+    if (masks_[static_cast<std::size_t>(k)] == 0) continue;
+    std::size_t slot;
+    std::size_t& next = count[static_cast<std::size_t>(cells[static_cast<std::size_t>(k)].site)];
+#pragma omp atomic capture
+    slot = next++;
+    if (narrow) {
+      narrow_[slot] = static_cast<std::uint32_t>(k);
+    } else {
+      wide_[slot] = static_cast<std::uint64_t>(k);
+    }
+  }
   done(1.0);
 }
 
@@ -398,13 +401,18 @@ Region RegionTracer::trace(std::int32_t site) const {
   // on the order the threads listed the cells in).
   thread_local TraceScratch scratch;
   std::vector<CellEdges>& cells = scratch.cells;
-  cells.assign(cells_.begin() + static_cast<std::ptrdiff_t>(start_[s]), cells_.begin() + static_cast<std::ptrdiff_t>(start_[s + 1]));
+  cells.clear();
+  for (std::size_t i = start_[s]; i < start_[s + 1]; ++i) {
+    const std::size_t k = entry(i);
+    cells.push_back(outlines_.cells[k].code << kEdgeMaskBits | masks_[k]);
+  }
   std::sort(cells.begin(), cells.end());
+  const int level = outlines_.level;
   std::vector<Edge>& edges = scratch.edges;
   edges.clear();
   for (const CellEdges entry : cells) {
     LonLat ring[grid::kMaxPolygonCorners];
-    const int corners = grid::cell_polygon(grid::cell_of(entry >> kEdgeMaskBits, level_), level_, ring);
+    const int corners = grid::cell_polygon(grid::cell_of(entry >> kEdgeMaskBits, level), level, ring);
     for (int e = 0; e < corners; ++e) {
       if (entry >> e & 1) edges.push_back({ring[e], ring[(e + 1) % corners]});
     }

@@ -313,11 +313,12 @@ OctantSteps::OctantSteps(const label::Outlines& outlines) {
 
 RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertices,
                            const std::function<void(double)>& step_done, RegionEdgeObserver* observer)
-    : outlines_(outlines), vertices_(vertices) {
+    : level_(outlines.level), vertices_(vertices), outlines_(outlines) {
   const auto done = [&](double fraction) {
     if (step_done) step_done(fraction);
   };
-  grid::require_level(outlines.level);
+  const int level = outlines.level;
+  grid::require_level(level);
   const label::OutlineCells& cells = outlines.cells;
   const std::size_t n = cells.size();
   const auto sites = static_cast<std::size_t>(outlines.site_count);
@@ -407,12 +408,11 @@ Region RegionTracer::trace(std::int32_t site) const {
     cells.push_back(outlines_.cells[k].code << kEdgeMaskBits | masks_[k]);
   }
   std::sort(cells.begin(), cells.end());
-  const int level = outlines_.level;
   std::vector<Edge>& edges = scratch.edges;
   edges.clear();
   for (const CellEdges entry : cells) {
     LonLat ring[grid::kMaxPolygonCorners];
-    const int corners = grid::cell_polygon(grid::cell_of(entry >> kEdgeMaskBits, level), level, ring);
+    const int corners = grid::cell_polygon(grid::cell_of(entry >> kEdgeMaskBits, level_), level_, ring);
     for (int e = 0; e < corners; ++e) {
       if (entry >> e & 1) edges.push_back({ring[e], ring[(e + 1) % corners]});
     }

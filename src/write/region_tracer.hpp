@@ -111,8 +111,9 @@ class RegionTracer {
   /// The index of the i-th entry of the sites' lists.
   std::size_t entry(std::size_t i) const { return narrow_.empty() ? wide_[i] : narrow_[i]; }
 
-  const label::Outlines& outlines_;
+  int level_;
   RingVertices vertices_;
+  const label::Outlines& outlines_;
   std::vector<std::uint8_t, HugePageAllocator<std::uint8_t>> masks_;  // outline cell k's edge mask
   // Every site's outline cells with region edges (their indices, in no set order within a site),
   // site after site: in narrow_ below 2^32 outline cells, else in wide_.

@@ -26,7 +26,7 @@ __global__ void gather_outline_kernel(const std::uint32_t* index, std::uint32_t 
   const std::uint32_t k = blockIdx.x * blockDim.x + threadIdx.x;
   if (k < count) {
     const std::uint32_t i = index[k];
-    out[k] = {first + i, site[i], boundary[i] != 0 ? 1u : 0u};
+    out[k] = OutlineCell(first + i, site[i], boundary[i] != 0);
   }
 }
 

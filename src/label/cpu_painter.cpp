@@ -685,13 +685,13 @@ OutlineCells join_in_code_order(std::vector<OutlineCells>& parts, int level) {
     all.insert(all.end(), p.begin(), p.end());
     OutlineCells().swap(p);
   }
-  radix_sort(all, grid::code_bits(level), [](const OutlineCell& c) { return c.code; });
+  radix_sort(all, grid::code_bits(level), [](const OutlineCell& c) { return c.code(); });
   // A cell beside a list leaf may come from both leaves' visits (the pairs' rule lists the other
   // leaf's cell too): once, a boundary cell if either says so.
   std::size_t kept = 0;
   for (std::size_t r = 0; r < all.size(); ++r) {
-    if (kept > 0 && all[kept - 1].code == all[r].code) {
-      all[kept - 1].boundary |= all[r].boundary;
+    if (kept > 0 && all[kept - 1].code() == all[r].code()) {
+      if (all[r].boundary()) all[kept - 1].mark_boundary();
     } else {
       all[kept++] = all[r];
     }
@@ -728,7 +728,7 @@ OutlineCells cpu_tree_outlines(const Tree& tree, const TreeView& tv, int threads
   if (range == grid::whole_level(tree.level)) return all;
   // The leaves met at the range's ends bring cells from outside it.
   all.erase(std::remove_if(all.begin(), all.end(),
-                           [&](const OutlineCell& c) { return c.code < range.first || c.code >= range.end; }),
+                           [&](const OutlineCell& c) { return c.code() < range.first || c.code() >= range.end; }),
             all.end());
   return all;
 }

@@ -5,11 +5,12 @@
 // stored: the merge reads the same source with the same options, and a fingerprint of the sites'
 // geometry (what the labeller was given) tells it when they differ.
 //
-// File layout (little-endian, version 1):
+// File layout (little-endian, version 2):
 //   header, 64 bytes: "QTMVTILE", u32 version, u32 level, u32 rule (0 exact, 1 cell),
 //     u32 tile index (1..N), u32 tile count N, i32 site count, u64 sites' fingerprint,
 //     u64 first code, u64 end code, u64 outline cells;
-//   outline cells, 16 bytes each: u64 code, i32 site, u32 boundary (0 or 1);
+//   outline cells, 12 bytes each (label::OutlineCell): u32 code bits 0-31, u32 code bits 32 and up
+//   with the boundary flag in bit 31, i32 site;
 //   cells per site, u64 each (site count of them);
 //   u64 checksum of every byte before it.
 #pragma once

@@ -305,7 +305,7 @@ OctantSteps::OctantSteps(const label::Outlines& outlines) {
     for (std::size_t j = 0; j <= steps_; ++j) {
       const Code code = octant * per_octant + per_octant / steps_ * j + (j == steps_ ? per_octant % steps_ : 0);
       bounds_[octant * (steps_ + 1) + j] = static_cast<std::size_t>(
-          std::lower_bound(cells.begin(), cells.end(), code, [](const label::OutlineCell& c, Code v) { return c.code < v; }) -
+          std::lower_bound(cells.begin(), cells.end(), code, [](const label::OutlineCell& c, Code v) { return c.code() < v; }) -
           cells.begin());
     }
   }
@@ -405,7 +405,7 @@ Region RegionTracer::trace(std::int32_t site) const {
   cells.clear();
   for (std::size_t i = start_[s]; i < start_[s + 1]; ++i) {
     const std::size_t k = entry(i);
-    cells.push_back(outlines_.cells[k].code << kEdgeMaskBits | masks_[k]);
+    cells.push_back(outlines_.cells[k].code() << kEdgeMaskBits | masks_[k]);
   }
   std::sort(cells.begin(), cells.end());
   std::vector<Edge>& edges = scratch.edges;

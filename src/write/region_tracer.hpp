@@ -166,18 +166,18 @@ template <class Visit>
 void visit_region_edges(const label::Outlines& outlines, std::size_t k, label::NearSearch& search, const Visit& visit) {
   const label::OutlineCell& outline = outlines.cells[k];
   const int level = outlines.level;
-  const grid::Cell cell = grid::cell_of(outline.code, level);
+  const grid::Cell cell = grid::cell_of(outline.code(), level);
   LonLat ring[grid::kMaxPolygonCorners];
   int across[grid::kMaxPolygonCorners];
   const int corners = drawn_ring(cell, level, ring, across);
   grid::Code nb[3];
-  if (outline.boundary) grid::neighbours(cell, outline.code, level, nb);
+  if (outline.boundary()) grid::neighbours(cell, outline.code(), level, nb);
   for (int e = 0; e < corners; ++e) {
     const LonLat& from = ring[e];
     const LonLat& to = ring[(e + 1) % corners];
     if (across[e] == kAcrossPoleLine || on_cut(from, to)) {
       visit(e, from, to, kBorderEdge);
-    } else if (outline.boundary) {
+    } else if (outline.boundary()) {
       // The cell across a row line lies a row away in the list; those beside it, next to k.
       const grid::Code code = nb[across[e]];
       const std::int32_t other = across[e] == grid::kNeighbourVertical ? search.site(outlines.cells, k, code)

@@ -24,6 +24,7 @@
 #include "grid/qtm_checks.hpp"
 #include "label/cpu_painter.hpp"
 #include "label/fixed_cover.hpp"
+#include "label/outline_join.hpp"
 #include "label/label_cuda.hpp"
 #include "label/label_engine.hpp"
 #include "common/openmp_threads.hpp"
@@ -436,8 +437,13 @@ class LabellingRun {
     // Only the leaves that can touch an outline are visited (after a GPU that ran out of memory,
     // those of the cells it had not done).
     const double start = now_seconds();
-    OutlineCells cpu = cpu_tree_outlines(tree_, tv, threads_, {done, range_.end},
-                                         [&](double fraction) { progress(fraction, "label"); });
+    const grid::CodeRange rest{done, range_.end};
+    std::vector<OutlineCells> parts =
+        cpu_tree_outline_parts(tree_, tv, threads_, rest, [&](double fraction) { progress(fraction, "label"); });
+    // The tree and its candidates are done with: freed before the threads' lists are joined.
+    tree_ = Tree{};
+    std::vector<Piece>().swap(candidates_);
+    OutlineCells cpu = join_outline_parts(parts, input().level, rest, threads_);
     // Taken over where nothing came before it (no second copy of gigabytes).
     if (outline_->empty()) {
       outline_->swap(cpu);

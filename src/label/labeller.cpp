@@ -147,6 +147,15 @@ struct HostTile {
   std::uint8_t* boundary;  // null: no flags
 };
 
+/// Room in *outline for the rest of a range, `cells_left` cells, at the rate of outline cells
+/// per cell seen in the `cells_done` before them (and a tenth more), so that the list grows
+/// once, not by doubling: each growth copies all it holds, twice its memory for the while.
+void reserve_for_rest(OutlineCells* outline, std::uint64_t cells_done, std::uint64_t cells_left) {
+  if (cells_left == 0 || cells_done == 0 || outline->capacity() >= outline->size() * 2) return;
+  const double rate = static_cast<double>(outline->size()) / static_cast<double>(cells_done);
+  outline->reserve(outline->size() + static_cast<std::size_t>(rate * 1.1 * static_cast<double>(cells_left)));
+}
+
 /// label_cells on a GPU: device tiles as large as its memory allows (smaller ones when an
 /// allocation fails), each copied to the host tile by tile and handed to the sink. `done` counts
 /// the cells handed over, for the CPU to go on from when the GPU runs out of memory mid-run.
@@ -204,11 +213,7 @@ void label_on_gpu(cuda::Labeller& gpu, int device, int level, grid::CodeRange ra
     if (outline) {
       stats.copy_seconds += gpu.select_outline(first, count, outline) / 1e3;
       done = first + count;
-      // Room for the tiles to come at this tile's rate, so that the list grows once.
-      if (done < range.end && outline->capacity() < outline->size() * 2) {
-        const double rate = static_cast<double>(outline->size()) / static_cast<double>(done - range.first);
-        outline->reserve(outline->size() + static_cast<std::size_t>(rate * 1.1 * static_cast<double>(range.end - done)));
-      }
+      reserve_for_rest(outline, done - range.first, range.end - done);
       if (trace) {
         trace_printf(TraceStage::label, "tile of %llu cells: run %.3f s, outline selection %.3f s (%zu outline cells so far)",
                      static_cast<unsigned long long>(count), run_end - tile_start, now_seconds() - run_end, outline->size());
@@ -481,6 +486,7 @@ class LabellingRun {
       ++stats_.tiles;
       if (outline_) {
         append_outline_cells(level, first, count, tile.site, tile.boundary, threads_, outline_);
+        reserve_for_rest(outline_, first + count - range_.first, range_.end - (first + count));
       } else {
         sink_({first, count, tile.site, tile.metres, tile.boundary});
       }

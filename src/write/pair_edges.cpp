@@ -6,7 +6,6 @@
 
 #include "common/first_exception.hpp"
 #include "common/openmp_threads.hpp"
-#include "common/radix_sort.hpp"
 #include "measure/edge_solver.hpp"
 #include "write/region_measures.hpp"
 #include "write/region_tracer.hpp"
@@ -27,15 +26,17 @@ DefaultInitVector<EdgeRef> gather_edges(const label::Outlines& outlines) {
   const int level = outlines.level;
   const label::OutlineCells& cells = outlines.cells;
   const auto n = static_cast<std::int64_t>(cells.size());
-  // Thread t of the team takes the t-th run of cells, so its edges come in cell order, k after
-  // k: joined in thread order they are sorted by `edge`, and a stable radix sort by pair leaves
-  // them sorted by (key, edge).
-  std::vector<std::vector<EdgeRef>> parts(static_cast<std::size_t>(thread_count(0)));
+  const auto sites = static_cast<std::size_t>(std::max(1, outlines.site_count));
+  // Each thread's edges in blocks, freed one by one as they are placed below (the edges are held
+  // once, not in lists and their sorted copy and a sort's spare), and each site a's count.
+  constexpr std::size_t kBlock = std::size_t{1} << 16;
+  std::vector<std::vector<std::vector<EdgeRef>>> parts(static_cast<std::size_t>(thread_count(0)));
+  std::vector<std::size_t> next(sites + 1, 0);
   FirstException failure;
 #pragma omp parallel num_threads(thread_count(0))
   {
     const auto team = static_cast<std::int64_t>(team_size()), t = static_cast<std::int64_t>(thread_index());
-    std::vector<EdgeRef>& local = parts[static_cast<std::size_t>(t)];
+    std::vector<std::vector<EdgeRef>>& blocks = parts[static_cast<std::size_t>(t)];
     for (std::int64_t c = n * t / team; c < n * (t + 1) / team; ++c) {
       const label::OutlineCell& outline = cells[static_cast<std::size_t>(c)];
       if (!outline.boundary()) continue;
@@ -50,27 +51,45 @@ DefaultInitVector<EdgeRef> gather_edges(const label::Outlines& outlines) {
           if (across[k] == kAcrossPoleLine) continue;
           const std::int32_t other = label::site_of_near(cells, static_cast<std::size_t>(c), nb[across[k]]);
           if (other > site) {
-            local.push_back({static_cast<std::uint64_t>(site) << 32 | static_cast<std::uint32_t>(other),
-                             code << 2 | static_cast<std::uint64_t>(k)});
+            if (blocks.empty() || blocks.back().size() == kBlock) {
+              blocks.emplace_back();
+              blocks.back().reserve(kBlock);
+            }
+            blocks.back().push_back({static_cast<std::uint64_t>(site) << 32 | static_cast<std::uint32_t>(other),
+                                     code << 2 | static_cast<std::uint64_t>(k)});
+#pragma omp atomic
+            ++next[static_cast<std::size_t>(site)];
           }
         }
       });
     }
   }
   failure.rethrow();
-  std::vector<std::size_t> at(parts.size() + 1, 0);
-  for (std::size_t t = 0; t < parts.size(); ++t) at[t + 1] = at[t] + parts[t].size();
-  DefaultInitVector<EdgeRef> all(at.back());  // every slot copied below
+  // Bucketed by site a (the counts made each site's next slot), then each site's edges sorted
+  // by (pair, edge): the order of one sort of them all, whatever the threads.
+  std::vector<std::size_t> start(sites + 1, 0);
+  for (std::size_t s = 0; s < sites; ++s) start[s + 1] = start[s] + next[s];
+  std::copy(start.begin(), start.end() - 1, next.begin());
+  DefaultInitVector<EdgeRef> all(start[sites]);  // every slot written below
 #pragma omp parallel for schedule(static, 1) num_threads(thread_count(0))
   for (std::int64_t t = 0; t < static_cast<std::int64_t>(parts.size()); ++t) {
-    std::copy(parts[static_cast<std::size_t>(t)].begin(), parts[static_cast<std::size_t>(t)].end(),
-              all.begin() + static_cast<std::ptrdiff_t>(at[static_cast<std::size_t>(t)]));
-    std::vector<EdgeRef>().swap(parts[static_cast<std::size_t>(t)]);
+    for (std::vector<EdgeRef>& block : parts[static_cast<std::size_t>(t)]) {
+      for (const EdgeRef& e : block) {
+        std::size_t slot;
+        std::size_t& at = next[static_cast<std::size_t>(e.key >> 32)];
+#pragma omp atomic capture
+        slot = at++;
+        all[slot] = e;
+      }
+      std::vector<EdgeRef>().swap(block);
+    }
   }
-  // Pairs (a, b) as a * sites + b: one key of the fewest bits.
-  const auto sites = static_cast<std::uint64_t>(std::max(1, outlines.site_count));
-  radix_sort(all, bits_for(sites * sites - 1),
-             [sites](const EdgeRef& e) { return (e.key >> 32) * sites + (e.key & 0xffffffffu); });
+  const auto site_count = static_cast<std::int64_t>(sites);
+#pragma omp parallel for schedule(dynamic, 4096) num_threads(thread_count(0))
+  for (std::int64_t s = 0; s < site_count; ++s) {
+    std::sort(all.begin() + static_cast<std::ptrdiff_t>(start[static_cast<std::size_t>(s)]),
+              all.begin() + static_cast<std::ptrdiff_t>(start[static_cast<std::size_t>(s) + 1]));
+  }
   return all;
 }
 

@@ -113,6 +113,15 @@ struct Box {
   }
 };
 
+/// Asks for the cache line of `p` ahead of its use (a hint; nothing where the compiler has none).
+inline void prefetch(const void* p) {
+#if defined(__GNUC__)
+  __builtin_prefetch(p);
+#else
+  (void)p;
+#endif
+}
+
 /// A tracing thread's buffers, kept from one region to the next (a region allocates only its own
 /// rings).
 struct TraceScratch {
@@ -403,6 +412,13 @@ Region RegionTracer::trace(std::int32_t site) const {
   thread_local TraceScratch scratch;
   std::vector<CellEdges>& cells = scratch.cells;
   cells.clear();
+  // The site's cells lie rows apart in the outline cells: all asked for first, so that their
+  // cache misses overlap, then read.
+  for (std::size_t i = start_[s]; i < start_[s + 1]; ++i) {
+    const std::size_t k = entry(i);
+    prefetch(&outlines_.cells[k]);
+    prefetch(&masks_[k]);
+  }
   for (std::size_t i = start_[s]; i < start_[s + 1]; ++i) {
     const std::size_t k = entry(i);
     cells.push_back(outlines_.cells[k].code() << kEdgeMaskBits | masks_[k]);

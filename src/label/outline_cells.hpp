@@ -38,18 +38,19 @@ namespace qtmv::label {
 /// the code's low word, its high word with the boundary flag in the top bit (a code has at most
 /// 51 bits), and the site.
 struct OutlineCell {
+  static constexpr std::uint32_t kBoundaryBit = 0x80000000u;
+
   OutlineCell() = default;
   /// `boundary_cell`: non-zero for a boundary cell.
   QTMV_HD OutlineCell(grid::Code code, std::int32_t site_id, unsigned boundary_cell)
       : code_low(static_cast<std::uint32_t>(code)),
-        code_high(static_cast<std::uint32_t>(code >> 32) | (boundary_cell != 0 ? 0x80000000u : 0u)),
+        code_high(static_cast<std::uint32_t>(code >> 32) | (boundary_cell != 0 ? kBoundaryBit : 0u)),
         site(site_id) {}
   QTMV_HD grid::Code code() const { return grid::Code{code_high & ~kBoundaryBit} << 32 | code_low; }
   /// True: a boundary cell; false: a row end only.
   QTMV_HD bool boundary() const { return (code_high & kBoundaryBit) != 0; }
   QTMV_HD void mark_boundary() { code_high |= kBoundaryBit; }
 
-  static constexpr std::uint32_t kBoundaryBit = 0x80000000u;
   std::uint32_t code_low;
   std::uint32_t code_high;  ///< the code's bits 32 and up; bit 31: the boundary flag
   std::int32_t site;

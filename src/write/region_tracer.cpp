@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
-#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -112,15 +111,6 @@ struct Box {
     return p.lon >= lon_min && p.lon <= lon_max && p.lat >= lat_min && p.lat <= lat_max;
   }
 };
-
-/// Asks for the cache line of `p` ahead of its use (a hint; nothing where the compiler has none).
-inline void prefetch(const void* p) {
-#if defined(__GNUC__)
-  __builtin_prefetch(p);
-#else
-  (void)p;
-#endif
-}
 
 /// A tracing thread's buffers, kept from one region to the next (a region allocates only its own
 /// rings).
@@ -322,7 +312,7 @@ OctantSteps::OctantSteps(const label::Outlines& outlines) {
 
 RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertices,
                            const std::function<void(double)>& step_done, RegionEdgeObserver* observer)
-    : level_(outlines.level), vertices_(vertices), outlines_(outlines) {
+    : level_(outlines.level), vertices_(vertices) {
   const auto done = [&](double fraction) {
     if (step_done) step_done(fraction);
   };
@@ -332,10 +322,10 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertice
   const std::size_t n = cells.size();
   const auto sites = static_cast<std::size_t>(outlines.site_count);
 
-  // Each outline cell's edge mask (written by the one thread that visits it; not zeroed: every
-  // cell is visited), and each site's count of cells with edges.
-  masks_.resize(n);
-  std::vector<std::size_t> count(sites + 1, 0);
+  // Each outline cell's edge mask, written by the one thread that visits it (not zeroed: every
+  // cell is visited). A byte a cell, where lists of the cells with edges took 8 bytes each and
+  // their bucketed copy 8 more.
+  std::vector<std::uint8_t, HugePageAllocator<std::uint8_t>> masks(n);
   FirstException failure;
   const OctantSteps steps(outlines);
 #pragma omp parallel num_threads(thread_count(0))
@@ -356,11 +346,7 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertice
             if (seen) seen->edge(site, from, to, other);
           };
           visit_region_edges(outlines, k, near, add);
-          masks_[k] = mask;
-          if (mask != 0) {
-#pragma omp atomic
-            ++count[static_cast<std::size_t>(site)];
-          }
+          masks[k] = mask;
         });
       });
     }
@@ -371,37 +357,41 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertice
   failure.rethrow();
   done(0.5);
 
-  // Bucketed by site: the counts made starts, then each cell placed at its site's next slot (the
-  // order within a site is the threads'; trace() sorts a site's cells by code).
+  // Bucketed by site, each thread taking a stretch of the cells with a count and a next slot
+  // per site of its own (no atomics; each site's cells come in code order): as many threads as
+  // keep those tables within a byte an outline cell.
+  const std::size_t team = std::clamp<std::size_t>(n / (sizeof(std::size_t) * (sites + 1)), 1,
+                                                   static_cast<std::size_t>(thread_count(0)));
+  std::vector<std::vector<std::size_t>> place(team, std::vector<std::size_t>(sites + 1, 0));
+  const auto stretch = [&](std::size_t t, auto&& visit) {
+    for (std::size_t k = n * t / team; k < n * (t + 1) / team; ++k) {
+      if (masks[k] != 0) visit(cells[k], masks[k], place[t][static_cast<std::size_t>(cells[k].site)]);
+    }
+  };
+#pragma omp parallel for schedule(static, 1) num_threads(static_cast<int>(team))
+  for (std::int64_t t = 0; t < static_cast<std::int64_t>(team); ++t) {
+    stretch(static_cast<std::size_t>(t), [](const label::OutlineCell&, std::uint8_t, std::size_t& count) { ++count; });
+  }
+  std::vector<std::size_t> start(sites + 1, 0);
   std::size_t at = 0;
   for (std::size_t s = 0; s < sites; ++s) {
-    const std::size_t c = count[s];
-    count[s] = at;
-    at += c;
-  }
-  count[sites] = at;
-  start_ = count;  // count becomes each site's next slot
-  const bool narrow = n <= std::numeric_limits<std::uint32_t>::max();
-  // Not zeroed (gigabytes at the finer levels, on one core): every slot is written below, on all cores.
-  if (narrow) {
-    narrow_.resize(at);
-  } else {
-    wide_.resize(at);
-  }
-  const auto cell_count = static_cast<std::int64_t>(n);
-#pragma omp parallel for schedule(static) num_threads(thread_count(0))
-  for (std::int64_t k = 0; k < cell_count; ++k) {
-    if (masks_[static_cast<std::size_t>(k)] == 0) continue;
-    std::size_t slot;
-    std::size_t& next = count[static_cast<std::size_t>(cells[static_cast<std::size_t>(k)].site)];
-#pragma omp atomic capture
-    slot = next++;
-    if (narrow) {
-      narrow_[slot] = static_cast<std::uint32_t>(k);
-    } else {
-      wide_[slot] = static_cast<std::uint64_t>(k);
+    start[s] = at;
+    for (std::size_t t = 0; t < team; ++t) {
+      const std::size_t count = place[t][s];
+      place[t][s] = at;
+      at += count;
     }
   }
+  start[sites] = at;
+  // Not zeroed (gigabytes at the finer levels, on one core): every slot is written below, on all cores.
+  cells_.resize(at);
+#pragma omp parallel for schedule(static, 1) num_threads(static_cast<int>(team))
+  for (std::int64_t t = 0; t < static_cast<std::int64_t>(team); ++t) {
+    stretch(static_cast<std::size_t>(t), [&](const label::OutlineCell& cell, std::uint8_t mask, std::size_t& next) {
+      cells_[next++] = cell.code() << kEdgeMaskBits | mask;
+    });
+  }
+  start_ = std::move(start);
   done(1.0);
 }
 
@@ -411,18 +401,7 @@ Region RegionTracer::trace(std::int32_t site) const {
   // on the order the threads listed the cells in).
   thread_local TraceScratch scratch;
   std::vector<CellEdges>& cells = scratch.cells;
-  cells.clear();
-  // The site's cells lie rows apart in the outline cells: all asked for first, so that their
-  // cache misses overlap, then read.
-  for (std::size_t i = start_[s]; i < start_[s + 1]; ++i) {
-    const std::size_t k = entry(i);
-    prefetch(&outlines_.cells[k]);
-    prefetch(&masks_[k]);
-  }
-  for (std::size_t i = start_[s]; i < start_[s + 1]; ++i) {
-    const std::size_t k = entry(i);
-    cells.push_back(outlines_.cells[k].code() << kEdgeMaskBits | masks_[k]);
-  }
+  cells.assign(cells_.begin() + static_cast<std::ptrdiff_t>(start_[s]), cells_.begin() + static_cast<std::ptrdiff_t>(start_[s + 1]));
   std::sort(cells.begin(), cells.end());
   std::vector<Edge>& edges = scratch.edges;
   edges.clear();

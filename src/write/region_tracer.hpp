@@ -71,10 +71,9 @@ class RegionEdgeObserver {
 /// neighbour's site comes from label::NearSearch. Work and memory follow the outline cells,
 /// and a writer holds only the regions it is writing.
 ///
-/// The tracer holds 5 bytes per outline cell: which of its drawn edges bound its region (1 byte,
-/// every cell), and the index of each cell with such edges in its site's list (4 bytes; 8 from
-/// 2^32 outline cells on); a site's edges are drawn again in code order and linked when it is
-/// traced. It reads the outline cells, which must outlive it.
+/// The lists hold 8 bytes per outline cell with region edges (its code and which of its drawn
+/// edges bound the region), made in place from a byte per outline cell (9 bytes a cell at the
+/// most); a site's edges are drawn again in code order and linked when it is traced.
 class RegionTracer {
  public:
   /// Gathers the edges on all cores. `step_done` (may be empty) is called on the calling thread
@@ -84,13 +83,11 @@ class RegionTracer {
   /// `observer` (may be null) sees each edge as it is gathered.
   explicit RegionTracer(const label::Outlines& outlines, RingVertices vertices = RingVertices::corners,
                         const std::function<void(double)>& step_done = {}, RegionEdgeObserver* observer = nullptr);
-  RegionTracer(const label::Outlines&&, RingVertices = RingVertices::corners, const std::function<void(double)>& = {},
-               RegionEdgeObserver* = nullptr) = delete;  // it reads the outline cells when it traces
 
   std::int32_t site_count() const { return static_cast<std::int32_t>(start_.size()) - 1; }
 
-  /// Host bytes the tracer holds per outline cell (for the run's memory estimate).
-  static constexpr std::uint64_t kBytesPerOutlineCell = 5;
+  /// Host bytes the tracer holds per outline cell at the most (for the run's memory estimate).
+  static constexpr std::uint64_t kBytesPerOutlineCell = 9;
 
   /// The region of `site` (0 .. site_count() - 1): its edges linked into rings and grouped into
   /// polygons. Const: callable from several threads at once.
@@ -108,18 +105,11 @@ class RegionTracer {
   static_assert(2 * grid::kMaxLevel + 3 + kEdgeMaskBits <= 64, "a code and its edge mask fit 64 bits");
 
  private:
-  /// The index of the i-th entry of the sites' lists.
-  std::size_t entry(std::size_t i) const { return narrow_.empty() ? wide_[i] : narrow_[i]; }
-
   int level_;
   RingVertices vertices_;
-  const label::Outlines& outlines_;
-  std::vector<std::uint8_t, HugePageAllocator<std::uint8_t>> masks_;  // outline cell k's edge mask
-  // Every site's outline cells with region edges (their indices, in no set order within a site),
-  // site after site: in narrow_ below 2^32 outline cells, else in wide_.
-  std::vector<std::uint32_t, HugePageAllocator<std::uint32_t>> narrow_;
-  std::vector<std::uint64_t, HugePageAllocator<std::uint64_t>> wide_;
-  std::vector<std::size_t> start_;  // site s's entries: [start_[s], start_[s + 1])
+  using CellEdgesList = std::vector<CellEdges, HugePageAllocator<CellEdges>>;
+  CellEdgesList cells_;              // every site's outline cells with region edges, site after site
+  std::vector<std::size_t> start_;  // site s's: [start_[s], start_[s + 1])
 };
 
 /// All regions at once (RegionTracer with the rings' corners only, then every site on all

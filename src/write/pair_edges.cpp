@@ -6,6 +6,7 @@
 
 #include "common/first_exception.hpp"
 #include "common/openmp_threads.hpp"
+#include "common/radix_sort.hpp"
 #include "measure/edge_solver.hpp"
 #include "write/region_measures.hpp"
 #include "write/region_tracer.hpp"
@@ -25,68 +26,51 @@ struct Segment {
 DefaultInitVector<EdgeRef> gather_edges(const label::Outlines& outlines) {
   const int level = outlines.level;
   const label::OutlineCells& cells = outlines.cells;
-  const std::size_t n = cells.size();
-  const auto sites = static_cast<std::size_t>(std::max(1, outlines.site_count));
-  // Calls emit(edge) for each edge from a cell of the lower site id of its pair, in cell order.
-  const auto edges_of = [&](std::size_t c, auto&& emit) {
-    const label::OutlineCell& outline = cells[c];
-    if (!outline.boundary()) return;
-    const Code code = outline.code();
-    const std::int32_t site = outline.site;
-    Code nb[3];
-    grid::neighbours(code, level, nb);
-    int across[grid::kMaxPolygonCorners];
-    const int corners = drawn_edges(grid::cell_of(code, level), across);
-    for (int k = 0; k < corners; ++k) {
-      if (across[k] == kAcrossPoleLine) continue;
-      const std::int32_t other = label::site_of_near(cells, c, nb[across[k]]);
-      if (other > site) {
-        emit(EdgeRef{static_cast<std::uint64_t>(site) << 32 | static_cast<std::uint32_t>(other),
-                     code << 2 | static_cast<std::uint64_t>(k)});
-      }
-    }
-  };
-  // Two passes over the cells, each thread a stretch of them with a count and a next slot per
-  // site a of its own (as many threads as keep those tables within a byte an outline cell):
-  // the edges counted, then found again and written in place. The edges are held once, where a
-  // list of them, its copy and a sort's spare were held before.
-  const std::size_t team = std::clamp<std::size_t>(n / (sizeof(std::size_t) * (sites + 1)), 1,
-                                                   static_cast<std::size_t>(thread_count(0)));
-  std::vector<std::vector<std::size_t>> place(team, std::vector<std::size_t>(sites + 1, 0));
-  const auto pass = [&](auto&& emit) {
-    FirstException failure;
-#pragma omp parallel for schedule(static, 1) num_threads(static_cast<int>(team))
-    for (std::int64_t t = 0; t < static_cast<std::int64_t>(team); ++t) {
-      std::vector<std::size_t>& mine = place[static_cast<std::size_t>(t)];
+  const auto n = static_cast<std::int64_t>(cells.size());
+  // Thread t of the team takes the t-th run of cells, so its edges come in cell order, k after
+  // k: joined in thread order they are sorted by `edge`, and a stable radix sort by pair leaves
+  // them sorted by (key, edge).
+  std::vector<std::vector<EdgeRef>> parts(static_cast<std::size_t>(thread_count(0)));
+  FirstException failure;
+#pragma omp parallel num_threads(thread_count(0))
+  {
+    const auto team = static_cast<std::int64_t>(team_size()), t = static_cast<std::int64_t>(thread_index());
+    std::vector<EdgeRef>& local = parts[static_cast<std::size_t>(t)];
+    for (std::int64_t c = n * t / team; c < n * (t + 1) / team; ++c) {
+      const label::OutlineCell& outline = cells[static_cast<std::size_t>(c)];
+      if (!outline.boundary()) continue;
+      const Code code = outline.code();
+      const std::int32_t site = outline.site;
       failure.run([&] {
-        for (std::size_t c = n * static_cast<std::size_t>(t) / team; c < n * (static_cast<std::size_t>(t) + 1) / team; ++c) {
-          edges_of(c, [&](const EdgeRef& e) { emit(mine[static_cast<std::size_t>(e.key >> 32)], e); });
+        Code nb[3];
+        grid::neighbours(code, level, nb);
+        int across[grid::kMaxPolygonCorners];
+        const int corners = drawn_edges(grid::cell_of(code, level), across);
+        for (int k = 0; k < corners; ++k) {
+          if (across[k] == kAcrossPoleLine) continue;
+          const std::int32_t other = label::site_of_near(cells, static_cast<std::size_t>(c), nb[across[k]]);
+          if (other > site) {
+            local.push_back({static_cast<std::uint64_t>(site) << 32 | static_cast<std::uint32_t>(other),
+                             code << 2 | static_cast<std::uint64_t>(k)});
+          }
         }
       });
     }
-    failure.rethrow();
-  };
-  pass([](std::size_t& count, const EdgeRef&) { ++count; });
-  std::vector<std::size_t> start(sites + 1, 0);
-  std::size_t at = 0;
-  for (std::size_t s = 0; s < sites; ++s) {
-    start[s] = at;
-    for (std::size_t t = 0; t < team; ++t) {
-      const std::size_t count = place[t][s];
-      place[t][s] = at;
-      at += count;
-    }
   }
-  start[sites] = at;
-  DefaultInitVector<EdgeRef> all(at);  // every slot written below
-  pass([&](std::size_t& next, const EdgeRef& e) { all[next++] = e; });
-  // Each site a's edges (in code order) sorted by (pair, edge): the order of one sort of them all.
-  const auto site_count = static_cast<std::int64_t>(sites);
-#pragma omp parallel for schedule(dynamic, 4096) num_threads(thread_count(0))
-  for (std::int64_t s = 0; s < site_count; ++s) {
-    std::sort(all.begin() + static_cast<std::ptrdiff_t>(start[static_cast<std::size_t>(s)]),
-              all.begin() + static_cast<std::ptrdiff_t>(start[static_cast<std::size_t>(s) + 1]));
+  failure.rethrow();
+  std::vector<std::size_t> at(parts.size() + 1, 0);
+  for (std::size_t t = 0; t < parts.size(); ++t) at[t + 1] = at[t] + parts[t].size();
+  DefaultInitVector<EdgeRef> all(at.back());  // every slot copied below
+#pragma omp parallel for schedule(static, 1) num_threads(thread_count(0))
+  for (std::int64_t t = 0; t < static_cast<std::int64_t>(parts.size()); ++t) {
+    std::copy(parts[static_cast<std::size_t>(t)].begin(), parts[static_cast<std::size_t>(t)].end(),
+              all.begin() + static_cast<std::ptrdiff_t>(at[static_cast<std::size_t>(t)]));
+    std::vector<EdgeRef>().swap(parts[static_cast<std::size_t>(t)]);
   }
+  // Pairs (a, b) as a * sites + b: one key of the fewest bits.
+  const auto sites = static_cast<std::uint64_t>(std::max(1, outlines.site_count));
+  radix_sort(all, bits_for(sites * sites - 1),
+             [sites](const EdgeRef& e) { return (e.key >> 32) * sites + (e.key & 0xffffffffu); });
   return all;
 }
 

@@ -21,9 +21,8 @@ struct EdgeRef {
 };
 
 /// Every edge between cells of different sites, once (from the cell of the lower site id: the
-/// two drawings of an edge on +-180, at +180 and -180, are one edge), sorted by pair, then by
-/// edge. Such an edge has a boundary cell on each side: the outline cells hold them all. Holds
-/// the edges once (16 bytes each), and at most a byte an outline cell more.
+/// two drawings of an edge on +-180, at +180 and -180, are one edge), sorted by pair. Such an
+/// edge has a boundary cell on each side: the outline cells hold them all.
 DefaultInitVector<EdgeRef> gather_edges(const label::Outlines& outlines);
 
 /// The lines of one pair and their geodesic length.

@@ -359,8 +359,9 @@ RegionTracer::RegionTracer(const label::Outlines& outlines, RingVertices vertice
 
   // Bucketed by site, each thread taking a stretch of the cells with a count and a next slot
   // per site of its own (no atomics; each site's cells come in code order): as many threads as
-  // keep those tables within a byte an outline cell.
-  const std::size_t team = std::clamp<std::size_t>(n / (sizeof(std::size_t) * (sites + 1)), 1,
+  // keep those tables within a byte an outline cell, or 64 MiB.
+  const std::size_t table_bytes = std::max<std::size_t>(n, std::size_t{64} << 20);
+  const std::size_t team = std::clamp<std::size_t>(table_bytes / (sizeof(std::size_t) * (sites + 1)), 1,
                                                    static_cast<std::size_t>(thread_count(0)));
   std::vector<std::vector<std::size_t>> place(team, std::vector<std::size_t>(sites + 1, 0));
   const auto stretch = [&](std::size_t t, auto&& visit) {

@@ -92,7 +92,7 @@ __global__ void __launch_bounds__(kBlock) write_outline_kernel(const std::uint8_
     const std::uint64_t from = s * kSelectSegmentCells + std::uint64_t{threadIdx.x} * kSelectCellsPerThread;
     for (std::uint32_t rest = bits; rest != 0; rest &= rest - 1) {
       const std::uint64_t i = from + static_cast<std::uint32_t>(__ffs(rest) - 1);
-      *to++ = {first + i, site[i], boundary[i] != 0 ? 1u : 0u};
+      *to++ = OutlineCell(first + i, site[i], boundary[i] != 0);
     }
     __syncthreads();  // before the shared storage is used again
   }

@@ -5,8 +5,8 @@
 #include <functional>
 #include <vector>
 
-#include "common/radix_sort.hpp"
 #include "label/label_tree.hpp"
+#include "label/outline_join.hpp"
 #include "common/openmp_threads.hpp"
 #include "label/piece_groups.hpp"
 
@@ -436,7 +436,7 @@ bool in_uniform_leaf_of(const TreeView& tv, const grid::Cell& c, int l, std::int
 /// list leaf that the pass visits. A pair of two list leaves' cells is settled by the later leaf
 /// in the tree's order (the higher node) where the pass visits it, likewise listing both: the
 /// earlier leaf's labels are then often still at hand (OutlineScratch::labelled), whereas the
-/// earlier leaf would have to search the later one's cells. join_in_code_order lists a cell
+/// earlier leaf would have to search the later one's cells. join_outline_parts lists a cell
 /// listed twice once.
 struct LeafVisit {
   const TreeView& tv;
@@ -517,7 +517,7 @@ void one_site_leaf_outline(const LeafVisit& visit, std::int32_t site) {
   // leaf's level) lies in a uniform leaf of the same site no cell is a boundary cell, since the
   // cells across it lie in that neighbour: such an edge lists only the row ends on it (on the
   // octant's left edge, column 0, or its right edge, column 2 row). A corner cell, on two edges,
-  // is listed by each (join_in_code_order keeps it once).
+  // is listed by each (join_outline_parts keeps it once).
   grid::Cell around[3];
   grid::neighbours(leaf.cell, leaf.level, around);
   bool settled[3];
@@ -675,35 +675,10 @@ void leaf_outline_cells(const TreeView& tv, const TreeLeaf& leaf, const TreeNode
   }
 }
 
-/// Per-thread lists joined and put in code order (codes of `level`).
-OutlineCells join_in_code_order(std::vector<OutlineCells>& parts, int level) {
-  std::size_t total = 0;
-  for (const auto& p : parts) total += p.size();
-  OutlineCells all;
-  all.reserve(total);
-  for (auto& p : parts) {
-    all.insert(all.end(), p.begin(), p.end());
-    OutlineCells().swap(p);
-  }
-  radix_sort(all, grid::code_bits(level), [](const OutlineCell& c) { return c.code; });
-  // A cell beside a list leaf may come from both leaves' visits (the pairs' rule lists the other
-  // leaf's cell too): once, a boundary cell if either says so.
-  std::size_t kept = 0;
-  for (std::size_t r = 0; r < all.size(); ++r) {
-    if (kept > 0 && all[kept - 1].code == all[r].code) {
-      all[kept - 1].boundary |= all[r].boundary;
-    } else {
-      all[kept++] = all[r];
-    }
-  }
-  all.resize(kept);
-  return all;
-}
-
 }  // namespace
 
-OutlineCells cpu_tree_outlines(const Tree& tree, const TreeView& tv, int threads, grid::CodeRange range,
-                                           const std::function<void(double)>& done) {
+std::vector<OutlineCells> cpu_tree_outline_parts(const Tree& tree, const TreeView& tv, int threads, grid::CodeRange range,
+                                                 const std::function<void(double)>& done) {
   const std::size_t leaves = tree.leaves.size();
   std::vector<OutlineCells> parts(static_cast<std::size_t>(threads));
   std::vector<OutlineScratch> scratch(static_cast<std::size_t>(threads));
@@ -724,13 +699,13 @@ OutlineCells cpu_tree_outlines(const Tree& tree, const TreeView& tv, int threads
     }
     if (done) done(static_cast<double>(last) / static_cast<double>(leaves));
   }
-  OutlineCells all = join_in_code_order(parts, tree.level);
-  if (range == grid::whole_level(tree.level)) return all;
-  // The leaves met at the range's ends bring cells from outside it.
-  all.erase(std::remove_if(all.begin(), all.end(),
-                           [&](const OutlineCell& c) { return c.code < range.first || c.code >= range.end; }),
-            all.end());
-  return all;
+  return parts;
+}
+
+OutlineCells cpu_tree_outlines(const Tree& tree, const TreeView& tv, int threads, grid::CodeRange range,
+                               const std::function<void(double)>& done) {
+  std::vector<OutlineCells> parts = cpu_tree_outline_parts(tree, tv, threads, range, done);
+  return join_outline_parts(parts, tree.level, range, threads);
 }
 
 void append_outline_cells(int level, grid::Code first, std::uint64_t count, const std::int32_t* site,

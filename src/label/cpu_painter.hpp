@@ -49,7 +49,13 @@ void cpu_tree_range(const Tree& tree, const TreeView& tv, grid::Code first, std:
 /// `done` (may be empty) is called on the calling thread, outside any parallel region, with the
 /// fraction of the leaves done, every 1/256 of them or so; it may throw to stop the pass.
 OutlineCells cpu_tree_outlines(const Tree& tree, const TreeView& tv, int threads, grid::CodeRange range,
-                                           const std::function<void(double)>& done = {});
+                               const std::function<void(double)>& done = {});
+
+/// cpu_tree_outlines in two steps, so that the tree can be freed between them: the threads'
+/// lists (in no order, codes listed more than once, some outside `range`), which
+/// join_outline_parts (outline_join.hpp) makes the outline cells of `range`.
+std::vector<OutlineCells> cpu_tree_outline_parts(const Tree& tree, const TreeView& tv, int threads, grid::CodeRange range,
+                                                 const std::function<void(double)>& done = {});
 
 /// The outline cells of a labelled range [first, first + count) (code order): its boundary cells
 /// and row ends, appended to *out.

@@ -24,6 +24,7 @@
 #include "grid/qtm_checks.hpp"
 #include "label/cpu_painter.hpp"
 #include "label/fixed_cover.hpp"
+#include "label/outline_join.hpp"
 #include "label/label_cuda.hpp"
 #include "label/label_engine.hpp"
 #include "common/openmp_threads.hpp"
@@ -146,6 +147,15 @@ struct HostTile {
   std::uint8_t* boundary;  // null: no flags
 };
 
+/// Room in *outline for the rest of a range, `cells_left` cells, at the rate of outline cells
+/// per cell seen in the `cells_done` before them (and a tenth more), so that the list grows
+/// once, not by doubling: each growth copies all it holds, twice its memory for the while.
+void reserve_for_rest(OutlineCells* outline, std::uint64_t cells_done, std::uint64_t cells_left) {
+  if (cells_left == 0 || cells_done == 0 || outline->capacity() >= outline->size() * 2) return;
+  const double rate = static_cast<double>(outline->size()) / static_cast<double>(cells_done);
+  outline->reserve(outline->size() + static_cast<std::size_t>(rate * 1.1 * static_cast<double>(cells_left)));
+}
+
 /// label_cells on a GPU: device tiles as large as its memory allows (smaller ones when an
 /// allocation fails), each copied to the host tile by tile and handed to the sink. `done` counts
 /// the cells handed over, for the CPU to go on from when the GPU runs out of memory mid-run.
@@ -203,11 +213,7 @@ void label_on_gpu(cuda::Labeller& gpu, int device, int level, grid::CodeRange ra
     if (outline) {
       stats.copy_seconds += gpu.select_outline(first, count, outline) / 1e3;
       done = first + count;
-      // Room for the tiles to come at this tile's rate, so that the list grows once.
-      if (done < range.end && outline->capacity() < outline->size() * 2) {
-        const double rate = static_cast<double>(outline->size()) / static_cast<double>(done - range.first);
-        outline->reserve(outline->size() + static_cast<std::size_t>(rate * 1.1 * static_cast<double>(range.end - done)));
-      }
+      reserve_for_rest(outline, done - range.first, range.end - done);
       if (trace) {
         trace_printf(TraceStage::label, "tile of %llu cells: run %.3f s, outline selection %.3f s (%zu outline cells so far)",
                      static_cast<unsigned long long>(count), run_end - tile_start, now_seconds() - run_end, outline->size());
@@ -436,9 +442,19 @@ class LabellingRun {
     // Only the leaves that can touch an outline are visited (after a GPU that ran out of memory,
     // those of the cells it had not done).
     const double start = now_seconds();
-    const OutlineCells cpu = cpu_tree_outlines(tree_, tv, threads_, {done, range_.end},
-                                               [&](double fraction) { progress(fraction, "label"); });
-    outline_->insert(outline_->end(), cpu.begin(), cpu.end());
+    const grid::CodeRange rest{done, range_.end};
+    std::vector<OutlineCells> parts =
+        cpu_tree_outline_parts(tree_, tv, threads_, rest, [&](double fraction) { progress(fraction, "label"); });
+    // The tree and its candidates are done with: freed before the threads' lists are joined.
+    tree_ = Tree{};
+    std::vector<Piece>().swap(candidates_);
+    OutlineCells cpu = join_outline_parts(parts, input().level, rest, threads_);
+    // Taken over where nothing came before it (no second copy of gigabytes).
+    if (outline_->empty()) {
+      outline_->swap(cpu);
+    } else {
+      outline_->insert(outline_->end(), cpu.begin(), cpu.end());
+    }
     stats_.label_seconds += now_seconds() - start;
     ++stats_.tiles;
     progress(1.0, "label");
@@ -470,6 +486,7 @@ class LabellingRun {
       ++stats_.tiles;
       if (outline_) {
         append_outline_cells(level, first, count, tile.site, tile.boundary, threads_, outline_);
+        reserve_for_rest(outline_, first + count - range_.first, range_.end - (first + count));
       } else {
         sink_({first, count, tile.site, tile.metres, tile.boundary});
       }
@@ -508,6 +525,18 @@ LabelStats label_cells(const LabelInput& input, const LabelOptions& options,
   return run_labelling(input, options, sink, nullptr);
 }
 
+namespace {
+
+/// The outline cells' count and memory, for QTMV_TRACE=label (the run's memory follows them).
+void trace_outlines(const Outlines& o) {
+  trace_printf(TraceStage::label, "outline cells %zu (%.1f MB held, %.1f MB reserved), %.1f per site",
+               o.cells.size(), 1e-6 * static_cast<double>(o.cells.size() * sizeof(OutlineCell)),
+               1e-6 * static_cast<double>(o.cells.capacity() * sizeof(OutlineCell)),
+               static_cast<double>(o.cells.size()) / std::max(1.0, static_cast<double>(o.site_count)));
+}
+
+}  // namespace
+
 LabelStats label_outlines(const LabelInput& input, const LabelOptions& options, Outlines* out) {
   const std::vector<DeviceChoice> devices = choose_devices(options.device);
   if (devices.size() > 1) {
@@ -524,6 +553,7 @@ LabelStats label_outlines(const LabelInput& input, const LabelOptions& options, 
   result.range = range_of(options, input.level);
   const LabelStats stats = run_labelling(input, outline_options, {}, &result.cells);
   result.cells_per_site = count_cells_per_site(result.cells, input.level, input.site_count, result.range.end);
+  trace_outlines(result);
   *out = std::move(result);
   return stats;
 }
@@ -628,6 +658,7 @@ LabelStats label_outlines_on(const LabelInput& input, const LabelOptions& option
     all.device_bytes = std::max(all.device_bytes, stats[k].device_bytes);
     if (k > 0) all.tiles += stats[k].tiles;
   }
+  trace_outlines(joined);
   *out = std::move(joined);
   return all;
 }

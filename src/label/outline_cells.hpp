@@ -33,12 +33,30 @@
 namespace qtmv::label {
 
 /// One outline cell: its code, its site, and whether it is a boundary cell (else it is a row end
-/// whose neighbours all share its site).
+/// whose neighbours all share its site). 12 bytes in three 32-bit words (hundreds of millions of
+/// them at the finer levels; the GPU writes them too, so no 64-bit member at a 4-byte offset):
+/// the code's low word, its high word with the boundary flag in the top bit (a code has at most
+/// 51 bits), and the site.
 struct OutlineCell {
-  grid::Code code;
+  static constexpr std::uint32_t kBoundaryBit = 0x80000000u;
+
+  OutlineCell() = default;
+  /// `boundary_cell`: non-zero for a boundary cell.
+  QTMV_HD OutlineCell(grid::Code code, std::int32_t site_id, unsigned boundary_cell)
+      : code_low(static_cast<std::uint32_t>(code)),
+        code_high(static_cast<std::uint32_t>(code >> 32) | (boundary_cell != 0 ? kBoundaryBit : 0u)),
+        site(site_id) {}
+  QTMV_HD grid::Code code() const { return grid::Code{code_high & ~kBoundaryBit} << 32 | code_low; }
+  /// True: a boundary cell; false: a row end only.
+  QTMV_HD bool boundary() const { return (code_high & kBoundaryBit) != 0; }
+  QTMV_HD void mark_boundary() { code_high |= kBoundaryBit; }
+
+  std::uint32_t code_low;
+  std::uint32_t code_high;  ///< the code's bits 32 and up; bit 31: the boundary flag
   std::int32_t site;
-  std::uint32_t boundary;  ///< 1: boundary cell; 0: a row end only
 };
+static_assert(sizeof(OutlineCell) == 12, "an outline cell is three 32-bit words");
+static_assert(grid::code_bits(grid::kMaxLevel) <= 63, "a code leaves the top bit for the boundary flag");
 
 /// True for the first and last cell of an octant row (column 0 or 2 row).
 QTMV_HD inline bool is_row_end(const grid::Cell& c) { return c.col == 0 || c.col == 2 * c.row; }
@@ -76,7 +94,7 @@ struct Outlines {
 /// (the row's first cell is one; the cells after it in the row up to the next share its site).
 inline std::int32_t site_of(const OutlineCells& cells, grid::Code code) {
   const auto after = std::upper_bound(cells.begin(), cells.end(), code,
-                                      [](grid::Code c, const OutlineCell& o) { return c < o.code; });
+                                      [](grid::Code c, const OutlineCell& o) { return c < o.code(); });
   if (after == cells.begin()) throw std::logic_error("outline cells: no row start at or before code " + std::to_string(code));
   return (after - 1)->site;
 }
@@ -85,29 +103,29 @@ inline std::int32_t site_of(const OutlineCells& cells, grid::Code code) {
 /// (cells[lo].code <= code): galloping, so that the cost grows with the log of the distance.
 inline std::size_t last_at_or_before(const OutlineCells& cells, std::size_t lo, grid::Code code) {
   const std::size_t n = cells.size();
-  if (lo + 1 == n || cells[lo + 1].code > code) return lo;
+  if (lo + 1 == n || cells[lo + 1].code() > code) return lo;
   std::size_t step = 1, hi = lo + 1;
-  while (hi < n && cells[hi].code <= code) {
+  while (hi < n && cells[hi].code() <= code) {
     lo = hi;
     step *= 2;
     hi = std::min(n, hi + step);
   }
-  // cells[lo].code <= code < cells[hi].code (or hi == n).
+  // cells[lo].code() <= code < cells[hi].code() (or hi == n).
   const auto after = std::upper_bound(cells.begin() + static_cast<std::ptrdiff_t>(lo), cells.begin() + static_cast<std::ptrdiff_t>(hi), code,
-                                      [](grid::Code c, const OutlineCell& o) { return c < o.code; });
+                                      [](grid::Code c, const OutlineCell& o) { return c < o.code(); });
   return static_cast<std::size_t>(after - cells.begin()) - 1;
 }
 
 /// The index behind site_of_near.
 inline std::size_t index_near(const OutlineCells& cells, std::size_t k, grid::Code code) {
-  if (code >= cells[k].code) return last_at_or_before(cells, k, code);
-  if (k > 0 && cells[k - 1].code <= code) return k - 1;
+  if (code >= cells[k].code()) return last_at_or_before(cells, k, code);
+  if (k > 0 && cells[k - 1].code() <= code) return k - 1;
   std::size_t step = 2, lo = k >= step ? k - step : 0;
-  while (lo > 0 && cells[lo].code > code) {
+  while (lo > 0 && cells[lo].code() > code) {
     step *= 2;
     lo = lo >= step ? lo - step : 0;
   }
-  if (cells[lo].code > code) throw std::logic_error("outline cells: no row start at or before code " + std::to_string(code));
+  if (cells[lo].code() > code) throw std::logic_error("outline cells: no row start at or before code " + std::to_string(code));
   return last_at_or_before(cells, lo, code);
 }
 
@@ -124,11 +142,11 @@ inline std::int32_t site_of_near(const OutlineCells& cells, std::size_t k, grid:
 class NearSearch {
  public:
   std::int32_t site(const OutlineCells& cells, std::size_t k, grid::Code code) {
-    const bool before = code < cells[k].code;
+    const bool before = code < cells[k].code();
     std::size_t& last = before ? above_ : below_;
     // A last answer at or before `code` is a start; one of the cells below left behind k (a thread
     // that moved on) is not: the search from k is shorter.
-    const bool usable = last < cells.size() && cells[last].code <= code && (before || last >= k);
+    const bool usable = last < cells.size() && cells[last].code() <= code && (before || last >= k);
     last = usable ? last_at_or_before(cells, last, code) : index_near(cells, k, code);
     return cells[last].site;
   }
@@ -146,8 +164,8 @@ inline std::vector<std::uint64_t> count_cells_per_site(const OutlineCells& cells
   std::vector<std::uint64_t> count(static_cast<std::size_t>(site_count), 0);
   if (end == 0) end = grid::cell_count(level);
   for (std::size_t k = 0; k < cells.size(); ++k) {
-    const grid::Code next = k + 1 < cells.size() ? cells[k + 1].code : end;
-    count[static_cast<std::size_t>(cells[k].site)] += next - cells[k].code;
+    const grid::Code next = k + 1 < cells.size() ? cells[k + 1].code() : end;
+    count[static_cast<std::size_t>(cells[k].site)] += next - cells[k].code();
   }
   return count;
 }
@@ -167,7 +185,7 @@ inline void check_outlines(const Outlines& o) {
   const auto n = static_cast<std::int64_t>(o.cells.size());
   const auto broken = [&](std::int64_t k) {
     const OutlineCell& c = o.cells[static_cast<std::size_t>(k)];
-    return c.code < o.range.first || c.code >= o.range.end || (k > 0 && o.cells[static_cast<std::size_t>(k - 1)].code >= c.code) ||
+    return c.code() < o.range.first || c.code() >= o.range.end || (k > 0 && o.cells[static_cast<std::size_t>(k - 1)].code() >= c.code()) ||
            c.site < 0 || c.site >= o.site_count;
   };
   std::uint64_t row_ends = 0;
@@ -177,15 +195,15 @@ inline void check_outlines(const Outlines& o) {
     if (broken(k)) {
       first_broken = std::min(first_broken, k);
     } else {
-      row_ends += is_row_end(grid::cell_of(o.cells[static_cast<std::size_t>(k)].code, o.level)) ? 1 : 0;
+      row_ends += is_row_end(grid::cell_of(o.cells[static_cast<std::size_t>(k)].code(), o.level)) ? 1 : 0;
     }
   }
   if (first_broken < n) {
     const std::int64_t k = first_broken;
     const OutlineCell& c = o.cells[static_cast<std::size_t>(k)];
-    if (c.code < o.range.first || c.code >= o.range.end) fail("code " + std::to_string(c.code) + " is not of the range");
+    if (c.code() < o.range.first || c.code() >= o.range.end) fail("code " + std::to_string(c.code()) + " is not of the range");
     if (c.site < 0 || c.site >= o.site_count) fail("site " + std::to_string(c.site) + " out of range");
-    fail("codes not in increasing order at " + std::to_string(c.code));
+    fail("codes not in increasing order at " + std::to_string(c.code()));
   }
   if (row_ends != row_end_count(o.level, o.range)) fail("row ends missing");
   std::uint64_t total = 0;
@@ -216,7 +234,7 @@ inline Outlines outlines_of_dense(int level, const std::int32_t* site, const std
       grid::neighbours(code, level, nb);
       flag = site[nb[0]] != site[code] || site[nb[1]] != site[code] || site[nb[2]] != site[code];
     }
-    if (flag || is_row_end(c)) o.cells.push_back({code, site[code], flag ? 1u : 0u});
+    if (flag || is_row_end(c)) o.cells.push_back({code, site[code], flag});
   }
   o.cells_per_site = count_cells_per_site(o.cells, level, site_count);
   return o;

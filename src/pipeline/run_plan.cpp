@@ -21,6 +21,7 @@
 #include "write/output_size.hpp"
 #include "write/raster_bands.hpp"
 #include "write/raster_writer.hpp"
+#include "write/region_tracer.hpp"
 #include "write/vector_writer.hpp"
 
 namespace qtmv::pipeline {
@@ -63,9 +64,16 @@ std::string choose_pixel_level(RunPlan& plan) {
 // CPU, tiles of 64 MiB (about 7 million cells) keep that check under a second.
 constexpr std::uint64_t kCpuTileBytes = std::uint64_t{64} << 20;
 
-// Host bytes per outline cell while the vector layers are made: the cell itself (16), and the
-// region and edge tracing's edges, rings and sort (measured: about 90 at level 12).
-constexpr std::uint64_t kBytesPerOutlineCell = 112;
+// Host bytes per outline cell at the run's peak: the cell itself (label::OutlineCell, 12) and the
+// most held beside the cells: the CPU outline pass's join (its threads' lists, about 1.6 listings
+// a cell, a sort's spare of one list, and the result: up to 2.6 cells' worth more), the
+// regions' tracer (RegionTracer::kBytesPerOutlineCell, 9), the Voronoi edges (32 bytes per cell
+// edge between sites, the edges and their sort's spare, about 0.7 of them per outline cell); the
+// margin covers the rows in flight and the per-site arrays. (Before the cells were packed and the tracer's lists made in place,
+// the regions' peak alone held 32 bytes a cell.)
+constexpr std::uint64_t kBytesPerOutlineCell = 4 * sizeof(label::OutlineCell);
+static_assert(kBytesPerOutlineCell >= sizeof(label::OutlineCell) + write::RegionTracer::kBytesPerOutlineCell,
+              "the estimate covers the regions' tracer");
 
 // Whether `device` (a -device value) labels on the CPU, with `cuda_devices` found on this host;
 // -1: not counted yet, when "auto" is taken as the CPU (its smaller tiles: the check before the

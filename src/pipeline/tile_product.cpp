@@ -25,7 +25,7 @@ namespace {
 constexpr char kMagic[8] = {'Q', 'T', 'M', 'V', 'T', 'I', 'L', 'E'};
 constexpr std::uint32_t kVersion = 2;
 constexpr std::size_t kHeaderBytes = 88;
-constexpr std::size_t kCellBytes = 16;
+constexpr std::size_t kCellBytes = 12;
 constexpr std::size_t kSiteKeyBytes = 16;
 
 static_assert(sizeof(label::OutlineCell) == kCellBytes, "outline cells are written as they are held");
@@ -494,8 +494,8 @@ label::Outlines merge_tile_products(const std::vector<std::string>& files, const
     whole_ids.erase(index);
     // The tile's cells must lie in its codes, in order (the whole is checked below).
     for (std::size_t k = from; k < joined.cells.size(); ++k) {
-      const grid::Code code = joined.cells[k].code;
-      if (code < tile->range.first || code >= tile->range.end || (k > from && joined.cells[k - 1].code >= code)) {
+      const grid::Code code = joined.cells[k].code();
+      if (code < tile->range.first || code >= tile->range.end || (k > from && joined.cells[k - 1].code() >= code)) {
         throw tile->fail("corrupt tile product (outline cell " + std::to_string(code) + " out of place)");
       }
     }

@@ -14,7 +14,8 @@
 //     the whole source's; else its site count), u64 the source's features (of its layers, after
 //     -where; 0 when not listed), u64 fingerprint of the reading options (0 when not listed);
 //   the sites listed, 16 bytes each: i64 FID, u32 source layer, u32 0;
-//   outline cells, 16 bytes each: u64 code, i32 site, u32 boundary (0 or 1);
+//   outline cells, 12 bytes each (label::OutlineCell): u32 code bits 0-31, u32 code bits 32 and up
+//   with the boundary flag in bit 31, i32 site;
 //   cells per site, u64 each (site count of them);
 //   u64 checksum of every byte before it.
 // Version 1 (a fingerprint of the whole input, no list) is refused with a clear message.

@@ -28,7 +28,7 @@ void write_boundary_cells(VectorDatasetWriter& w, const LayerInput& in, double w
   const auto begin = [&](std::size_t first, std::size_t last) {
     std::vector<grid::Code> codes;
     for (std::size_t k = first; k < last; ++k) {
-      if (cells[k].boundary) codes.push_back(cells[k].code);
+      if (cells[k].boundary()) codes.push_back(cells[k].code());
     }
     const std::size_t pieces = codes.size();
     return std::make_pair(rows.begin(std::move(codes), level), pieces);
@@ -39,9 +39,9 @@ void write_boundary_cells(VectorDatasetWriter& w, const LayerInput& in, double w
     std::size_t row = 0;
     for (std::size_t k = first; k < last; ++k) {
       const label::OutlineCell& cell = cells[k];
-      if (!cell.boundary) continue;
+      if (!cell.boundary()) continue;
       const auto site = static_cast<std::size_t>(cell.site);
-      const RowValue values[] = {RowValue::of(static_cast<std::int64_t>(cell.code)), fid_value(in.table.sites[site].fid),
+      const RowValue values[] = {RowValue::of(static_cast<std::int64_t>(cell.code())), fid_value(in.table.sites[site].fid),
                                  in.composite() ? in.layer_of(site) : RowValue{}};
       rows.add(block, row++, values);
       if (++done % kProgressEvery == 0) w.layer_progress(static_cast<double>(done), static_cast<double>(count));

@@ -38,8 +38,8 @@ DefaultInitVector<EdgeRef> gather_edges(const label::Outlines& outlines) {
     std::vector<EdgeRef>& local = parts[static_cast<std::size_t>(t)];
     for (std::int64_t c = n * t / team; c < n * (t + 1) / team; ++c) {
       const label::OutlineCell& outline = cells[static_cast<std::size_t>(c)];
-      if (!outline.boundary) continue;
-      const Code code = outline.code;
+      if (!outline.boundary()) continue;
+      const Code code = outline.code();
       const std::int32_t site = outline.site;
       failure.run([&] {
         Code nb[3];

@@ -304,7 +304,7 @@ OctantSteps::OctantSteps(const label::Outlines& outlines) {
     for (std::size_t j = 0; j <= steps_; ++j) {
       const Code code = octant * per_octant + per_octant / steps_ * j + (j == steps_ ? per_octant % steps_ : 0);
       bounds_[octant * (steps_ + 1) + j] = static_cast<std::size_t>(
-          std::lower_bound(cells.begin(), cells.end(), code, [](const label::OutlineCell& c, Code v) { return c.code < v; }) -
+          std::lower_bound(cells.begin(), cells.end(), code, [](const label::OutlineCell& c, Code v) { return c.code() < v; }) -
           cells.begin());
     }
   }
@@ -373,16 +373,17 @@ RegionTracer::RegionTracer(const label::Outlines& whole_or_tile, RingVertices ve
   if (part) tile = with_range_edges(whole_or_tile);
   const label::Outlines& outlines = part ? tile : whole_or_tile;
   const label::OutlineCells& cells = outlines.cells;
+  const std::size_t n = cells.size();
+  const auto sites = static_cast<std::size_t>(outlines.site_count);
 
-  // The outline cells with region edges, each thread's in a list of its own: the cells' indices
-  // in the outlines here (so that bucketing reads each cell's site and code in order).
-  const int team = thread_count(0);
-  std::vector<CellEdgesList> parts(static_cast<std::size_t>(team));
+  // Each outline cell's edge mask, written by the one thread that visits it (not zeroed: every
+  // cell is visited). A byte a cell, where lists of the cells with edges took 8 bytes each and
+  // their bucketed copy 8 more.
+  std::vector<std::uint8_t, HugePageAllocator<std::uint8_t>> masks(n);
   FirstException failure;
   const OctantSteps steps(outlines);
-#pragma omp parallel num_threads(team)
+#pragma omp parallel num_threads(thread_count(0))
   {
-    CellEdgesList& local = parts[static_cast<std::size_t>(thread_index())];
     std::unique_ptr<RegionEdgeObserver::Local> seen;
     label::NearSearch search[8];
     failure.run([&] {
@@ -393,13 +394,13 @@ RegionTracer::RegionTracer(const label::Outlines& whole_or_tile, RingVertices ve
       failure.run([&] {
         steps.visit(static_cast<std::size_t>(step), search, [&](std::size_t k, label::NearSearch& near) {
           const std::int32_t site = cells[k].site;
-          CellEdges mask = 0;
+          std::uint8_t mask = 0;
           const auto add = [&](int e, const LonLat& from, const LonLat& to, std::int32_t other) {
-            mask |= CellEdges{1} << e;
+            mask = static_cast<std::uint8_t>(mask | 1u << e);
             if (seen) seen->edge(site, from, to, other);
           };
           visit_region_edges(outlines, k, near, add);
-          if (mask != 0) local.push_back(static_cast<CellEdges>(k) << kEdgeMaskBits | mask);
+          masks[k] = mask;
         });
       });
     }
@@ -410,21 +411,27 @@ RegionTracer::RegionTracer(const label::Outlines& whole_or_tile, RingVertices ve
   failure.rethrow();
   done(0.5);
 
-  // Bucketed by site, indices made codes: each thread's counts, then their places.
-  const auto sites = static_cast<std::size_t>(outlines.site_count);
-  const std::size_t threads = parts.size();
-  constexpr CellEdges kMask = (CellEdges{1} << kEdgeMaskBits) - 1;
-  const auto site_of_entry = [&](CellEdges entry) { return static_cast<std::size_t>(cells[entry >> kEdgeMaskBits].site); };
-  std::vector<std::vector<std::size_t>> place(threads, std::vector<std::size_t>(sites + 1, 0));
-#pragma omp parallel for schedule(static, 1) num_threads(thread_count(0))
-  for (std::int64_t t = 0; t < static_cast<std::int64_t>(threads); ++t) {
-    for (const CellEdges e : parts[static_cast<std::size_t>(t)]) ++place[static_cast<std::size_t>(t)][site_of_entry(e)];
+  // Bucketed by site, each thread taking a stretch of the cells with a count and a next slot
+  // per site of its own (no atomics; each site's cells come in code order): as many threads as
+  // keep those tables within a byte an outline cell, or 64 MiB.
+  const std::size_t table_bytes = std::max<std::size_t>(n, std::size_t{64} << 20);
+  const std::size_t team = std::clamp<std::size_t>(table_bytes / (sizeof(std::size_t) * (sites + 1)), 1,
+                                                   static_cast<std::size_t>(thread_count(0)));
+  std::vector<std::vector<std::size_t>> place(team, std::vector<std::size_t>(sites + 1, 0));
+  const auto stretch = [&](std::size_t t, auto&& visit) {
+    for (std::size_t k = n * t / team; k < n * (t + 1) / team; ++k) {
+      if (masks[k] != 0) visit(cells[k], masks[k], place[t][static_cast<std::size_t>(cells[k].site)]);
+    }
+  };
+#pragma omp parallel for schedule(static, 1) num_threads(static_cast<int>(team))
+  for (std::int64_t t = 0; t < static_cast<std::int64_t>(team); ++t) {
+    stretch(static_cast<std::size_t>(t), [](const label::OutlineCell&, std::uint8_t, std::size_t& count) { ++count; });
   }
   std::vector<std::size_t> start(sites + 1, 0);
   std::size_t at = 0;
   for (std::size_t s = 0; s < sites; ++s) {
     start[s] = at;
-    for (std::size_t t = 0; t < threads; ++t) {
+    for (std::size_t t = 0; t < team; ++t) {
       const std::size_t count = place[t][s];
       place[t][s] = at;
       at += count;
@@ -433,14 +440,11 @@ RegionTracer::RegionTracer(const label::Outlines& whole_or_tile, RingVertices ve
   start[sites] = at;
   // Not zeroed (gigabytes at the finer levels, on one core): every slot is written below, on all cores.
   cells_.resize(at);
-#pragma omp parallel for schedule(static, 1) num_threads(thread_count(0))
-  for (std::int64_t t = 0; t < static_cast<std::int64_t>(threads); ++t) {
-    std::vector<std::size_t>& next = place[static_cast<std::size_t>(t)];
-    for (const CellEdges e : parts[static_cast<std::size_t>(t)]) {
-      const label::OutlineCell& cell = cells[e >> kEdgeMaskBits];
-      cells_[next[static_cast<std::size_t>(cell.site)]++] = cell.code << kEdgeMaskBits | (e & kMask);
-    }
-    CellEdgesList().swap(parts[static_cast<std::size_t>(t)]);
+#pragma omp parallel for schedule(static, 1) num_threads(static_cast<int>(team))
+  for (std::int64_t t = 0; t < static_cast<std::int64_t>(team); ++t) {
+    stretch(static_cast<std::size_t>(t), [&](const label::OutlineCell& cell, std::uint8_t mask, std::size_t& next) {
+      cells_[next++] = cell.code() << kEdgeMaskBits | mask;
+    });
   }
   start_ = std::move(start);
   done(1.0);

@@ -72,7 +72,8 @@ class RegionEdgeObserver {
 /// and a writer holds only the regions it is writing.
 ///
 /// The lists hold 8 bytes per outline cell with region edges (its code and which of its drawn
-/// edges bound the region); a site's edges are drawn again in code order and linked when it is traced.
+/// edges bound the region), made in place from a byte per outline cell (9 bytes a cell at the
+/// most); a site's edges are drawn again in code order and linked when it is traced.
 class RegionTracer {
  public:
   /// Gathers the edges on all cores. `step_done` (may be empty) is called on the calling thread
@@ -84,6 +85,9 @@ class RegionTracer {
                         const std::function<void(double)>& step_done = {}, RegionEdgeObserver* observer = nullptr);
 
   std::int32_t site_count() const { return static_cast<std::int32_t>(start_.size()) - 1; }
+
+  /// Host bytes the tracer holds per outline cell at the most (for the run's memory estimate).
+  static constexpr std::uint64_t kBytesPerOutlineCell = 9;
 
   /// The region of `site` (0 .. site_count() - 1): its edges linked into rings and grouped into
   /// polygons. Const: callable from several threads at once.
@@ -172,18 +176,18 @@ template <class Visit>
 void visit_region_edges(const label::Outlines& outlines, std::size_t k, label::NearSearch& search, const Visit& visit) {
   const label::OutlineCell& outline = outlines.cells[k];
   const int level = outlines.level;
-  const grid::Cell cell = grid::cell_of(outline.code, level);
+  const grid::Cell cell = grid::cell_of(outline.code(), level);
   LonLat ring[grid::kMaxPolygonCorners];
   int across[grid::kMaxPolygonCorners];
   const int corners = drawn_ring(cell, level, ring, across);
   grid::Code nb[3];
-  if (outline.boundary) grid::neighbours(cell, outline.code, level, nb);
+  if (outline.boundary()) grid::neighbours(cell, outline.code(), level, nb);
   for (int e = 0; e < corners; ++e) {
     const LonLat& from = ring[e];
     const LonLat& to = ring[(e + 1) % corners];
     if (across[e] == kAcrossPoleLine || on_cut(from, to)) {
       visit(e, from, to, kBorderEdge);
-    } else if (outline.boundary) {
+    } else if (outline.boundary()) {
       // The cell across a row line lies a row away in the list; those beside it, next to k.
       const grid::Code code = nb[across[e]];
       if (!holds_code(outlines, code)) {

@@ -71,7 +71,7 @@ void write_vector(const std::string& path, const label::Outlines& outlines, cons
   std::uint64_t boundary_count = 0;
   const auto outline_cells = static_cast<std::int64_t>(outlines.cells.size());
 #pragma omp parallel for schedule(static) num_threads(thread_count(0)) reduction(+ : boundary_count)
-  for (std::int64_t k = 0; k < outline_cells; ++k) boundary_count += outlines.cells[static_cast<std::size_t>(k)].boundary;
+  for (std::int64_t k = 0; k < outline_cells; ++k) boundary_count += outlines.cells[static_cast<std::size_t>(k)].boundary() ? 1 : 0;
 
   GDALDriver* driver = GetGDALDriverManager()->GetDriverByName(options.driver.c_str());
   if (!driver) {

@@ -66,6 +66,8 @@ void write_voronoi_edges(VectorDatasetWriter& w, const LayerInput& in, double wo
   StepTrace trace(TraceStage::write);
   const DefaultInitVector<EdgeRef> edges = gather_edges(in.outlines);
   trace("edges gathered");
+  trace_printf(TraceStage::write, "%zu cell edges between sites, %.2f per outline cell", edges.size(),
+               static_cast<double>(edges.size()) / std::max<double>(1, static_cast<double>(in.outlines.cells.size())));
   std::vector<std::size_t> pair_start;  // where each pair's run of edges begins
   for (std::size_t k = 0; k < edges.size(); ++k) {
     if (k == 0 || edges[k].key != edges[k - 1].key) pair_start.push_back(k);

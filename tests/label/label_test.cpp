@@ -804,8 +804,8 @@ TEST_P(LabelDevice, OutlinesAreThoseOfTheDenseLabels) {
           ASSERT_EQ(got.cells.size(), want.cells.size());
           std::size_t mismatches = 0;
           for (std::size_t k = 0; k < want.cells.size(); ++k) {
-            mismatches += got.cells[k].code != want.cells[k].code || got.cells[k].site != want.cells[k].site ||
-                          got.cells[k].boundary != want.cells[k].boundary;
+            mismatches += got.cells[k].code() != want.cells[k].code() || got.cells[k].site != want.cells[k].site ||
+                          got.cells[k].boundary() != want.cells[k].boundary();
           }
           EXPECT_EQ(mismatches, 0u);
           EXPECT_EQ(got.cells_per_site, want.cells_per_site);
@@ -824,7 +824,7 @@ std::size_t outline_mismatches(const OutlineCells& got, const OutlineCells& want
   if (got.size() != want.size()) return std::max(got.size(), want.size());
   std::size_t mismatches = 0;
   for (std::size_t k = 0; k < want.size(); ++k) {
-    mismatches += got[k].code != want[k].code || got[k].site != want[k].site || got[k].boundary != want[k].boundary;
+    mismatches += got[k].code() != want[k].code() || got[k].site != want[k].site || got[k].boundary() != want[k].boundary();
   }
   return mismatches;
 }
@@ -1110,7 +1110,7 @@ TEST(LabelOutlines, DenseOutlinesCountEveryCell) {
   }
   EXPECT_EQ(o.cells_per_site, count);
   std::uint64_t listed_boundary = 0;
-  for (const OutlineCell& c : o.cells) listed_boundary += c.boundary;
+  for (const OutlineCell& c : o.cells) listed_boundary += c.boundary();
   EXPECT_EQ(listed_boundary, boundary);  // flags recomputed from the sites equal the labeller's
   EXPECT_EQ(o.cells.size() - listed_boundary + boundary, o.cells.size());
   EXPECT_NO_THROW(check_outlines(o));
@@ -1120,7 +1120,7 @@ TEST(LabelOutlines, DenseOutlinesCountEveryCell) {
   std::size_t disagree = 0;
   for (std::size_t k = 0; k < o.cells.size(); ++k) {
     Code nb[3];
-    grid::neighbours(o.cells[k].code, 6, nb);
+    grid::neighbours(o.cells[k].code(), 6, nb);
     std::uniform_int_distribution<Code> any(0, grid::cell_count(6) - 1);
     for (const Code c : {nb[0], nb[1], nb[2], any(rng)}) disagree += site_of_near(o.cells, k, c) != site_of(o.cells, c);
   }
@@ -1136,7 +1136,7 @@ TEST(LabelOutlines, DenseOutlinesCountEveryCell) {
     for (const std::size_t first : firsts) {
       for (std::size_t k = first; k < std::min(o.cells.size(), first + chunk); ++k) {
         Code nb[3];
-        grid::neighbours(o.cells[k].code, 6, nb);
+        grid::neighbours(o.cells[k].code(), 6, nb);
         std::uniform_int_distribution<Code> any(0, grid::cell_count(6) - 1);
         for (const Code c : {nb[grid::kNeighbourVertical], any(rng), nb[0], nb[1], nb[2]}) {
           disagree += search.site(o.cells, k, c) != site_of(o.cells, c);
@@ -1162,7 +1162,7 @@ TEST(LabelOutlines, DenseOutlinesCountEveryCell) {
   bad_site.cells.back().site = -1;
   EXPECT_NE(message(bad_site).find("site 1000 out of range"), std::string::npos) << message(bad_site);
   std::swap(swapped.cells[7], swapped.cells[8]);
-  EXPECT_NE(message(swapped).find("not in increasing order at " + std::to_string(o.cells[7].code)), std::string::npos)
+  EXPECT_NE(message(swapped).find("not in increasing order at " + std::to_string(o.cells[7].code())), std::string::npos)
       << message(swapped);
 }
 
@@ -1412,8 +1412,8 @@ TEST(LabelDeviceFaults, OutlinesFallBackWithTheSameResults) {
     ASSERT_EQ(got.cells.size(), want.cells.size()) << step;
     std::size_t mismatches = 0;
     for (std::size_t k = 0; k < want.cells.size(); ++k) {
-      mismatches += got.cells[k].code != want.cells[k].code || got.cells[k].site != want.cells[k].site ||
-                    got.cells[k].boundary != want.cells[k].boundary;
+      mismatches += got.cells[k].code() != want.cells[k].code() || got.cells[k].site != want.cells[k].site ||
+                    got.cells[k].boundary() != want.cells[k].boundary();
     }
     EXPECT_EQ(mismatches, 0u) << step;
     EXPECT_EQ(got.cells_per_site, want.cells_per_site) << step;

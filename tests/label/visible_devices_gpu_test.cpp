@@ -48,7 +48,7 @@ int label_on(const std::string& device) {
     const bool same = on_device.cells.size() == on_cpu.cells.size() &&
                       std::equal(on_device.cells.begin(), on_device.cells.end(), on_cpu.cells.begin(),
                                  [](const OutlineCell& a, const OutlineCell& b) {
-                                   return a.code == b.code && a.site == b.site && a.boundary == b.boundary;
+                                   return a.code() == b.code() && a.site == b.site && a.boundary() == b.boundary();
                                  }) &&
                       on_device.cells_per_site == on_cpu.cells_per_site;
     std::cout << "name " << stats.device << "\nsame " << same << "\n";

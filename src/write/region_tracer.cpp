@@ -326,12 +326,12 @@ label::Outlines with_range_edges(const label::Outlines& outlines) {
       grid::Code nb[3];
       grid::neighbours(code, level, nb);
       if (holds_code(outlines, nb[0]) && holds_code(outlines, nb[1]) && holds_code(outlines, nb[2])) return;
-      while (k < cells.size() && cells[k].code < code) cut.push_back(cells[k++]);
-      if (k < cells.size() && cells[k].code == code) {
+      while (k < cells.size() && cells[k].code() < code) cut.push_back(cells[k++]);
+      if (k < cells.size() && cells[k].code() == code) {
         cut.push_back(cells[k++]);
-        cut.back().boundary = 1;
+        cut.back().mark_boundary();
       } else {
-        cut.push_back({code, label::site_of(cells, code), 1});
+        cut.push_back(label::OutlineCell(code, label::site_of(cells, code), 1));
       }
     };
     for (grid::Code row = outlines.range.first; row < outlines.range.end;) {

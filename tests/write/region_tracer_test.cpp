@@ -105,7 +105,7 @@ label::Outlines tile_outlines(const label::Outlines& whole, grid::CodeRange rang
   tile.site_count = whole.site_count;
   tile.range = range;
   for (const label::OutlineCell& c : whole.cells) {
-    if (c.code >= range.first && c.code < range.end) tile.cells.push_back(c);
+    if (c.code() >= range.first && c.code() < range.end) tile.cells.push_back(c);
   }
   tile.cells_per_site = label::count_cells_per_site(tile.cells, whole.level, whole.site_count, range.end);
   return tile;

@@ -19,6 +19,7 @@
 #include "sites/feature_count.hpp"
 #include "sites/feature_examination.hpp"
 #include "sites/feature_parts.hpp"
+#include "sites/lonlat_transform.hpp"
 #include "sites/polygon_validity.hpp"
 #include "sites/read_step.hpp"
 
@@ -26,15 +27,11 @@ namespace qtmv::sites {
 
 namespace {
 
-struct OgrDeleter {
-  void operator()(OGRCoordinateTransformation* t) const { OGRCoordinateTransformation::DestroyCT(t); }
-};
-
 /// A layer's CRS, the transformation from it to WGS84 (none when it is WGS84 in lon/lat order),
 /// and the range its coordinates are checked against.
 struct LayerCrs {
   OGRSpatialReference source;
-  std::unique_ptr<OGRCoordinateTransformation, OgrDeleter> transform;
+  OwnedTransform transform;
   CoordinateRange range;
 };
 

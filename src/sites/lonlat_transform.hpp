@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstddef>
+#include <memory>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -33,6 +34,14 @@ struct LonLatScratch {
 /// of the transformation are taken from `errors`, a capture on the calling thread.
 Skip to_lonlat(grid::LonLat* points, std::size_t count, OGRCoordinateTransformation* transform,
                gdal::ErrorCapture& errors, LonLatScratch& scratch, std::string& reason);
+
+/// Gives a transformation back to OGR (DestroyCT), which may keep it for the next one between the
+/// same CRSs.
+struct DestroyTransform {
+  void operator()(OGRCoordinateTransformation* t) const { OGRCoordinateTransformation::DestroyCT(t); }
+};
+/// A transformation made by OGRCreateCoordinateTransformation, owned.
+using OwnedTransform = std::unique_ptr<OGRCoordinateTransformation, DestroyTransform>;
 
 /// One copy of a layer's transformation to WGS84 per thread, made on first use: OGR's
 /// transformations (and the CRSs they hold) are not for several threads at once, so the copies

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "common/openmp_threads.hpp"
+#include "label/label_math.hpp"
 
 namespace qtmv::sites {
 
@@ -343,7 +344,7 @@ double PointIndex::nearest_scanned(const grid::Vec3& centre, double lon, double 
     if (nearest < enough_chord2) break;
   }
   // The chord's angle; float64's rounding of it is far below the callers' margins.
-  return nearest == HUGE_VAL ? HUGE_VAL : 2.0 * std::asin(std::min(1.0, std::sqrt(nearest) / 2.0));
+  return nearest == HUGE_VAL ? HUGE_VAL : label::chord2_to_angle(nearest);
 }
 
 double PointIndex::nearest(const grid::Vec3& centre, double lon, double lat, double start, double enough) const {

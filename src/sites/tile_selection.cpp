@@ -11,17 +11,13 @@
 
 #include "common/config_option.hpp"
 #include "sites/feature_examination.hpp"
+#include "sites/lonlat_transform.hpp"
 #include "sites/read_times.hpp"
 #include "sites/tile_region.hpp"
 
 namespace qtmv::sites {
 
 namespace {
-
-struct TransformDeleter {
-  void operator()(OGRCoordinateTransformation* t) const { OGRCoordinateTransformation::DestroyCT(t); }
-};
-using Transform = std::unique_ptr<OGRCoordinateTransformation, TransformDeleter>;
 
 /// Points on each side of a box transformed to a layer's CRS: its image's envelope, with a margin
 /// far above the bulge of the image between them.
@@ -41,7 +37,7 @@ struct LayerFilter {
   OGRLayer* layer = nullptr;
   std::string name;
   OGRSpatialReference srs;
-  Transform to_layer, to_wgs84;
+  OwnedTransform to_layer, to_wgs84;
   bool geographic = true;
   double units_per_degree = 1;
   int lon_axis = 0;       // which of x, y is the longitude (geographic)

@@ -4,40 +4,16 @@
 #include <cub/device/device_scan.cuh>
 
 #include <algorithm>
-#include <cstring>
 #include <stdexcept>
-#include <thread>
 #include <vector>
 
+#include "common/parallel_copy.hpp"
 #include "label_launch.cuh"
 #include "outline_select_kernels.cuh"
 
 namespace qtmv::label::cuda {
 
 namespace {
-
-/// memcpy on several threads: the destination's first touch (page faults) and the copy of
-/// gigabytes of outline cells, which one thread does at a few GB/s.
-void parallel_copy(void* to, const void* from, std::size_t bytes) {
-  constexpr std::size_t kPiece = std::size_t{16} << 20;
-  const std::size_t pieces = (bytes + kPiece - 1) / kPiece;
-  const std::size_t threads = std::min<std::size_t>(pieces, static_cast<std::size_t>(host_threads(0)));
-  const auto work = [&](std::size_t t) {
-    for (std::size_t k = t; k < pieces; k += threads) {
-      const std::size_t first = k * kPiece;
-      std::memcpy(static_cast<char*>(to) + first, static_cast<const char*>(from) + first,
-                  std::min(kPiece, bytes - first));
-    }
-  };
-  if (threads <= 1) {
-    work(0);
-    return;
-  }
-  std::vector<std::thread> pool;
-  for (std::size_t t = 1; t < threads; ++t) pool.emplace_back(work, t);
-  work(0);
-  for (std::thread& th : pool) th.join();
-}
 
 /// Blocks of a grid-stride kernel over `segments`: enough to fill the device, not one a segment.
 unsigned int grid_blocks(std::uint64_t segments) {
@@ -86,7 +62,7 @@ void OutlineSelection::select(grid::Code first, std::uint64_t count, int level, 
     cuts.push_back(segments);
   }
   const std::size_t at = out->size();
-  if (out->capacity() < at + total) out->reserve(at + total);
+  grow_outline_cells(out, at + total, host_threads(0));
   out->resize(at + total);
   OutlineCell* to = out->data() + at;
   try {
@@ -120,7 +96,7 @@ OutlineCell* OutlineSelection::copy_to_host(std::uint64_t cells, OutlineCell* to
   for (std::uint64_t done = 0; done < cells; done += staged) {
     const std::uint64_t n = std::min(staged, cells - done);
     QTMV_CUDA_CHECK(cudaMemcpy(host, cells_.get() + done, n * sizeof(OutlineCell), cudaMemcpyDeviceToHost));
-    parallel_copy(to + done, host, n * sizeof(OutlineCell));
+    qtmv::parallel_copy(to + done, host, n * sizeof(OutlineCell), host_threads(0));
   }
   return to + cells;
 }

@@ -153,7 +153,8 @@ struct HostTile {
 void reserve_for_rest(OutlineCells* outline, std::uint64_t cells_done, std::uint64_t cells_left) {
   if (cells_left == 0 || cells_done == 0 || outline->capacity() >= outline->size() * 2) return;
   const double rate = static_cast<double>(outline->size()) / static_cast<double>(cells_done);
-  outline->reserve(outline->size() + static_cast<std::size_t>(rate * 1.1 * static_cast<double>(cells_left)));
+  grow_outline_cells(outline, outline->size() + static_cast<std::size_t>(rate * 1.1 * static_cast<double>(cells_left)),
+                     thread_count(0));
 }
 
 /// label_cells on a GPU: device tiles as large as its memory allows (smaller ones when an

@@ -264,15 +264,13 @@ TEST(PartitionedOutput, PartsRefuseWhatCannotBeCut) {
   refused(options, dir + "/p.gpkg", "no voronoi_edges layer");
   options.vector.layers = {"regions"};
   refused(options, dir + "/p.fgb", "a part is a GeoPackage");
-  VoronoiOptions raster = options;
-  raster.kind = OutputKind::automatic;
-  refused(raster, dir + "/p.tif", "raster output");
+  // (A raster destination is a raster part: raster_parts_test.cpp.)
   VoronoiOptions whole = options;
   whole.tile_count = whole.tile_index = 0;
   refused(whole, dir + "/w.gpkg", "give -tile K/N");
 }
 
-// The command line: -part needs -tile and takes no raster options; an index reads no source.
+// The command line: -part needs -tile; an index reads no source.
 TEST(PartitionedOutput, CommandLine) {
   const std::string dir = test::test_dir();
   const std::vector<std::string> csv = {"-oo", "X_POSSIBLE_NAMES=lon", "-oo", "Y_POSSIBLE_NAMES=lat", "-level", "5"};
@@ -282,7 +280,6 @@ TEST(PartitionedOutput, CommandLine) {
   };
   const std::vector<Case> cases = {
       {{"-part", kCentres, dir + "/p.gpkg"}, "-part is for a tile job"},
-      {{"-tile", "1/2", "-part", "-ot", "Int32", kCentres, dir + "/p.gpkg"}, "raster parts are not written"},
       {{"-merge", dir, "-of", "VRT", kCentres, dir + "/p.vrt"}, "reads no source"},
   };
   for (const Case& c : cases) {

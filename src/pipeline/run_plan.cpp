@@ -203,6 +203,21 @@ void plan_raster(RunPlan& plan, const VoronoiOptions& options) {
   }
 }
 
+// An output its file system cannot hold fails now, not after the work (GDAL's GeoTIFF driver
+// checks the same, late, and only uncompressed files). (A database's free space is not the
+// destination's directory's.) A raster part's is its rows'.
+void check_destination_space(const std::string& destination, const RunPlan& plan, const VoronoiOptions& options) {
+  if (!options.check_disk_space || is_database_driver(plan.format.driver)) return;
+  try {
+    write::check_disk_space(destination,
+                            plan.format.raster ? write::estimate_raster_size(plan.level, plan.raster, plan.label.want_distance)
+                                               : write::estimate_vector_size(plan.level, plan.vector),
+                            plan.format.raster ? "raster" : "cells layer");
+  } catch (const write::WriteError& e) {
+    throw VoronoiError(e.what());
+  }
+}
+
 // Refuses the raster's options for vector output.
 void refuse_raster_options(const RunPlan& plan, const VoronoiOptions& options) {
   if (!options.raster.data_type.empty()) {
@@ -297,20 +312,7 @@ RunPlan plan_run(const std::string& destination, const VoronoiOptions& options) 
     plan_labeller(plan, options, plan.cells_layer);
   }
   check_run_memory(plan, options.memory_limit_bytes, 0);
-
-  // An output its file system cannot hold fails now, not after the work (GDAL's GeoTIFF driver
-  // checks the same, late, and only uncompressed files).
-  // (A database's free space is not the destination's directory's.)
-  if (options.check_disk_space && !is_database_driver(plan.format.driver)) {
-    try {
-      write::check_disk_space(destination,
-                              plan.format.raster ? write::estimate_raster_size(plan.level, plan.raster, plan.label.want_distance)
-                                                 : write::estimate_vector_size(plan.level, plan.vector),
-                              plan.format.raster ? "raster" : "cells layer");
-    } catch (const write::WriteError& e) {
-      throw VoronoiError(e.what());
-    }
-  }
+  check_destination_space(destination, plan, options);
   plan.read_end = kReadEnd;  // the label stage's end is set with the devices (settle_devices)
   return plan;
 }
@@ -395,6 +397,7 @@ RunPlan plan_tile_job(const std::string& destination, const VoronoiOptions& opti
     plan.tile_count = options.tile_count;
     plan_raster_part(plan, options);
     check_run_memory(plan, options.memory_limit_bytes, 0);
+    check_destination_space(destination, plan, options);
     plan.read_end = kReadEnd;
     return plan;
   }

@@ -57,8 +57,8 @@ check_raster_parts() {  # name level tiles source [reading options...] -- [raste
   FORM=parts examples/tiles_gnu_parallel.sh "$level" "$tiles" "$source" "$work/$name.vrt" -device cpu "${reading[@]}" \
     -- "$@"
   [ "$(find "$work/${name}_parts" -name '*.tif' | wc -l)" -eq "$tiles" ]
-  gdal_translate -q -of ENVI "$work/$name-whole.tif" "$work/$name-whole.bin"
-  gdal_translate -q -of ENVI "$work/$name.vrt" "$work/$name-index.bin"
+  gdal_translate -q -of ENVI -co INTERLEAVE=BSQ "$work/$name-whole.tif" "$work/$name-whole.bin"
+  gdal_translate -q -of ENVI -co INTERLEAVE=BSQ "$work/$name.vrt" "$work/$name-index.bin"
   cmp "$work/$name-whole.bin" "$work/$name-index.bin"
   echo "$name: level $level, $tiles raster parts and their index = whole raster"
 }

@@ -13,6 +13,7 @@
 
 #include <gdal_priv.h>
 
+#include "parts_test_support.hpp"
 #include "qtmvoronoi_test_support.hpp"
 #include "voronoi.hpp"
 #include "write/raster_bands.hpp"
@@ -21,6 +22,8 @@ namespace qtmv {
 namespace {
 
 namespace fs = std::filesystem;
+using test::expect_index_refused;
+using test::run_index;
 
 const std::string kCentres = std::string(QTMV_TESTDATA_DIR) + "/country_centres.csv";
 
@@ -38,23 +41,9 @@ VoronoiOptions raster_options(int level, write::RasterGrid::Layout layout, const
   return o;
 }
 
-/// Tile jobs k = 1..n (those of `which`, all when empty) writing raster parts dir/k.tif.
-void run_parts(VoronoiOptions options, int n, const std::string& dir, const std::vector<int>& which = {}) {
-  fs::create_directories(dir);
-  options.part = true;
-  options.tile_count = n;
-  for (int k = 1; k <= n; ++k) {
-    if (!which.empty() && std::find(which.begin(), which.end(), k) == which.end()) continue;
-    options.tile_index = k;
-    run_voronoi(kCentres, dir + "/" + std::to_string(k) + ".tif", options);
-  }
-}
-
-void run_index(const std::vector<std::string>& parts, const std::string& index) {
-  VoronoiOptions options;
-  options.merge = parts;
-  options.format = "VRT";
-  run_voronoi("", index, options);
+/// Tile jobs k = 1..n (those of `which`, all when empty) writing parts dir/k.tif.
+void run_parts(const VoronoiOptions& options, int n, const std::string& dir, const std::vector<int>& which = {}) {
+  test::run_parts(kCentres, options, n, dir, "tif", which);
 }
 
 /// Every band's pixels of `path`, in its own data type's bytes, band after band.
@@ -148,19 +137,6 @@ TEST(RasterParts, IndexEqualsTheWholeRasterPixelForPixel) {
     const VoronoiOptions options = raster_options(5, set.layout, set.bands, set.type);
     for (const int n : {1, 2, 3, 7}) expect_index_is_whole(options, n, dir + "/" + set.name);
   }
-}
-
-/// Runs the index of `parts` and expects it refused with every one of `says` in its message,
-/// leaving nothing at `index`.
-void expect_index_refused(const std::vector<std::string>& parts, const std::vector<std::string>& says,
-                          const std::string& index) {
-  try {
-    run_index(parts, index);
-    ADD_FAILURE() << "accepted: " << says.front();
-  } catch (const VoronoiError& e) {
-    for (const std::string& s : says) EXPECT_NE(std::string(e.what()).find(s), std::string::npos) << e.what();
-  }
-  EXPECT_FALSE(fs::exists(index));
 }
 
 TEST(RasterParts, BadPartSetsAreRefusedNamingTheFile) {

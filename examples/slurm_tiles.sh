@@ -5,8 +5,10 @@
 #   one-file (the default): the tasks write tile products and the merge writes the output, the
 #     same as one run's;
 #   parts: each task writes its part of the output into TILE_DIR (-tile K/N -part: a GeoPackage,
-#     regions cut at the tile's edges), so that the nodes write at once; the merge job writes only
-#     their index (-merge -of VRT), DESTINATION (a .vrt), which reads them as one data set.
+#     regions cut at the tile's edges; with a raster option among the OUTPUT OPTIONS (-raster,
+#     -tr, -ts, -bands, -ot, -co) a GeoTIFF, a band of the raster's rows), so that the nodes write
+#     at once; the merge job writes only their index (-merge -of VRT), DESTINATION (a .vrt), which
+#     reads them as one data set.
 #
 #   slurm_tiles.sh LEVEL TILES SOURCE DESTINATION TILE_DIR [READING OPTIONS...] [-- OUTPUT OPTIONS...]
 #
@@ -30,7 +32,7 @@
 set -euo pipefail
 
 if [ $# -lt 5 ]; then
-  sed -n '12,18p' "$0" >&2
+  sed -n '13,19p' "$0" >&2
   exit 2
 fi
 form=${FORM:-one-file}
@@ -50,7 +52,11 @@ quoted_reading="" quoted_output=""
 # Each task labels tile $SLURM_ARRAY_TASK_ID of $tiles; --parsable gives the array's job id. A
 # part takes the output options; a tile product none.
 if [ "$form" = parts ]; then
-  task_output=" -part$quoted_output" product='$SLURM_ARRAY_TASK_ID.gpkg'
+  part=gpkg
+  for o in ${output[@]+"${output[@]}"}; do
+    case $o in -raster | -tr | -ts | -bands | -ot | -co) part=tif ;; esac  # a raster's parts: GeoTIFFs
+  done
+  task_output=" -part$quoted_output" product="\$SLURM_ARRAY_TASK_ID.$part"
 else
   task_output="" product='$SLURM_ARRAY_TASK_ID.qtmt'
 fi

@@ -4,8 +4,9 @@
 #   one-file (the default): the tile jobs write tile products, then one merge writes the output,
 #     the same as one run's;
 #   parts: each tile job writes its part of the output (-tile K/N -part: a GeoPackage, regions cut
-#     at the tile's edges), then the index of the parts (-merge -of VRT) makes them one data set;
-#     DESTINATION is the index (a .vrt).
+#     at the tile's edges; with a raster option among the OUTPUT OPTIONS (-raster, -tr, -ts,
+#     -bands, -ot, -co) a GeoTIFF, a band of the raster's rows), then the index of the parts
+#     (-merge -of VRT) makes them one data set; DESTINATION is the index (a .vrt).
 #
 #   tiles_gnu_parallel.sh LEVEL TILES SOURCE DESTINATION [READING OPTIONS...] [-- OUTPUT OPTIONS...]
 #
@@ -21,10 +22,12 @@
 #   JOBS=2 examples/tiles_gnu_parallel.sh 12 8 sites.gpkg voronoi.gpkg -l sites -- -layers regions
 # The same as 8 parts and their index voronoi.vrt (the parts in voronoi_parts/)
 #   FORM=parts JOBS=2 examples/tiles_gnu_parallel.sh 12 8 sites.gpkg voronoi.vrt -l sites -- -layers regions
+# A lon/lat raster in 8 parts (GeoTIFFs) and their index, which GDAL reads as the whole raster
+#   FORM=parts examples/tiles_gnu_parallel.sh 10 8 sites.gpkg voronoi.vrt -l sites -- -raster lonlat
 set -euo pipefail
 
 if [ $# -lt 4 ]; then
-  sed -n '11,18p' "$0" >&2
+  sed -n '11,19p' "$0" >&2
   exit 2
 fi
 level=$1 tiles=$2 source=$3 destination=$4
@@ -40,11 +43,16 @@ command -v parallel > /dev/null || { echo "$0: GNU parallel is missing (Debian: 
 if [ "${FORM:-one-file}" = parts ]; then
   part_dir=${TILE_DIR:-${destination%.vrt}_parts}
   mkdir -p "$part_dir"
-  index=()
-  for o in ${output[@]+"${output[@]}"}; do [ "$o" = -overwrite ] && index+=(-overwrite); done
+  index=() part=gpkg
+  for o in ${output[@]+"${output[@]}"}; do
+    case $o in
+      -overwrite) index+=(-overwrite) ;;
+      -raster | -tr | -ts | -bands | -ot | -co) part=tif ;;  # a raster's parts: GeoTIFFs
+    esac
+  done
   parallel --will-cite --quote --halt now,fail=1 ${JOBS:+-j "$JOBS"} \
     "$tool" -q -overwrite -level "$level" -tile {}/"$tiles" -part "${reading[@]}" ${output[@]+"${output[@]}"} \
-    "$source" "$part_dir"/{}.gpkg ::: $(seq "$tiles")
+    "$source" "$part_dir"/{}."$part" ::: $(seq "$tiles")
   exec "$tool" ${index[@]+"${index[@]}"} -merge "$part_dir" -of VRT "$destination"
 fi
 [ "${FORM:-one-file}" = one-file ] || { echo "$0: FORM is one-file or parts, not '$FORM'" >&2; exit 2; }

@@ -17,6 +17,8 @@
 #include "pipeline/run_plan.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/stages.hpp"
+#include "write/raster_bands.hpp"
+#include "write/raster_writer.hpp"
 
 namespace qtmv {
 
@@ -38,9 +40,10 @@ VoronoiSummary run_part_index(const std::string& destination, const VoronoiOptio
   summary.total_seconds = summary.write_seconds = now_seconds() - t_start;
   std::string rows;
   for (const auto& [layer, count] : index.layers) rows += (rows.empty() ? "" : ", ") + layer + " " + std::to_string(count);
+  summary.raster = !index.raster.empty();
   tell(options.messages, Severity::info,
        "'" + destination + "': index of " + std::to_string(index.parts) + " parts of level " + std::to_string(index.level) +
-           " (rows: " + rows + ")");
+           (summary.raster ? " (raster: " + index.raster + ")" : " (rows: " + rows + ")"));
   return summary;
 }
 
@@ -54,6 +57,20 @@ std::vector<std::pair<std::string, std::string>> part_metadata(const pipeline::R
   part.count = plan.tile_count;
   part.source = source;
   part.source_fingerprint = pipeline::source_fingerprint(source, options.read);
+  if (plan.format.raster) {
+    // The bands as the writer will name them; the whole raster and the part's rows.
+    part.raster = true;
+    for (const write::RasterBand band : write::raster_bands(plan.raster, plan.label.want_distance)) {
+      part.layers.emplace_back(write::raster_band_description(band));
+    }
+    const write::RasterSize size = write::raster_size(plan.level, plan.raster);
+    part.layout = plan.raster.layout == write::RasterGrid::Layout::lonlat ? "lonlat" : "qtm";
+    part.width = size.width;
+    part.height = size.height;
+    part.first_row = plan.raster.first_row;
+    part.end_row = plan.raster.first_row + plan.raster.part_rows;
+    return pipeline::part_metadata(part);
+  }
   for (const std::string& layer : plan.vector.layers) {
     if (std::find(part.layers.begin(), part.layers.end(), layer) == part.layers.end()) part.layers.push_back(layer);
   }
@@ -157,6 +174,7 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
     pipeline::write_tile_stage(output.begin(), destination, labels, sites, options, plan);
   } else {
     if (plan.vector.part) plan.vector.metadata = part_metadata(plan, source, options);
+    if (plan.part && plan.format.raster) plan.raster.metadata = part_metadata(plan, source, options);
     strip_label_seconds = pipeline::write_stage(output.begin(), destination, labels, sites, plan, progress,
                                                 options.messages, &summary.sites_without_cell);
   }

@@ -245,11 +245,13 @@ void bind_tile_options(py::class_<VoronoiOptions>& c) {
        },
        "-tile K/N as (K, N): a tile job, labelling tile K of N and writing its tile product (.qtmt); None: a whole run")
       .def_readwrite("part", &VoronoiOptions::part,
-                     "-part: with tile, the tile job writes its part of the vector output (a GeoPackage: regions "
-                     "cut at the tile's edges) instead of a tile product")
+                     "-part: with tile, the tile job writes its part of the output instead of a tile product: of "
+                     "vector output a GeoPackage (regions cut at the tile's edges), of a raster a band of its rows "
+                     "(a GeoTIFF, say; every site is read)")
       .def_readwrite("merge", &VoronoiOptions::merge,
                      "-merge: tile products (files, or directories of .qtmt files) joined instead of labelling; "
-                     "with format 'VRT', parts (directories of .gpkg files) indexed");
+                     "with format 'VRT', parts (directories of .gpkg or .tif files) indexed: an OGR VRT over "
+                     "vector parts, a GDAL VRT mosaic over raster parts");
 }
 
 py::dict summary_dict(const VoronoiSummary& s) {

@@ -169,6 +169,76 @@ void plan_labeller(RunPlan& plan, const VoronoiOptions& options, bool want_dista
   label_options.memory_limit_bytes = tile_limit(options.memory_limit_bytes, options.device, plan.cuda_devices);
 }
 
+// A raster destination's plan (a whole run's or a part's): its grid, bands and type checked as the
+// writer will, the level from the pixels where -level is not given, the writer's strip.
+void plan_raster(RunPlan& plan, const VoronoiOptions& options) {
+  static_cast<write::RasterGrid&>(plan.raster) = options.raster;
+  plan.raster.driver = plan.format.driver;
+  if (options.level == VoronoiOptions::kLevelFromOutput) plan.level_note = choose_pixel_level(plan);
+  if (!options.vector.dataset_options.empty() || !options.vector.layer_options.empty()) {
+    throw VoronoiError("-dsco and -lco are for vector output; " + plan.format.driver + " output is a raster: use -co");
+  }
+  if (options.read.layers.size() > 1) {
+    throw VoronoiError("-l names " + std::to_string(options.read.layers.size()) +
+                       " layers: a raster's FID band cannot tell their sites apart; write vector output, whose "
+                       "rows name each site's layer");
+  }
+  if (options.vector.ring_vertices != write::VectorLayers::Vertices::automatic) {
+    throw VoronoiError("-vertices is for the regions of vector output; " + plan.format.driver + " output is a raster");
+  }
+  if (options.algorithm == label::Algorithm::brute) {
+    throw VoronoiError("-algorithm brute is for vector output; " + plan.format.driver +
+                       " output is a raster, labelled strip by strip from the pruned tree (the same labels)");
+  }
+  try {
+    write::raster_size(plan.level, plan.raster);  // -tr, -ts and -raster checked as the writer will
+    write::check_raster_data_type(plan.raster.data_type);
+    write::raster_bands(plan.raster, true);  // each band once
+  } catch (const write::WriteError& e) {
+    throw VoronoiError(e.what());
+  }
+  // The writer's strip follows the memory the run may use.
+  if (options.memory_limit_bytes != 0) {
+    plan.raster.strip_bytes = std::min<std::uint64_t>(write::kDefaultStripBytes, options.memory_limit_bytes / 4);
+  }
+}
+
+// An output its file system cannot hold fails now, not after the work (GDAL's GeoTIFF driver
+// checks the same, late, and only uncompressed files). (A database's free space is not the
+// destination's directory's.) A raster part's is its rows'.
+void check_destination_space(const std::string& destination, const RunPlan& plan, const VoronoiOptions& options) {
+  if (!options.check_disk_space || is_database_driver(plan.format.driver)) return;
+  try {
+    write::check_disk_space(destination,
+                            plan.format.raster ? write::estimate_raster_size(plan.level, plan.raster, plan.label.want_distance)
+                                               : write::estimate_vector_size(plan.level, plan.vector),
+                            plan.format.raster ? "raster" : "cells layer");
+  } catch (const write::WriteError& e) {
+    throw VoronoiError(e.what());
+  }
+}
+
+// Refuses the raster's options for vector output.
+void refuse_raster_options(const RunPlan& plan, const VoronoiOptions& options) {
+  if (!options.raster.data_type.empty()) {
+    throw VoronoiError("-ot is for raster output; " + plan.format.driver + " output is vector");
+  }
+  if (!options.raster.creation_options.empty()) {
+    throw VoronoiError("-co is for raster output; " + plan.format.driver + " output is vector: use -lco or -dsco");
+  }
+  if (!options.raster.bands.empty()) {
+    throw VoronoiError("-bands is for raster output; " + plan.format.driver + " output is vector: use -layers");
+  }
+}
+
+// A raster's labels: only those of its bands (no distances without the distance band, no
+// boundary flags without the boundary band).
+void plan_raster_labels(RunPlan& plan, const VoronoiOptions& options) {
+  const auto has = [&](write::RasterBand band) { return plan.raster.bands.empty() || write::has_band(plan.raster.bands, band); };
+  plan_labeller(plan, options, has(write::RasterBand::distance));
+  plan.label.want_boundary = has(write::RasterBand::boundary);
+}
+
 }  // namespace
 
 std::uint64_t estimate_run_memory(const RunPlan& plan, std::uint64_t sites) {
@@ -228,91 +298,85 @@ RunPlan plan_run(const std::string& destination, const VoronoiOptions& options) 
     plan.merge_files = tile_product_files(options.merge);
   }
   static_cast<write::VectorLayers&>(plan.vector) = options.vector;
-  static_cast<write::RasterGrid&>(plan.raster) = options.raster;
-  plan.vector.driver = plan.raster.driver = plan.format.driver;
-  if (plan.format.raster && options.level == VoronoiOptions::kLevelFromOutput) {
-    plan.level_note = choose_pixel_level(plan);
-  }
+  plan.vector.driver = plan.format.driver;
   if (plan.format.raster) {
-    if (!options.vector.dataset_options.empty() || !options.vector.layer_options.empty()) {
-      throw VoronoiError("-dsco and -lco are for vector output; " + plan.format.driver + " output is a raster: use -co");
-    }
-    if (options.read.layers.size() > 1) {
-      throw VoronoiError("-l names " + std::to_string(options.read.layers.size()) +
-                         " layers: a raster's FID band cannot tell their sites apart; write vector output, whose "
-                         "rows name each site's layer");
-    }
-    if (options.vector.ring_vertices != write::VectorLayers::Vertices::automatic) {
-      throw VoronoiError("-vertices is for the regions of vector output; " + plan.format.driver + " output is a raster");
-    }
-    if (options.algorithm == label::Algorithm::brute) {
-      throw VoronoiError("-algorithm brute is for vector output; " + plan.format.driver +
-                         " output is a raster, labelled strip by strip from the pruned tree (the same labels)");
-    }
-    try {
-      write::raster_size(plan.level, plan.raster);  // -tr, -ts and -raster checked as the writer will
-      write::check_raster_data_type(plan.raster.data_type);
-      write::raster_bands(plan.raster, true);  // each band once
-    } catch (const write::WriteError& e) {
-      throw VoronoiError(e.what());
-    }
-    // The writer's strip follows the memory the run may use.
-    if (options.memory_limit_bytes != 0) {
-      plan.raster.strip_bytes = std::min<std::uint64_t>(write::kDefaultStripBytes, options.memory_limit_bytes / 4);
-    }
+    plan_raster(plan, options);
   } else {
-    if (!options.raster.data_type.empty()) {
-      throw VoronoiError("-ot is for raster output; " + plan.format.driver + " output is vector");
-    }
-    if (!options.raster.creation_options.empty()) {
-      throw VoronoiError("-co is for raster output; " + plan.format.driver + " output is vector: use -lco or -dsco");
-    }
+    refuse_raster_options(plan, options);
     check_vector_destination(destination, plan);
   }
 
-  // A raster's labels: only those of its bands (no distances without the distance band).
-  const bool raster_distance = plan.format.raster && (plan.raster.bands.empty() ||
-                                                      write::has_band(plan.raster.bands, write::RasterBand::distance));
-  plan_labeller(plan, options, raster_distance || plan.cells_layer);
   if (plan.format.raster) {
-    plan.label.want_boundary = plan.raster.bands.empty() || write::has_band(plan.raster.bands, write::RasterBand::boundary);
+    plan_raster_labels(plan, options);
+  } else {
+    plan_labeller(plan, options, plan.cells_layer);
   }
   check_run_memory(plan, options.memory_limit_bytes, 0);
-
-  // An output its file system cannot hold fails now, not after the work (GDAL's GeoTIFF driver
-  // checks the same, late, and only uncompressed files).
-  // (A database's free space is not the destination's directory's.)
-  if (options.check_disk_space && !is_database_driver(plan.format.driver)) {
-    try {
-      write::check_disk_space(destination,
-                              plan.format.raster ? write::estimate_raster_size(plan.level, plan.raster, plan.label.want_distance)
-                                                 : write::estimate_vector_size(plan.level, plan.vector),
-                              plan.format.raster ? "raster" : "cells layer");
-    } catch (const write::WriteError& e) {
-      throw VoronoiError(e.what());
-    }
-  }
+  check_destination_space(destination, plan, options);
   plan.read_end = kReadEnd;  // the label stage's end is set with the devices (settle_devices)
   return plan;
 }
 
 namespace {
 
-// A part's destination (-tile K/N -part): vector output in a GeoPackage, whose metadata keeps the
-// part's identity for the index (part_index.hpp); layers that can be cut at a tile's edges.
-void plan_part_destination(const std::string& destination, const VoronoiOptions& options, RunPlan& plan) {
-  plan.format = choose_output_format(destination, options.format, options.kind);
-  if (plan.format.raster) {
-    throw VoronoiError("-part: '" + destination + "' is " + plan.format.driver + " raster output; parts are vector " +
-                       "output (regions, boundary_cells, cells): a raster is written by a whole run");
+// A raster part's rows (pixels, from the top) of the whole raster: for the lon/lat grid, rows
+// [floor((K-1) H / N), floor(K H / N)) of its H; for the QTM-coded raster, the rows of the tile's
+// cells (grid::tile_range: whole octant rows, each one pixel row), as the vector parts' tiles.
+void plan_raster_part_rows(RunPlan& plan, const VoronoiOptions& options) {
+  write::RasterSize size;
+  try {
+    size = write::raster_size(plan.level, plan.raster);
+  } catch (const write::WriteError& e) {
+    throw VoronoiError(e.what());
   }
+  const std::int64_t k = options.tile_index, n = options.tile_count, height = size.height;
+  if (plan.raster.layout == write::RasterGrid::Layout::lonlat) {
+    if (n > height) {
+      throw VoronoiError("-tile " + std::to_string(k) + "/" + std::to_string(n) + ": the raster has " +
+                         std::to_string(height) + " rows, fewer than the " + std::to_string(n) +
+                         " tiles: choose at most " + std::to_string(height) + " tiles, or more rows (-ts, -tr)");
+    }
+    plan.raster.first_row = static_cast<int>((k - 1) * height / n);
+    plan.raster.part_rows = static_cast<int>(k * height / n) - plan.raster.first_row;
+    return;
+  }
+  grid::CodeRange range;
+  try {
+    range = grid::tile_range(plan.level, options.tile_index, options.tile_count);
+  } catch (const std::invalid_argument& e) {
+    throw VoronoiError(std::string("-tile: ") + e.what());
+  }
+  const auto pixel_row = [&](grid::Code code) {
+    if (code == grid::cell_count(plan.level)) return height;
+    const grid::Cell cell = grid::cell_of(code, plan.level);
+    return static_cast<std::int64_t>(cell.octant) * static_cast<std::int64_t>(grid::rows_per_octant(plan.level)) + cell.row;
+  };
+  plan.raster.first_row = static_cast<int>(pixel_row(range.first));
+  plan.raster.part_rows = static_cast<int>(pixel_row(range.end)) - plan.raster.first_row;
+}
+
+// A raster part's plan (-tile K/N -part with a raster destination): the whole run's raster plan
+// and labels, and the part's rows; every site is read (the sites that can own a cell of a band
+// of pixel rows are no range of codes), so plan.label.range stays the whole level.
+void plan_raster_part(RunPlan& plan, const VoronoiOptions& options) {
+  plan_raster(plan, options);
+  plan_raster_labels(plan, options);
+  plan_raster_part_rows(plan, options);
+  plan.part = true;
+}
+
+// A part's destination (-tile K/N -part): vector output in a GeoPackage, whose metadata keeps the
+// part's identity for the index (part_index.hpp); layers that can be cut at a tile's edges. (A
+// raster destination is planned by plan_raster_part.)
+void plan_part_destination(const std::string& destination, const VoronoiOptions& options, RunPlan& plan) {
   if (plan.format.driver != "GPKG") {
     throw VoronoiError("-part: a part is a GeoPackage (-of GPKG, or a .gpkg name), not " + plan.format.driver +
                        ": its metadata keeps the level, tile and source that the index of the parts checks");
   }
   static_cast<write::VectorLayers&>(plan.vector) = options.vector;
   plan.vector.driver = plan.format.driver;
-  plan.vector.part = true;
+  refuse_raster_options(plan, options);
+  plan.vector.part = plan.part = true;
   if (std::find(plan.vector.layers.begin(), plan.vector.layers.end(), "voronoi_edges") != plan.vector.layers.end()) {
     throw VoronoiError("-part: a part holds no voronoi_edges layer (an edge's line and its length belong to the "
                        "whole level, not to one tile): choose from regions, boundary_cells, cells, or write the "
@@ -327,6 +391,16 @@ RunPlan plan_tile_job(const std::string& destination, const VoronoiOptions& opti
   RunPlan plan = plan_level(options);
   if (!options.merge.empty()) throw VoronoiError("-tile and -merge: a run labels one tile, or merges all of them");
   if (destination.empty()) throw VoronoiError("-tile: no file named for the tile product");
+  if (options.part) plan.format = choose_output_format(destination, options.format, options.kind);
+  if (options.part && plan.format.raster) {
+    plan.tile_index = options.tile_index;
+    plan.tile_count = options.tile_count;
+    plan_raster_part(plan, options);
+    check_run_memory(plan, options.memory_limit_bytes, 0);
+    check_destination_space(destination, plan, options);
+    plan.read_end = kReadEnd;
+    return plan;
+  }
   if (options.part) {
     plan_part_destination(destination, options, plan);
   } else if (!EQUAL(CPLGetExtension(destination.c_str()), kTileProductExtension + 1)) {  // ".qtmt" without its dot
@@ -336,7 +410,8 @@ RunPlan plan_tile_job(const std::string& destination, const VoronoiOptions& opti
   }
   if (!options.raster.bands.empty()) {
     // As the tool refuses every output option of a tile job; -merge writes vector output only.
-    throw VoronoiError("-bands: a tile job writes a tile product, not a raster; a raster is written by a whole run");
+    throw VoronoiError("-bands: a tile job writes a tile product, not a raster; a raster is written by a whole run, or "
+                       "in parts by tile jobs with -part");
   }
   plan.tile_index = options.tile_index;
   plan.tile_count = options.tile_count;
@@ -379,7 +454,8 @@ label::AutoDevice estimate_auto_device(const RunPlan& plan, std::uint64_t sites,
   if (plan.format.raster) {
     try {
       const write::RasterSize size = write::raster_size(plan.level, plan.raster);
-      work.every_cell = static_cast<std::uint64_t>(size.width) * static_cast<std::uint64_t>(size.height);
+      const int rows = plan.raster.part_rows ? plan.raster.part_rows : size.height;  // a part's rows only
+      work.every_cell = static_cast<std::uint64_t>(size.width) * static_cast<std::uint64_t>(rows);
     } catch (const write::WriteError&) {
       // bad sizes are reported by plan_run
     }
@@ -404,7 +480,7 @@ void settle_devices(RunPlan& plan, const VoronoiOptions& options, int cuda_devic
   const DeviceSpec device = parse_device_spec(plan.label.device);
   plan.vector.geodesic_device =
       labels_on_cpu(plan.label.device, cuda_devices) ? -1 : device.all ? 0 : cuda_ordinal(device.index);
-  if (plan.tile_count == 0 || plan.vector.part) set_stage_ends(plan);
+  if (plan.tile_count == 0 || plan.part) set_stage_ends(plan);
 }
 
 }  // namespace qtmv::pipeline

@@ -29,6 +29,10 @@ struct RunPlan {
   bool cells_layer = false;  ///< vector output with the cells layer: every cell's labels, in tiles
   /// A tile job's tile (-tile K/N), its range in label.range; 0: a whole run or a merge.
   int tile_index = 0, tile_count = 0;
+  /// A tile job that writes its part of the output (-part): vector (vector.part: its tile's
+  /// rows) or a raster (raster.first_row, part_rows: a band of pixel rows; label.range is then
+  /// the whole level, every site read).
+  bool part = false;
   /// A merge's tile product files (tile_product_files of -merge); empty: the run labels.
   std::vector<std::string> merge_files;
   /// Ends of the read and label stages' slices of the run's progress (fractions 0..1); the label

@@ -330,8 +330,8 @@ MissingTiles missing_tiles(int count, const std::function<bool(int)>& present) {
   return out;
 }
 
-std::vector<std::string> merge_input_files(const std::vector<std::string>& paths, const std::string& extension,
-                                           const std::string& none_found) {
+std::vector<std::string> merge_input_files(const std::vector<std::string>& paths,
+                                           const std::vector<std::string>& extensions, const std::string& none_found) {
   std::vector<std::string> files;
   for (const std::string& path : paths) {
     VSIStatBufL stat;
@@ -345,8 +345,12 @@ std::vector<std::string> merge_input_files(const std::vector<std::string>& paths
     std::vector<std::string> found;
     for (char** n = names; n && *n; ++n) {
       const std::string name = *n;
-      if (name.size() > extension.size() && name.compare(name.size() - extension.size(), extension.size(), extension) == 0) {
-        found.push_back(CPLFormFilename(path.c_str(), name.c_str(), nullptr));
+      for (const std::string& extension : extensions) {
+        if (name.size() > extension.size() &&
+            name.compare(name.size() - extension.size(), extension.size(), extension) == 0) {
+          found.push_back(CPLFormFilename(path.c_str(), name.c_str(), nullptr));
+          break;
+        }
       }
     }
     CSLDestroy(names);
@@ -426,7 +430,7 @@ class WholeSites {
 }  // namespace
 
 std::vector<std::string> tile_product_files(const std::vector<std::string>& paths) {
-  return merge_input_files(paths, kTileProductExtension,
+  return merge_input_files(paths, {kTileProductExtension},
                            std::string("a directory without ") + kTileProductExtension + " files");
 }
 

@@ -95,11 +95,11 @@ struct MissingTiles {
 MissingTiles missing_tiles(int count, const std::function<bool(int)>& present);
 
 /// The files that `paths` name for a merge: each a file, or a directory whose files named
-/// *`extension` are taken (in name order). Throws VoronoiError for a path that is neither, a file
-/// that is not a regular one (a FIFO would block the merge for ever), or a directory without
-/// any (`none_found` says what is missing).
-std::vector<std::string> merge_input_files(const std::vector<std::string>& paths, const std::string& extension,
-                                           const std::string& none_found);
+/// *`extension` (one of `extensions`) are taken (in name order). Throws VoronoiError for a path
+/// that is neither, a file that is not a regular one (a FIFO would block the merge for ever), or
+/// a directory without any (`none_found` says what is missing).
+std::vector<std::string> merge_input_files(const std::vector<std::string>& paths,
+                                           const std::vector<std::string>& extensions, const std::string& none_found);
 
 /// The files that `paths` name: each a tile product, or a directory whose *.qtmt files are taken
 /// (in name order). Throws VoronoiError for a path that is neither, or a directory without any.

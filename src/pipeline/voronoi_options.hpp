@@ -57,14 +57,16 @@ struct VoronoiOptions {
   /// -part, with -tile K/N: the tile job writes its part of the vector output instead of a tile
   /// product: a GeoPackage with the layers' rows of its tile (regions cut at the tile's edges,
   /// rows only for the sites with cells in it; boundary_cells and cells, per cell, exactly the
-  /// whole run's rows of the tile); not voronoi_edges, not a raster. -merge of the parts with
-  /// format "VRT" (or a .vrt destination) writes their index (pipeline/part_index.hpp).
+  /// whole run's rows of the tile); not voronoi_edges. With a raster destination, a raster part:
+  /// a band of the whole raster's rows (pipeline/raster_part_index.hpp), every site read. -merge
+  /// of the parts with format "VRT" (or a .vrt destination) writes their index
+  /// (pipeline/part_index.hpp).
   bool part = false;
   /// -merge: the tile products of all tile_count tile jobs (files, or directories of *.qtmt
   /// files), joined instead of labelling. The source and reading options must be the tile jobs';
   /// the destination is then exactly a whole run's. Vector output only. With format "VRT" (or a
-  /// .vrt destination): the parts of -tile K/N -part jobs (files, or directories of *.gpkg
-  /// files), indexed by an OGR VRT; the source is not read.
+  /// .vrt destination): the parts of -tile K/N -part jobs (files, or directories of *.gpkg and
+  /// *.tif files), indexed by an OGR VRT (a GDAL VRT for raster parts); the source is not read.
   std::vector<std::string> merge;
   ProgressFunc progress;   ///< may be empty
   MessageSink messages;    ///< warnings, informative lines and the closing summary; may be empty

@@ -164,6 +164,14 @@ struct RasterOptions : RasterGrid {
   /// Bytes the writer's buffers for one strip of rows may take (its pixels and their labels);
   /// 0: kDefaultStripBytes. At least one row is written at a time, whatever this says.
   std::uint64_t strip_bytes = 0;
+  /// A part of the raster (a tile job's, -tile K/N -part): only its rows [first_row, first_row +
+  /// part_rows) (pixels, from the top) are written, as a raster of part_rows rows whose
+  /// geotransform starts at its first row; the pixels are those rows of the whole raster.
+  /// part_rows 0: the whole raster.
+  int first_row = 0, part_rows = 0;
+  /// Items of the dataset's metadata (NAME, VALUE), set with its own: a part's identity, which
+  /// the index of the parts checks. Empty for a whole run.
+  std::vector<std::pair<std::string, std::string>> metadata;
 };
 
 }  // namespace qtmv::write

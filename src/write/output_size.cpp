@@ -28,9 +28,10 @@ OutputSize estimate_raster_size(int level, const RasterOptions& options, bool wi
   const std::string type = options.data_type.empty() ? default_raster_data_type(band_list) : options.data_type;
   const GDALDataType gdal_type = GDALGetDataTypeByName(type.c_str());
   const std::uint64_t bytes_per_sample = static_cast<std::uint64_t>(GDALGetDataTypeSizeBytes(gdal_type));
+  const int rows = options.part_rows > 0 ? options.part_rows : size.height;  // a part's rows only
   OutputSize out;
-  out.bytes = static_cast<std::uint64_t>(size.width) * static_cast<std::uint64_t>(size.height) * bands * bytes_per_sample;
-  out.what = std::to_string(size.width) + " x " + std::to_string(size.height) + " pixels, " + std::to_string(bands) +
+  out.bytes = static_cast<std::uint64_t>(size.width) * static_cast<std::uint64_t>(rows) * bands * bytes_per_sample;
+  out.what = std::to_string(size.width) + " x " + std::to_string(rows) + " pixels, " + std::to_string(bands) +
              " bands of " + GDALGetDataTypeName(gdal_type);
   const bool sized = options.width > 0 || options.height > 0 || options.x_resolution > 0 || options.y_resolution > 0;
   out.smaller = options.layout == RasterOptions::Layout::lonlat && sized ? "fewer pixels (-tr, -ts)" : "a lower -level";

@@ -28,7 +28,8 @@ struct OutputSize {
   std::string smaller;      ///< how to make it smaller: "fewer pixels (-tr, -ts)"
 };
 
-/// The raster's size for these options (checked as raster_size does; throws WriteError).
+/// The raster's size for these options (checked as raster_size does; throws WriteError); a
+/// part's (RasterOptions::part_rows) is its rows'.
 OutputSize estimate_raster_size(int level, const RasterOptions& options, bool with_distance);
 
 /// The vector output's size: bytes of its cells layer (0 without one).

@@ -229,7 +229,8 @@ struct RasterJob {
   const RasterOptions& options;
   gdal::ErrorCapture& errors;
   int level;
-  RasterSize size;
+  RasterSize size;  ///< the whole raster's
+  int first_row, rows;  ///< the rows written: all, or a part's (RasterOptions::first_row)
   std::vector<RasterBand> bands;  ///< in the raster's order
   GDALDataType type;
   int type_bytes;
@@ -305,16 +306,16 @@ void create_dataset(const RasterJob& job, Output& out) {
   const RasterSize& size = job.size;
   const int bands = static_cast<int>(job.bands.size());
   const std::uint64_t total_bytes =
-      static_cast<std::uint64_t>(size.width) * static_cast<std::uint64_t>(size.height) * job.bands.size() * job.type_bytes;
+      static_cast<std::uint64_t>(size.width) * static_cast<std::uint64_t>(job.rows) * job.bands.size() * job.type_bytes;
   VSIStatBufL stat;
   out.existed = VSIStatL(job.path.c_str(), &stat) == 0;
   if (job.can_create) {
     out.created = !out.existed;  // what a failed Create leaves behind is ours, an older file is not
-    out.dataset = GDALCreate(job.driver, job.path.c_str(), size.width, size.height, bands, job.type, job.co.List());
+    out.dataset = GDALCreate(job.driver, job.path.c_str(), size.width, job.rows, bands, job.type, job.co.List());
     if (out.dataset != nullptr) out.created = true;
     if (out.dataset == nullptr || job.errors.failed()) throw job.gdal_error("cannot create " + job.options.driver + " raster");
   } else if (total_bytes <= job.strip_budget || is_vsi(job.path)) {
-    out.dataset = GDALCreate(GDALGetDriverByName("MEM"), "", size.width, size.height, bands, job.type, nullptr);
+    out.dataset = GDALCreate(GDALGetDriverByName("MEM"), "", size.width, job.rows, bands, job.type, nullptr);
     if (out.dataset == nullptr || job.errors.failed()) throw job.gdal_error("cannot create the in-memory staging raster");
   } else {
     // Too large for memory: a compressed GeoTIFF beside the destination.
@@ -322,7 +323,7 @@ void create_dataset(const RasterJob& job, Output& out) {
     CPLStringList staging_co;
     for (const char* option : {"TILED=YES", "COMPRESS=DEFLATE", "ZLEVEL=1", "BIGTIFF=YES"}) staging_co.AddString(option);
     staging_co.SetNameValue("NUM_THREADS", std::to_string(thread_count(0)).c_str());
-    out.dataset = GDALCreate(GDALGetDriverByName("GTiff"), out.staging_path.c_str(), size.width, size.height, bands,
+    out.dataset = GDALCreate(GDALGetDriverByName("GTiff"), out.staging_path.c_str(), size.width, job.rows, bands,
                              job.type, staging_co.List());
     if (out.dataset == nullptr || job.errors.failed()) throw job.gdal_error("cannot create staging raster " + out.staging_path);
   }
@@ -345,9 +346,12 @@ void describe_dataset(const RasterJob& job, GDALDatasetH ds) {
     metadata.SetNameValue((prefix + "QTM_PIXEL").c_str(),
                           "column j, row octant * 2^QTM_LEVEL + i for cell (octant, i, j); nodata where j > 2i");
   }
+  for (const auto& [name, value] : job.options.metadata) metadata.SetNameValue((prefix + name).c_str(), value.c_str());
   check(GDALSetMetadata(ds, metadata.List(), nullptr), "setting the metadata (QTM_LEVEL, QTM_LAYOUT)");
   if (!qtm) {
-    double transform[6] = {-180.0, job.size.x_resolution, 0.0, 90.0, 0.0, -job.size.y_resolution};
+    // A part's first row is the whole raster's row first_row.
+    double transform[6] = {-180.0, job.size.x_resolution, 0.0, 90.0 - job.first_row * job.size.y_resolution, 0.0,
+                           -job.size.y_resolution};
     check(GDALSetGeoTransform(ds, transform), "setting the geotransform");
     OGRSpatialReferenceH srs = OSRNewSpatialReference(nullptr);
     OSRSetAxisMappingStrategy(srs, OAMS_TRADITIONAL_GIS_ORDER);
@@ -377,7 +381,7 @@ int rows_per_strip(const RasterJob& job, int block_h) {
   } else {
     while (block_h % strip != 0) --strip;
   }
-  return static_cast<int>(std::min<std::uint64_t>(strip, static_cast<std::uint64_t>(job.size.height)));
+  return static_cast<int>(std::min<std::uint64_t>(strip, static_cast<std::uint64_t>(job.rows)));
 }
 
 /// Fills strips on a helper thread, one strip ahead of the thread that writes them: strip n + 1's
@@ -462,7 +466,7 @@ void write_strip(const RasterJob& job, GDALDatasetH ds, int y0, int rows, int bl
       throw job.gdal_error(band_label(job, b) + ": writing rows " + std::to_string(y0) + "-" + std::to_string(y0 + rows - 1));
     }
   }
-  if ((y0 + rows) % block_h != 0 && y0 + rows != job.size.height) return;
+  if ((y0 + rows) % block_h != 0 && y0 + rows != job.rows) return;
   for (std::size_t b = 0; b < job.bands.size(); ++b) {
     const CPLErr err = GDALFlushRasterCache(GDALGetRasterBand(ds, static_cast<int>(b) + 1));
     if (err != CE_None || job.errors.failed()) {
@@ -472,7 +476,8 @@ void write_strip(const RasterJob& job, GDALDatasetH ds, int y0, int rows, int bl
 }
 
 /// Writes the pixels into `ds`, strip by strip, each filled while the one before is written;
-/// returns, per site id, 1 when some pixel holds it.
+/// returns, per site id, 1 when some pixel holds it. A part's strips are filled from its first
+/// row of the whole raster on.
 std::vector<std::uint8_t> write_strips(const RasterJob& job, GDALDatasetH ds, const CellLabelSource& labels,
                                        const std::vector<std::int64_t>& fid_of) {
   const RasterSize& size = job.size;
@@ -505,19 +510,20 @@ std::vector<std::uint8_t> write_strips(const RasterJob& job, GDALDatasetH ds, co
   int strips = 0;
   {
     StripsAhead ahead(filler);
-    ahead.ask(0, std::min(strip_rows, size.height), buffers[0].data());
-    for (int y0 = 0; y0 < size.height; y0 += strip_rows, ++strips) {
-      const int rows = std::min(strip_rows, size.height - y0);
+    const int height = job.rows, first = job.first_row;
+    ahead.ask(first, std::min(strip_rows, height), buffers[0].data());
+    for (int y0 = 0; y0 < height; y0 += strip_rows, ++strips) {
+      const int rows = std::min(strip_rows, height - y0);
       double t = now_seconds();
       ahead.wait();
       wait_seconds += now_seconds() - t;
       filler.check(job.path);
       const int next = y0 + strip_rows;
-      if (next < size.height) ahead.ask(next, std::min(strip_rows, size.height - next), buffers[(strips + 1) % 2].data());
+      if (next < height) ahead.ask(first + next, std::min(strip_rows, height - next), buffers[(strips + 1) % 2].data());
       t = now_seconds();
       write_strip(job, ds, y0, rows, block_h, buffers[strips % 2].data());
       io_seconds += now_seconds() - t;
-      if (options.progress && !options.progress(write_share * (y0 + rows) / size.height, kStage)) {
+      if (options.progress && !options.progress(write_share * (y0 + rows) / height, kStage)) {
         throw Interrupted();
       }
     }
@@ -593,12 +599,19 @@ RasterWritten write_raster(const std::string& path, const CellLabelSource& label
   std::vector<std::int64_t> fid_of(table.sites.size());
   for (std::size_t s = 0; s < table.sites.size(); ++s) fid_of[s] = table.sites[s].fid;
   const std::uint64_t strip_budget = options.strip_bytes ? options.strip_bytes : kDefaultStripBytes;
+  const bool part = options.part_rows > 0;
+  if (part && (options.first_row < 0 || options.part_rows > size.height - options.first_row)) {
+    throw WriteError(path + ": rows " + std::to_string(options.first_row) + ".." +
+                     std::to_string(options.first_row + options.part_rows - 1) + " are not rows of a raster of " +
+                     std::to_string(size.height));
+  }
+  const int first_row = part ? options.first_row : 0, rows = part ? options.part_rows : size.height;
 
   if (GDALGetDriverCount() == 0) GDALAllRegister();
   gdal::ErrorCapture errors(gdal::ErrorCapture::Warnings::pass_on);
   GDALDriverH driver = raster_driver(path, options, type);
   const bool can_create = GDALGetMetadataItem(driver, GDAL_DCAP_CREATE, nullptr) != nullptr;
-  const RasterJob job{path, options, errors, level, size, bands, type, type_bytes, nodata, strip_budget, driver, can_create,
+  const RasterJob job{path, options, errors, level, size, first_row, rows, bands, type, type_bytes, nodata, strip_budget, driver, can_create,
                       creation_options(options)};
 
   RasterWritten written;

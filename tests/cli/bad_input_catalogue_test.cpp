@@ -1111,7 +1111,8 @@ TEST(CatalogueOutput, DatabaseDestinationsNotWrittenAllOrNothingAreRefusedBefore
 }
 
 TEST(CatalogueOutput, PartsThatCannotBeCutOrIndexedAreRefused) {
-  // A part holds what can be cut at a tile's edge, in a GeoPackage; an index needs every part.
+  // A part holds what can be cut at a tile's edge, in a GeoPackage (or a band of a raster's rows);
+  // an index needs every part, all of one kind.
   const std::string dir = test_dir();
   const auto tile = [&](const std::vector<std::string>& extra, const std::string& dst) {
     return run(concat(concat(concat({"-q", "-level", "5", "-device", "cpu", "-tile", "1/2", "-part"}, extra), kCsvOptions),
@@ -1120,13 +1121,27 @@ TEST(CatalogueOutput, PartsThatCannotBeCutOrIndexedAreRefused) {
   expect_failure(tile({"-layers", "regions,voronoi_edges"}, dir + "/1.gpkg"), 1,
                  {"-part: a part holds no voronoi_edges layer"}, dir + "/1.gpkg");
   expect_failure(tile({}, dir + "/1.fgb"), 1, {"-part: a part is a GeoPackage", "not FlatGeobuf"}, dir + "/1.fgb");
-  expect_failure(tile({"-bands", "fid"}, dir + "/1.gpkg"), 2, {"-part: -bands is for a raster"}, dir + "/1.gpkg");
+  expect_failure(tile({"-bands", "fid"}, dir + "/1.gpkg"), 1, {"-bands is for raster output; GPKG output is vector"},
+                 dir + "/1.gpkg");
+  // A lon/lat raster part is a band of its rows: no more tiles than rows.
+  expect_failure(run(concat(concat({"-q", "-level", "5", "-device", "cpu", "-tile", "1/40", "-part", "-ts", "64", "32"},
+                                   kCsvOptions),
+                            {kCentres, dir + "/1.tif"})),
+                 1, {"-tile 1/40: the raster has 32 rows, fewer than the 40 tiles"}, dir + "/1.tif");
   const std::string parts = dir + "/parts";
   fs::create_directory(parts);
   ASSERT_EQ(tile({}, parts + "/1.gpkg").status, 0);
   const std::string index = dir + "/index.vrt";
   expect_failure(run({"-merge", parts, "-of", "VRT", index}), 1, {"-merge: 1 of the 2 parts missing (tile 2)"}, index);
   expect_failure(run({"-merge", parts, "-of", "VRT", kCentres, index}), 2, {"reads no source"}, index);
+  // Raster parts: an incomplete set; a set with a vector part.
+  const std::string rasters = dir + "/rasters";
+  fs::create_directory(rasters);
+  ASSERT_EQ(tile({"-raster", "lonlat"}, rasters + "/1.tif").status, 0);
+  expect_failure(run({"-merge", rasters, "-of", "VRT", index}), 1, {"-merge: 1 of the 2 parts missing (tile 2)"},
+                 index);
+  expect_failure(run({"-merge", rasters + "/1.tif", "-merge", parts + "/1.gpkg", index}), 1,
+                 {"a vector part, but '" + rasters + "/1.tif' is a raster part", "all raster or all vector"}, index);
 }
 
 TEST(CatalogueOptions, SitesSharingAFidAreRefusedForARaster) {
@@ -1187,7 +1202,9 @@ TEST(CatalogueOptions, BadBandsAreRefusedNamingTheArgument) {
   // A tile job writes no raster, and -merge writes vector output.
   const std::string product = dir + "/t.qtmt";
   expect_failure(run(concat(concat({"-tile", "1/4", "-bands", "fid"}, kCsvOptions), {kCentres, product})), 2,
-                 {"-bands is for a raster, which a whole run writes (-merge writes vector output)"}, product);
+                 {"-bands is for a raster, which a whole run writes, or tile jobs in parts with -part (-merge "
+                  "writes vector output)"},
+                 product);
   expect_failure(run_small(concat(concat({"-merge", dir, "-bands", "fid"}, kCsvOptions), {kCentres, gpkg})), 1,
                  {"-bands is for raster output; GPKG output is vector"}, gpkg);
   expect_failure(run_small(concat(concat({"-merge", dir, "-bands", "fid"}, kCsvOptions), {kCentres, dst})), 1,

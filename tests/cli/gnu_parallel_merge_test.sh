@@ -46,11 +46,29 @@ check_parts() {  # name level tiles source [reading options...]
   echo "$name: level $level, $tiles parts and their index = whole run (dissolved by site_fid)"
 }
 
+# A raster in parts: the index read through GDAL is the whole run's raster, pixel for pixel.
+check_raster_parts() {  # name level tiles source [reading options...] -- [raster options...]
+  local name=$1 level=$2 tiles=$3 source=$4
+  shift 4
+  local reading=()
+  while [ "$1" != -- ]; do reading+=("$1"); shift; done
+  shift
+  "$tool" -q -level "$level" -device cpu "${reading[@]}" "$@" "$source" "$work/$name-whole.tif"
+  FORM=parts examples/tiles_gnu_parallel.sh "$level" "$tiles" "$source" "$work/$name.vrt" -device cpu "${reading[@]}" \
+    -- "$@"
+  [ "$(find "$work/${name}_parts" -name '*.tif' | wc -l)" -eq "$tiles" ]
+  gdal_translate -q -of ENVI -co INTERLEAVE=BSQ "$work/$name-whole.tif" "$work/$name-whole.bin"
+  gdal_translate -q -of ENVI -co INTERLEAVE=BSQ "$work/$name.vrt" "$work/$name-index.bin"
+  cmp "$work/$name-whole.bin" "$work/$name-index.bin"
+  echo "$name: level $level, $tiles raster parts and their index = whole raster"
+}
+
 centres=(-oo X_POSSIBLE_NAMES=lon -oo Y_POSSIBLE_NAMES=lat -s_srs EPSG:4326)
 check points 9 8 "$data/country_centres.csv" "${centres[@]}" -where "lon > -100"
 check polygons 8 4 "$data/world_atlas_countries_110m.gpkg"
 check_parts points 8 6 "$data/country_centres.csv" "${centres[@]}"
 check_parts polygons 7 4 "$data/world_atlas_countries_110m.gpkg"
+check_raster_parts raster 7 5 "$data/country_centres.csv" "${centres[@]}" -- -q -raster lonlat
 
 # A tile job that fails (a bad -where) fails the whole script, and the merge never runs.
 if examples/tiles_gnu_parallel.sh 6 4 "$data/country_centres.csv" "$work/failed" "${centres[@]}" \

@@ -17,6 +17,7 @@
 
 #include <ogrsf_frmts.h>
 
+#include "parts_test_support.hpp"
 #include "qtmvoronoi_test_support.hpp"
 #include "voronoi.hpp"
 
@@ -24,6 +25,8 @@ namespace qtmv {
 namespace {
 
 namespace fs = std::filesystem;
+using test::expect_index_refused;
+using test::run_index;
 
 const std::string kTestdata = QTMV_TESTDATA_DIR;
 const std::string kCentres = kTestdata + "/country_centres.csv";
@@ -40,22 +43,8 @@ VoronoiOptions centres_options(int level, const std::vector<std::string>& layers
 }
 
 /// Tile jobs k = 1..n (those of `which`, all when empty) writing parts dir/k.gpkg.
-void run_parts(VoronoiOptions options, int n, const std::string& dir, const std::vector<int>& which = {}) {
-  fs::create_directories(dir);
-  options.part = true;
-  options.tile_count = n;
-  for (int k = 1; k <= n; ++k) {
-    if (!which.empty() && std::find(which.begin(), which.end(), k) == which.end()) continue;
-    options.tile_index = k;
-    run_voronoi(kCentres, dir + "/" + std::to_string(k) + ".gpkg", options);
-  }
-}
-
-VoronoiSummary run_index(const std::vector<std::string>& parts, const std::string& index) {
-  VoronoiOptions options;
-  options.merge = parts;
-  options.format = "VRT";
-  return run_voronoi("", index, options);
+void run_parts(const VoronoiOptions& options, int n, const std::string& dir, const std::vector<int>& which = {}) {
+  test::run_parts(kCentres, options, n, dir, "gpkg", which);
 }
 
 /// A region as read: its cells, area and geometry (several rows of one site: their sums and union).
@@ -179,19 +168,6 @@ TEST(PartitionedOutput, PartsDissolveIntoTheWholeRun) {
   expect_parts_are_the_whole_run(8, 5, {"regions"});
 }
 
-/// Runs the index of `parts` and expects it refused with every one of `says` in its message,
-/// leaving nothing at `index`.
-void expect_index_refused(const std::vector<std::string>& parts, const std::vector<std::string>& says,
-                          const std::string& index) {
-  try {
-    run_index(parts, index);
-    ADD_FAILURE() << "accepted: " << says.front();
-  } catch (const VoronoiError& e) {
-    for (const std::string& s : says) EXPECT_NE(std::string(e.what()).find(s), std::string::npos) << e.what();
-  }
-  EXPECT_FALSE(fs::exists(index));
-}
-
 TEST(PartitionedOutput, BadPartSetsAreRefusedNamingTheFile) {
   const std::string dir = test::test_dir();
   const VoronoiOptions options = centres_options(5, {"regions", "boundary_cells"});
@@ -264,15 +240,13 @@ TEST(PartitionedOutput, PartsRefuseWhatCannotBeCut) {
   refused(options, dir + "/p.gpkg", "no voronoi_edges layer");
   options.vector.layers = {"regions"};
   refused(options, dir + "/p.fgb", "a part is a GeoPackage");
-  VoronoiOptions raster = options;
-  raster.kind = OutputKind::automatic;
-  refused(raster, dir + "/p.tif", "raster output");
+  // (A raster destination is a raster part: raster_parts_test.cpp.)
   VoronoiOptions whole = options;
   whole.tile_count = whole.tile_index = 0;
   refused(whole, dir + "/w.gpkg", "give -tile K/N");
 }
 
-// The command line: -part needs -tile and takes no raster options; an index reads no source.
+// The command line: -part needs -tile; an index reads no source.
 TEST(PartitionedOutput, CommandLine) {
   const std::string dir = test::test_dir();
   const std::vector<std::string> csv = {"-oo", "X_POSSIBLE_NAMES=lon", "-oo", "Y_POSSIBLE_NAMES=lat", "-level", "5"};
@@ -282,7 +256,6 @@ TEST(PartitionedOutput, CommandLine) {
   };
   const std::vector<Case> cases = {
       {{"-part", kCentres, dir + "/p.gpkg"}, "-part is for a tile job"},
-      {{"-tile", "1/2", "-part", "-ot", "Int32", kCentres, dir + "/p.gpkg"}, "raster parts are not written"},
       {{"-merge", dir, "-of", "VRT", kCentres, dir + "/p.vrt"}, "reads no source"},
   };
   for (const Case& c : cases) {

@@ -167,7 +167,8 @@ TEST(RunPlan, BandsAreHonouredOrRefusedInEveryMode) {
   o.tile_index = 1;
   o.tile_count = 4;
   EXPECT_EQ(plan_error(dir + "/t.qtmt", o),
-            "-bands: a tile job writes a tile product, not a raster; a raster is written by a whole run");
+            "-bands: a tile job writes a tile product, not a raster; a raster is written by a whole run, or in parts "
+            "by tile jobs with -part");
 }
 
 TEST(DeviceStartup, CountsWhatTheLabellerCounts) {

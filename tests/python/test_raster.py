@@ -59,3 +59,29 @@ def test_bands_chosen_are_the_tools_and_the_full_runs(centres, tmp_path):
     fid = q.voronoi(centres, 7, raster="qtm", bands="fid")
     assert fid.band.values.tolist() == ["site_fid"]
     np.testing.assert_array_equal(fid.values[0], whole.sel(band="site_fid").values)
+
+
+def test_raster_parts_and_their_index_are_the_whole_raster(tmp_path):
+    # -tile K/N -part with a raster destination from Python: each part a band of the whole raster's
+    # rows; their index (-merge -of VRT), read through GDAL, is the whole raster.
+    options = dict(level=6, raster="lonlat", device="cpu", s_srs="EPSG:4326",
+                   open_options=["X_POSSIBLE_NAMES=lon", "Y_POSSIBLE_NAMES=lat"])
+    q.run_voronoi(str(CENTRES_CSV), str(tmp_path / "whole.tif"), q.VoronoiOptions(**options))
+    (tmp_path / "parts").mkdir()
+    for k in (1, 2, 3):
+        part = q.VoronoiOptions(**options)
+        part.tile = (k, 3)
+        part.part = True
+        q.run_voronoi(str(CENTRES_CSV), str(tmp_path / "parts" / f"{k}.tif"), part)
+    index = q.VoronoiOptions()
+    index.merge = [str(tmp_path / "parts")]
+    index.format = "VRT"
+    summary = q.run_voronoi("", str(tmp_path / "index.vrt"), index)
+    assert summary.raster and summary.device == "index of 3 parts"
+    whole, whole_bands, whole_transform, _ = read_tiff(tmp_path / "whole.tif")
+    values, bands, transform, metadata = read_tiff(tmp_path / "index.vrt")
+    np.testing.assert_array_equal(values, whole)
+    assert bands == whole_bands and transform == whole_transform and metadata["QTM_LEVEL"] == "6"
+    _, _, second, _ = read_tiff(tmp_path / "parts" / "2.tif")
+    height = whole.shape[1]
+    assert second[3] == whole_transform[3] + (height // 3) * whole_transform[5]

@@ -322,18 +322,16 @@ void check_option_combinations(VoronoiOptions& run, const ParseState& state) {
   if (run.part && run.tile_count == 0) {
     throw UsageError("-part is for a tile job: -tile K/N -part writes the tile's part of the output");
   }
-  if (run.part && !state.raster_option.empty()) {
-    throw UsageError("-part: " + state.raster_option + " is for a raster; a part is vector output (raster parts are " +
-                     "not written: a raster is written by a whole run)");
-  }
-  // A part's layers: those that can be cut at a tile's edges (not voronoi_edges).
+  // A part's layers: those that can be cut at a tile's edges (not voronoi_edges). A raster part
+  // takes the raster's options (its output's: run_plan.cpp checks them against the destination).
   if (run.part && !state.layers_named) run.vector.layers = {"regions", "boundary_cells"};
   if (run.tile_count > 0 && !run.part && !state.output_option.empty()) {
     const std::string name = option_name(state.output_option);
     if (name == "-co" || name == "-ot" || name == "-raster" || name == "-tr" || name == "-ts" || name == "-bands") {
       // -merge writes vector output: the raster's options belong to no run of the pair.
       throw UsageError("-tile writes a tile product, not a dataset: " + state.output_option +
-                       " is for a raster, which a whole run writes (-merge writes vector output)");
+                       " is for a raster, which a whole run writes, or tile jobs in parts with -part (-merge "
+                       "writes vector output)");
     }
     throw UsageError("-tile writes a tile product, not a dataset: give " + state.output_option + " to the -merge run");
   }

@@ -37,7 +37,7 @@ const std::string kTestdata = QTMV_TESTDATA_DIR;
 struct LayerSpec {
   std::string name;
   std::string srs = "EPSG:4326";
-  std::vector<std::string> wkt;
+  std::vector<std::string> wkt{};
   OGRwkbGeometryType type = wkbPoint;
 };
 
@@ -55,7 +55,7 @@ std::string write_gpkg(const std::string& path, const std::vector<LayerSpec>& la
     OGRLayer* layer = ds->CreateLayer(spec.name.c_str(), &srs, spec.type, nullptr);
     OGRFieldDefn id("id", OFTInteger);
     layer->CreateField(&id);
-    layer->StartTransaction();
+    EXPECT_EQ(layer->StartTransaction(), OGRERR_NONE);
     int k = 0;
     for (const std::string& text : spec.wkt) {
       OGRFeatureUniquePtr f(OGRFeature::CreateFeature(layer->GetLayerDefn()));
@@ -65,7 +65,7 @@ std::string write_gpkg(const std::string& path, const std::vector<LayerSpec>& la
       f->SetField("id", k++);
       EXPECT_EQ(layer->CreateFeature(f.get()), OGRERR_NONE) << text;
     }
-    layer->CommitTransaction();
+    EXPECT_EQ(layer->CommitTransaction(), OGRERR_NONE);
   }
   return path;
 }

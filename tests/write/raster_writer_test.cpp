@@ -445,6 +445,11 @@ class SessionSource : public CellLabelSource {
     ++calls;
     session_.label_codes(codes, count, site, distance_m, boundary);
   }
+  void label_parallels(const double* lat, int rows, const double* lon, std::size_t count, std::int32_t* site,
+                       float* distance_m, std::uint8_t* boundary) const override {
+    ++calls;
+    session_.label_parallels(lat, rows, lon, count, site, distance_m, boundary);
+  }
   mutable int calls = 0;
 
  private:

@@ -126,5 +126,7 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
 
 /// Makes `tree`'s jump table the one of `jump_level` (nothing to do when it is already).
 void fill_jump_table(Tree& tree, int jump_level, int threads = 0);
+/// The jump table of `jump_level` for the tree of `nodes`: per cell of that level, where its walk starts.
+DefaultInitVector<JumpEntry> make_jump_table(const TreeNode* nodes, int jump_level, int threads = 0);
 
 }  // namespace qtmv::label

@@ -12,12 +12,14 @@
 
 #include "common/host_info.hpp"
 #include "common/openmp_threads.hpp"
+#include "common/trace.hpp"
 #include "common/visible_devices.hpp"
 #include "grid/qtm_checks.hpp"
 #include "label/cpu_painter.hpp"
 #include "label/fixed_cover.hpp"
 #include "label/label_cuda.hpp"
 #include "label/label_engine.hpp"
+#include "label/parallel_labels.hpp"
 
 namespace qtmv::label {
 
@@ -34,7 +36,11 @@ struct LabelSession::Impl {
   PreparedInput prepared;
   std::vector<Piece> candidates;
   Tree tree;
-  TreeView view{};
+  TreeView view{};  ///< the tree with its coarse jump table (JumpTable::outline)
+  // The jump table of every cell's walk (tree_jump_level), built on the first list of codes.
+  mutable std::once_flag full_jump_once;
+  mutable DefaultInitVector<JumpEntry> full_jump;
+  mutable TreeView full_view{};
   std::unique_ptr<LeafRows> leaf_rows;  ///< the host tree's leaves by rows, for the painter
   LabelStats stats;
   std::unique_ptr<cuda::Labeller> gpu;  ///< ranges on the GPU when set
@@ -50,12 +56,27 @@ struct LabelSession::Impl {
     const CoverView cover = prepared.cover.view();
     candidates = make_candidates(prepared.input, rule, threads);
     tree = build_tree(candidates, level, with_distance, threads,
-                      [&](double fraction) { report_progress(progress, fraction, "prepare"); }, &cover);
+                      [&](double fraction) { report_progress(progress, fraction, "prepare"); }, &cover,
+                      JumpTable::outline);
     view = tree.view(candidates.data());
     leaf_rows = std::make_unique<LeafRows>(tree);
     stats.tree_nodes = tree.nodes.size();
     stats.tree_list_entries = tree.lists.size();
     stats.mean_candidates = tree.mean_candidates;
+  }
+
+  /// The tree with the jump table of every cell's walk, for the per-cell walk of lists.
+  const TreeView& walk_view() const {
+    std::call_once(full_jump_once, [&] {
+      const double t0 = now_seconds();
+      full_jump = make_jump_table(tree.nodes.data(), tree_jump_level(level), threads);  // `tree` keeps the coarse one
+      full_view = view;
+      full_view.jump = full_jump.data();
+      full_view.jump_level = tree_jump_level(level);
+      trace_printf(TraceStage::label, "host jump table %9.3f ms  %zu entries of level %d (the session's first list of codes)",
+                   (now_seconds() - t0) * 1e3, full_jump.size(), full_view.jump_level);
+    });
+    return full_view;
   }
 };
 
@@ -125,7 +146,7 @@ std::uint64_t LabelSession::memory_bytes() const {
   const Tree& t = s.tree;
   const FixedCover& c = s.prepared.cover;
   return s.candidates.capacity() * sizeof(Piece) + t.nodes.capacity() * sizeof(TreeNode) +
-         t.lists.capacity() * sizeof(std::int32_t) + t.jump.capacity() * sizeof(JumpEntry) +
+         t.lists.capacity() * sizeof(std::int32_t) + (t.jump.capacity() + s.full_jump.capacity()) * sizeof(JumpEntry) +
          t.leaves.capacity() * sizeof(TreeLeaf) + t.groups.capacity() * sizeof(PieceGroup) +
          s.pieces_copy.capacity() * sizeof(SitePiece) + s.site_cells_copy.capacity() * sizeof(SiteCell) +
          (s.fixed_copy.capacity() + s.prepared.fixed_cells.capacity()) * sizeof(FixedCell) +
@@ -151,6 +172,8 @@ void LabelSession::label_range(grid::Code first, std::uint64_t count, std::int32
     }
     return;
   }
+  // The painter visits the leaves that meet the range; it walks the tree only for the neighbours
+  // of the range's first and last rows: the coarse jump table serves.
   cpu_tree_range(s.tree, s.view, first, count, site, distance_m, boundary, s.threads, s.leaf_rows.get());
 }
 
@@ -161,6 +184,7 @@ void LabelSession::label_codes(const grid::Code* codes, std::size_t count, std::
   if (distance_m && !s.with_distance) throw std::invalid_argument("this labelling session has no distances");
   const std::uint64_t cells = grid::cell_count(s.level);
   std::atomic<bool> bad{false};
+  const TreeView& view = s.walk_view();
   const std::int64_t n = static_cast<std::int64_t>(count);
 #pragma omp parallel for num_threads(s.threads) schedule(dynamic, 4096)
   for (std::int64_t k = 0; k < n; ++k) {
@@ -169,9 +193,23 @@ void LabelSession::label_codes(const grid::Code* codes, std::size_t count, std::
       bad = true;
       continue;
     }
-    tree_label_cell(s.view, code, site + k, distance_m ? distance_m + k : nullptr, boundary ? boundary + k : nullptr);
+    tree_label_cell(view, code, site + k, distance_m ? distance_m + k : nullptr, boundary ? boundary + k : nullptr);
   }
   if (bad) throw std::invalid_argument("a code lies outside level " + std::to_string(s.level));
+}
+
+void LabelSession::label_parallels(const double* lat, int rows, const double* lon, std::size_t count,
+                                   std::int32_t* site, float* distance_m, std::uint8_t* boundary) const {
+  Impl& s = *impl_;
+  if (s.gpu) std::call_once(s.host_tree, [&] { s.build_host_tree({}); });
+  if (distance_m && !s.with_distance) throw std::invalid_argument("this labelling session has no distances");
+  for (int r = 0; r < rows; ++r) {
+    if (!(lat[r] >= -90.0 && lat[r] <= 90.0)) throw std::invalid_argument("a latitude lies outside [-90, 90]");
+  }
+  for (std::size_t k = 0; k < count; ++k) {
+    if (!(lon[k] >= -180.0 && lon[k] < 180.0)) throw std::invalid_argument("a longitude lies outside [-180, 180)");
+  }
+  tree_label_parallels(s.view, lat, rows, lon, count, site, distance_m, boundary, s.threads);
 }
 
 std::uint64_t session_jump_table_bytes(int level) {

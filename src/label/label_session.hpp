@@ -6,7 +6,9 @@
 // The labels are those of label_cells, cell for cell (site, distance, boundary flag): ranges
 // go through the CPU's painter (cpu_tree_range), lists through the per-cell walk
 // (tree_label_cell, which needs no label array and looks a cell's neighbours up in the tree),
-// both on all CPU cores. The session always uses the tree on the CPU, whatever
+// points along parallels through the leaves they meet (tree_label_parallels), all on all CPU
+// cores. The jump table of every cell's walk (up to 256 MiB) is built on the first list: the
+// painter and the parallels need only the coarse one of the outline pass. The session always uses the tree on the CPU, whatever
 // LabelOptions::algorithm and device say: every algorithm and device gives the same labels.
 #pragma once
 
@@ -47,6 +49,13 @@ class LabelSession {
   /// entry k for codes[k].
   void label_codes(const grid::Code* codes, std::size_t count, std::int32_t* site, float* distance_m,
                    std::uint8_t* boundary) const;
+  /// The labels of the cells that hold the points (lon[k], lat[r]), r < rows, k < count (degrees:
+  /// a lon/lat raster's rows of pixel centres; lat in [-90, 90], lon in [-180, 180), best
+  /// ascending) into the same arrays, entry r * count + k: the labels of grid::lonlat_to_code's
+  /// cells, found along each parallel through the tree's leaves (parallel_labels.hpp), without
+  /// the codes listed. Throws std::invalid_argument for a coordinate outside those ranges.
+  void label_parallels(const double* lat, int rows, const double* lon, std::size_t count, std::int32_t* site,
+                       float* distance_m, std::uint8_t* boundary) const;
 
  private:
   struct Impl;

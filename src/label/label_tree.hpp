@@ -133,6 +133,32 @@ QTMV_HD inline std::int32_t tree_label(const TreeView& t, const grid::Cell& c) {
   return best_of_list(t, leaf, grid::cell_centre_vector(c, t.level)).site;
 }
 
+/// The boundary flag (0/1) of cell c (of the labelling level), whose site is `site` and whose
+/// leaf (find_leaf) is node `leaf_index` of level `leaf_level`: 1 when one of its three edge
+/// neighbours has another site, looked up in the tree.
+QTMV_HD inline std::uint8_t tree_boundary_flag(const TreeView& t, const grid::Cell& c, std::int32_t leaf_index,
+                                               int leaf_level, std::int32_t site) {
+  const TreeNode leaf = t.nodes[leaf_index];
+  if (leaf.count == kUniform && grid::interior_of_ancestor(c, t.level, leaf_level)) return 0;
+  grid::Cell nb[3];
+  grid::neighbours(c, t.level, nb);
+  for (int k = 0; k < 3; ++k) {
+    int other_level;
+    const std::int32_t other_leaf = find_leaf(t, nb[k], &other_level);
+    // Cells of one uniform leaf share its site.
+    if (other_leaf == leaf_index && leaf.count == kUniform) continue;
+    const TreeNode other = t.nodes[other_leaf];
+    std::int32_t other_site;
+    if (other.count == kUniform) {
+      other_site = other.value;
+    } else {
+      other_site = best_of_list(t, other, grid::cell_centre_vector(nb[k], t.level)).site;
+    }
+    if (other_site != site) return 1;
+  }
+  return 0;
+}
+
 /// Label, optional distance and optional boundary flag of one cell. A cell is a boundary cell
 /// when one of its three edge neighbours has another site; the neighbours' labels are looked
 /// up in the tree, so this needs no label array and works on any range of codes.
@@ -155,29 +181,7 @@ QTMV_HD inline void tree_label_cell(const TreeView& t, grid::Code code, std::int
     if (metres_out) *metres_out = static_cast<float>(chord2_to_metres(best.chord2));
   }
   *site_out = site;
-  if (!boundary_out) return;
-  if (leaf.count == kUniform && grid::interior_of_ancestor(c, t.level, leaf_level)) {
-    *boundary_out = 0;
-    return;
-  }
-  grid::Cell nb[3];
-  grid::neighbours(c, t.level, nb);
-  std::uint8_t boundary = 0;
-  for (int k = 0; k < 3 && !boundary; ++k) {
-    int other_level;
-    const std::int32_t other_leaf = find_leaf(t, nb[k], &other_level);
-    // Cells of one uniform leaf share its site.
-    if (other_leaf == leaf_index && leaf.count == kUniform) continue;
-    const TreeNode other = t.nodes[other_leaf];
-    std::int32_t other_site;
-    if (other.count == kUniform) {
-      other_site = other.value;
-    } else {
-      other_site = best_of_list(t, other, grid::cell_centre_vector(nb[k], t.level)).site;
-    }
-    boundary = other_site != site;
-  }
-  *boundary_out = boundary;
+  if (boundary_out) *boundary_out = tree_boundary_flag(t, c, leaf_index, leaf_level, site);
 }
 
 }  // namespace qtmv::label

@@ -479,18 +479,23 @@ Tree build_tree(const std::vector<Piece>& candidates, int level, bool with_dista
       .build(level_done, jump);
 }
 
-void fill_jump_table(Tree& tree, int jump_level, int threads_requested) {
-  if (tree.jump_level == jump_level && !tree.jump.empty()) return;
+DefaultInitVector<JumpEntry> make_jump_table(const TreeNode* nodes, int jump_level, int threads_requested) {
   const int threads = thread_count(threads_requested);
   // Where each cell of jump_level starts its walk.
-  tree.jump_level = jump_level;
   const std::uint64_t jump_cells = grid::cell_count(jump_level);
-  tree.jump.resize(jump_cells);
+  DefaultInitVector<JumpEntry> jump(jump_cells);
   const std::int64_t jn = static_cast<std::int64_t>(jump_cells);
 #pragma omp parallel for schedule(static) num_threads(threads)
   for (std::int64_t k = 0; k < jn; ++k) {
-    tree.jump[k] = walk_to_jump_level(tree.nodes.data(), grid::cell_of(static_cast<grid::Code>(k), jump_level), jump_level);
+    jump[k] = walk_to_jump_level(nodes, grid::cell_of(static_cast<grid::Code>(k), jump_level), jump_level);
   }
+  return jump;
+}
+
+void fill_jump_table(Tree& tree, int jump_level, int threads_requested) {
+  if (tree.jump_level == jump_level && !tree.jump.empty()) return;
+  tree.jump_level = jump_level;
+  tree.jump = make_jump_table(tree.nodes.data(), jump_level, threads_requested);
 }
 
 }  // namespace qtmv::label

@@ -225,6 +225,12 @@ class SessionSource : public write::CellLabelSource {
     session_.label_codes(codes, count, site, distance_m, boundary);
     seconds += now_seconds() - t0;
   }
+  void label_parallels(const double* lat, int rows, const double* lon, std::size_t count, std::int32_t* site,
+                       float* distance_m, std::uint8_t* boundary) const override {
+    const double t0 = now_seconds();
+    session_.label_parallels(lat, rows, lon, count, site, distance_m, boundary);
+    seconds += now_seconds() - t0;
+  }
   mutable double seconds = 0;  ///< spent labelling
 
  private:

@@ -1,6 +1,7 @@
 // What the writers take from the labeller: plain per-cell arrays, and their options.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
@@ -39,6 +40,34 @@ class CellLabelSource {
   /// The same for codes[0..count) (sorted, without repeats), entry k for codes[k].
   virtual void label_codes(const grid::Code* codes, std::size_t count, std::int32_t* site, float* distance_m,
                            std::uint8_t* boundary) const = 0;
+  /// The labels of the cells that hold the points (lon[k], lat[r]), r < rows, k < count (degrees:
+  /// a lon/lat raster's rows of pixel centres; lat in [-90, 90], lon in [-180, 180) ascending),
+  /// entry r * count + k; each point's cell is grid::lonlat_to_code's. By default the points'
+  /// codes, then label_codes of the distinct ones; the labeller's session finds them along each
+  /// parallel through its tree's leaves instead.
+  virtual void label_parallels(const double* lat, int rows, const double* lon, std::size_t count, std::int32_t* site,
+                               float* distance_m, std::uint8_t* boundary) const {
+    const std::size_t points = static_cast<std::size_t>(rows) * count;
+    std::vector<grid::Code> codes(points);
+    for (int r = 0; r < rows; ++r) {
+      const grid::ParallelCells parallel(lat[r], level());
+      for (std::size_t k = 0; k < count; ++k) codes[static_cast<std::size_t>(r) * count + k] = parallel.code(lon[k]);
+    }
+    std::vector<grid::Code> distinct = codes;
+    std::sort(distinct.begin(), distinct.end());
+    distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
+    std::vector<std::int32_t> sites(distinct.size());
+    std::vector<float> metres(distance_m ? distinct.size() : 0);
+    std::vector<std::uint8_t> flags(boundary ? distinct.size() : 0);
+    label_codes(distinct.data(), distinct.size(), sites.data(), distance_m ? metres.data() : nullptr,
+                boundary ? flags.data() : nullptr);
+    for (std::size_t p = 0; p < points; ++p) {
+      const std::size_t k = static_cast<std::size_t>(std::lower_bound(distinct.begin(), distinct.end(), codes[p]) - distinct.begin());
+      site[p] = sites[k];
+      if (distance_m) distance_m[p] = metres[k];
+      if (boundary) boundary[p] = flags[k];
+    }
+  }
 };
 
 /// The labels of one range of codes [first, first + count) (valid during the call that hands
@@ -79,6 +108,14 @@ class DenseLabelSource : public CellLabelSource {
   void label_codes(const grid::Code* codes, std::size_t count, std::int32_t* site, float* distance_m,
                    std::uint8_t* boundary) const override {
     for (std::size_t k = 0; k < count; ++k) put(codes[k], k, site, distance_m, boundary);
+  }
+  void label_parallels(const double* lat, int rows, const double* lon, std::size_t count, std::int32_t* site,
+                       float* distance_m, std::uint8_t* boundary) const override {
+    for (int r = 0; r < rows; ++r) {
+      const grid::ParallelCells parallel(lat[r], labels_.level);
+      const std::size_t at = static_cast<std::size_t>(r) * count;
+      for (std::size_t k = 0; k < count; ++k) put(parallel.code(lon[k]), at + k, site, distance_m, boundary);
+    }
   }
 
  private:

@@ -5,10 +5,8 @@
 #include <atomic>
 #include <cmath>
 #include <cstdio>
-#include <functional>
 
 #include "common/host_info.hpp"
-#include "common/parallel_sort.hpp"
 #include "grid/qtm.hpp"
 #include "write/raster_bands.hpp"
 #include "write/raster_types.hpp"
@@ -24,30 +22,23 @@ using grid::Code;
 constexpr std::uint64_t kNoCell = ~std::uint64_t{0};
 
 /// Where the strip's labels lie: runs of consecutive codes (the QTM-coded raster's strip, or a
-/// lon/lat strip's rows of cells in each octant), or a sorted list of codes.
+/// lon/lat strip's rows of cells in each octant), or the pixels' own (a lon/lat strip labelled
+/// point by point: entry r * width + x for pixel x of the strip's row r).
 struct LabelSpans {
   struct Span {
     Code first = 0;
     std::uint64_t count = 0;
     std::uint64_t offset = 0;  ///< index of its first code's labels
   };
-  Span by_octant[grid::kOctants];  ///< lon/lat runs; count 0: none in that octant
-  std::vector<Code> codes;         ///< the list, when labelled by codes
-  bool listed = false;
+  Span by_octant[grid::kOctants];  ///< runs; count 0: none in that octant
+  bool by_pixel = false;
+  std::uint64_t pixels = 0;  ///< labels by pixel: how many
 
   std::uint64_t size() const {
-    if (listed) return codes.size();
+    if (by_pixel) return pixels;
     std::uint64_t n = 0;
     for (const Span& s : by_octant) n += s.count;
     return n;
-  }
-  /// The code whose labels are at index k.
-  Code code_at(std::uint64_t k) const {
-    if (listed) return codes[k];
-    for (const Span& s : by_octant) {
-      if (s.count > 0 && k >= s.offset && k - s.offset < s.count) return s.first + (k - s.offset);
-    }
-    return grid::kInvalidCode;
   }
 };
 
@@ -75,12 +66,12 @@ struct StripFiller::Impl {
   std::vector<std::uint8_t> boundary;
 
   // lon/lat: the pixel centres' longitudes (degrees, in [-180, 180)), the runs of them in one
-  // quadrant and the quadrants they fall in, and (when the strip is labelled by codes) each
-  // pixel's cell.
+  // quadrant and the quadrants they fall in, and (when labelled by pixel) the strip's rows'
+  // latitudes.
   std::vector<double> lon;
   std::vector<QuadrantRun> runs;
   unsigned quadrants = 0;
-  std::vector<Code> pixel_code;
+  std::vector<double> strip_lat;
 
   explicit Impl(const StripSetup& s) : setup(s), seen(s.fid_of->size()) {
     want_boundary = has_band(s.bands, RasterBand::boundary);
@@ -122,6 +113,8 @@ struct StripFiller::Impl {
   /// The labels of the strip's cells, and their spans.
   void label_strip(int y0, int rows);
   void label_lonlat_rows(int y0, int rows);
+  /// The code of the cell whose labels are at index k.
+  Code code_at(std::uint64_t k) const;
 
   /// The index of each pixel's labels in row y0 + r of the strip from y0 (kNoCell: nodata).
   void row_index(int y0, int r, std::uint64_t* index) const;
@@ -171,13 +164,14 @@ void StripFiller::Impl::label_lonlat_rows(int y0, int rows) {
   for (int o = 0; o < grid::kOctants; ++o) {
     if (lo[o] <= hi[o]) range_cells += (hi[o] + 1) * (hi[o] + 1) - lo[o] * lo[o];
   }
-  // Where pixels are about as fine as cells, the strip's rows of cells (a band of latitude: up
-  // to one range of codes in each octant) are labelled whole: the painter labels a cell several
-  // times faster than the per-cell walk of a list (more so for polygons' long lists), and at the
-  // equator the rows hold twice as many cells as a strip of square pixels of the cell edge, so
-  // up to 4 cells a pixel take the rows. Coarser pixels label the list of their cells only.
+  // Where pixels are as fine as cells or finer (the strip's rows of cells, a band of latitude:
+  // up to one range of codes in each octant, hold no more cells than the strip has pixels), the
+  // rows are labelled whole: the painter labels each cell once, however many pixels it holds.
+  // Coarser pixels are labelled along their rows' parallels, each pixel once: most lie in
+  // leaves of one site and are filled run by run (at 0.025 degrees and level 12, where the rows
+  // hold 2.6 cells a pixel at the equator, the parallels took no more time than the rows).
   const std::uint64_t pixels = static_cast<std::uint64_t>(rows) * width();
-  if (range_cells <= 4 * pixels) {
+  if (range_cells <= pixels) {
     std::uint64_t total = 0;
     for (int o = 0; o < grid::kOctants; ++o) {
       if (lo[o] > hi[o]) continue;
@@ -198,30 +192,29 @@ void StripFiller::Impl::label_lonlat_rows(int y0, int rows) {
     times.labels += now_seconds() - t;
     return;
   }
-  // Each pixel's cell, then the strip's cells once each.
-  spans.listed = true;
-  pixel_code.resize(pixels);
-  const std::size_t w = width();
-#pragma omp parallel for num_threads(setup.threads) schedule(dynamic, 4)
-  for (int r = 0; r < rows; ++r) {
-    Code* codes = pixel_code.data() + static_cast<std::size_t>(r) * w;
-    const double lat = row_latitude(y0 + r);
-    if (!(lat >= -90.0)) {
-      std::fill(codes, codes + w, grid::kInvalidCode);
-      continue;
-    }
-    const grid::ParallelCells parallel(lat, level());
-    for (std::size_t x = 0; x < w; ++x) codes[x] = parallel.code(lon[x]);
-  }
-  spans.codes = pixel_code;
-  parallel_sort(spans.codes.begin(), spans.codes.end(), std::less<Code>());
-  spans.codes.erase(std::unique(spans.codes.begin(), spans.codes.end()), spans.codes.end());
-  if (!spans.codes.empty() && spans.codes.back() == grid::kInvalidCode) spans.codes.pop_back();
-  resize_labels(spans.codes.size());
+  // Coarser pixels: each pixel's labels, found along its row's parallel (the rows past latitude
+  // -90, the strip's last if any, are nodata).
+  strip_lat.clear();
+  for (int r = 0; r < rows && row_latitude(y0 + r) >= -90.0; ++r) strip_lat.push_back(row_latitude(y0 + r));
+  spans.by_pixel = true;
+  spans.pixels = static_cast<std::uint64_t>(strip_lat.size()) * width();
+  resize_labels(spans.pixels);
   times.cells += now_seconds() - t;
   t = now_seconds();
-  setup.source->label_codes(spans.codes.data(), spans.codes.size(), site.data(), metres_at(0), boundary_at(0));
+  setup.source->label_parallels(strip_lat.data(), static_cast<int>(strip_lat.size()), lon.data(), width(), site.data(), metres_at(0),
+                                boundary_at(0));
   times.labels += now_seconds() - t;
+}
+
+Code StripFiller::Impl::code_at(std::uint64_t k) const {
+  if (spans.by_pixel) {
+    const std::uint64_t r = k / width();
+    return grid::lonlat_to_code(lon[k - r * width()], strip_lat[r], level());
+  }
+  for (const LabelSpans::Span& s : spans.by_octant) {
+    if (s.count > 0 && k >= s.offset && k - s.offset < s.count) return s.first + (k - s.offset);
+  }
+  return grid::kInvalidCode;
 }
 
 void StripFiller::Impl::row_index(int y0, int r, std::uint64_t* index) const {
@@ -239,19 +232,9 @@ void StripFiller::Impl::row_index(int y0, int r, std::uint64_t* index) const {
     std::fill(index, index + w, kNoCell);
     return;
   }
-  if (spans.listed) {
-    // Each pixel's cell among the strip's sorted codes; neighbours mostly share one.
-    const Code* codes = pixel_code.data() + static_cast<std::size_t>(r) * w;
-    Code last = grid::kInvalidCode;
-    std::uint64_t at = kNoCell;
-    for (std::size_t x = 0; x < w; ++x) {
-      if (codes[x] != last) {
-        last = codes[x];
-        at = static_cast<std::uint64_t>(std::lower_bound(spans.codes.begin(), spans.codes.end(), last) -
-                                        spans.codes.begin());
-      }
-      index[x] = last == grid::kInvalidCode ? kNoCell : at;
-    }
+  if (spans.by_pixel) {
+    const std::uint64_t at = static_cast<std::uint64_t>(r) * w;
+    for (std::size_t x = 0; x < w; ++x) index[x] = at + x;
     return;
   }
   // Along a run of one quadrant only the column changes: the labels' index of the row's column 0,
@@ -314,7 +297,7 @@ void StripFiller::Impl::put_row(const std::uint64_t* index, T* out, std::size_t 
           }
           out[x] = nodata;
           std::uint64_t none = kNoCell;
-          if (bad_distance.compare_exchange_strong(none, spans.code_at(index[x]))) bad_distance_value.store(d);
+          if (bad_distance.compare_exchange_strong(none, code_at(index[x]))) bad_distance_value.store(d);
         }
         break;
     }

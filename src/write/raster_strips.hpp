@@ -52,9 +52,9 @@ class StripFiller {
   std::vector<std::uint8_t> site_seen() const;
   const StripTimes& times() const;
 
-  /// Bytes a strip's pixel takes at most in the filler (its cell's code, the strip's sorted
-  /// codes, and the labels of up to four cells a pixel for the lon/lat layout; one cell's labels
-  /// for the QTM-coded raster), beside the pixel's values.
+  /// Bytes a strip's pixel takes at most in the filler (for the lon/lat layout the labels of up
+  /// to four cells a pixel, and room for two codes a pixel; one cell's labels for the QTM-coded
+  /// raster), beside the pixel's values.
   static std::uint64_t bytes_per_pixel(RasterGrid::Layout layout, const std::vector<RasterBand>& bands);
 
  private:

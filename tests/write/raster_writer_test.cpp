@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdint>
+#include <cstring>
 #include <random>
 #include <set>
 #include <string>
@@ -445,6 +446,11 @@ class SessionSource : public CellLabelSource {
     ++calls;
     session_.label_codes(codes, count, site, distance_m, boundary);
   }
+  void label_parallels(const double* lat, int rows, const double* lon, std::size_t count, std::int32_t* site,
+                       float* distance_m, std::uint8_t* boundary) const override {
+    ++calls;
+    session_.label_parallels(lat, rows, lon, count, site, distance_m, boundary);
+  }
   mutable int calls = 0;
 
  private:
@@ -721,6 +727,38 @@ TEST_F(RasterWriter, ValuesOutsideTheOtTypeFailNamingItAndLeaveNoFile) {
     EXPECT_NE(m.find("band 3 (distance_m): cell "), std::string::npos) << m;
     EXPECT_NE(m.find(" m from its site, outside " + type), std::string::npos) << m;
     EXPECT_NE(m.find("-ot"), std::string::npos) << m;
+  }
+  {
+    // A lon/lat raster of pixels coarser than the cells, labelled pixel by pixel: the cell named is
+    // a pixel's, with the distance named.
+    SCOPED_TRACE("lonlat by pixel");
+    RasterOptions options;
+    options.layout = RasterOptions::Layout::lonlat;
+    options.width = 40;
+    options.height = 20;
+    options.data_type = "Byte";
+    const std::string path = temp_path("far_lonlat.tif");
+    std::string m;
+    try {
+      write_raster(path, far, far.table(), options);
+      ADD_FAILURE() << "no WriteError";
+    } catch (const WriteError& e) {
+      m = e.what();
+    }
+    EXPECT_FALSE(exists(path)) << path;
+    const std::size_t at = m.find("band 3 (distance_m): cell ");
+    ASSERT_NE(at, std::string::npos) << m;
+    const Code code = std::stoull(m.substr(at + std::strlen("band 3 (distance_m): cell ")));
+    bool a_pixels_cell = false;
+    for (int y = 0; y < options.height; ++y) {
+      for (int x = 0; x < options.width; ++x) {
+        a_pixels_cell = a_pixels_cell || grid::lonlat_to_code(-180.0 + (x + 0.5) * 9.0, 90.0 - (y + 0.5) * 9.0, 4) == code;
+      }
+    }
+    EXPECT_TRUE(a_pixels_cell) << m;
+    char metres[64];
+    std::snprintf(metres, sizeof metres, " is %.1f m from its site", static_cast<double>(far.metres_of(code)));
+    EXPECT_NE(m.find(metres), std::string::npos) << m;
   }
   EXPECT_NO_THROW(check_raster_data_type("float32"));
   EXPECT_NO_THROW(check_raster_data_type(""));

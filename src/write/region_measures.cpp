@@ -125,9 +125,12 @@ using SiteSums = RegionAreaSums::Sums;
 /// fought over by every core.
 class SumCache : public RegionEdgeObserver::Local {
  public:
-  explicit SumCache(SiteSums& shared) : shared_(shared) {
-    pending_.reserve(measure::EdgeSolver::kBatchEdges);
-    ends_.reserve(measure::EdgeSolver::kBatchEdges);
+  // A GPU's batches are large (its launch and copies cost tens of microseconds); the CPU's stay
+  // in the core's caches between being gathered and solved.
+  explicit SumCache(SiteSums& shared)
+      : shared_(shared), batch_(shared.solver.on_device() ? measure::EdgeSolver::kBatchEdges : kCpuBatchEdges) {
+    pending_.reserve(batch_);
+    ends_.reserve(batch_);
   }
   void edge(std::int32_t site, const LonLat& from, const LonLat& to, std::int32_t other) override {
     // A border edge counts for its site; an edge between two sites is solved by the lower
@@ -135,7 +138,7 @@ class SumCache : public RegionEdgeObserver::Local {
     if (other != kBorderEdge && other < site) return;
     pending_.push_back({site, other});
     ends_.push_back({from, to});
-    if (pending_.size() == measure::EdgeSolver::kBatchEdges) solve_pending();
+    if (pending_.size() == batch_) solve_pending();
   }
   void finish() override {
     solve_pending();
@@ -219,7 +222,9 @@ class SumCache : public RegionEdgeObserver::Local {
   static constexpr std::size_t kEvicted = 32;
   Slot evicted_[kEvicted];
   std::size_t evicted_count_ = 0;
+  static constexpr std::size_t kCpuBatchEdges = 1024;
   SiteSums& shared_;
+  const std::size_t batch_;  // edges solved at once
   Slot slots_[kSiteSlots];
   struct Sides {
     std::int32_t site, other;

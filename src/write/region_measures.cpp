@@ -296,14 +296,14 @@ std::vector<double> region_areas(const label::Outlines& whole_or_tile, int cuda_
 #pragma omp parallel num_threads(thread_count(0))
   {
     std::unique_ptr<RegionEdgeObserver::Local> cache;
-    label::NearSearch search[8];
+    OutlineWalk walk[8];
     failure.run([&] { cache = sums.local(); });
 #pragma omp for schedule(dynamic, 1)
     for (std::int64_t step = 0; step < static_cast<std::int64_t>(steps.count()); ++step) {
       failure.run([&] {
-        steps.visit(static_cast<std::size_t>(step), search, [&](std::size_t k, label::NearSearch& near) {
+        steps.visit(static_cast<std::size_t>(step), walk, [&](std::size_t k, OutlineWalk& octant_walk) {
           const std::int32_t site = cells[k].site;
-          visit_region_edges(outlines, k, near,
+          visit_region_edges(outlines, k, octant_walk,
                              [&](int, const LonLat& from, const LonLat& to, std::int32_t other) { cache->edge(site, from, to, other); });
         });
       });

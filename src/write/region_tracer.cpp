@@ -385,21 +385,21 @@ RegionTracer::RegionTracer(const label::Outlines& whole_or_tile, RingVertices ve
 #pragma omp parallel num_threads(thread_count(0))
   {
     std::unique_ptr<RegionEdgeObserver::Local> seen;
-    label::NearSearch search[8];
+    OutlineWalk walk[8];
     failure.run([&] {
       if (observer) seen = observer->local();
     });
 #pragma omp for schedule(dynamic, 1)  // boundary cells, with their geodesics to solve, come in clusters
     for (std::int64_t step = 0; step < static_cast<std::int64_t>(steps.count()); ++step) {
       failure.run([&] {
-        steps.visit(static_cast<std::size_t>(step), search, [&](std::size_t k, label::NearSearch& near) {
+        steps.visit(static_cast<std::size_t>(step), walk, [&](std::size_t k, OutlineWalk& octant_walk) {
           const std::int32_t site = cells[k].site;
           std::uint8_t mask = 0;
           const auto add = [&](int e, const LonLat& from, const LonLat& to, std::int32_t other) {
             mask = static_cast<std::uint8_t>(mask | 1u << e);
             if (seen) seen->edge(site, from, to, other);
           };
-          visit_region_edges(outlines, k, near, add);
+          visit_region_edges(outlines, k, octant_walk, add);
           masks[k] = mask;
         });
       });

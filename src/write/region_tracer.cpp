@@ -417,9 +417,8 @@ RegionTracer::RegionTracer(const label::Outlines& whole_or_tile, RingVertices ve
   const std::size_t table_bytes = std::max<std::size_t>(n, std::size_t{64} << 20);
   const std::size_t team = std::clamp<std::size_t>(table_bytes / (sizeof(std::size_t) * (sites + 1)), 1,
                                                    static_cast<std::size_t>(thread_count(0)));
-  // In huge pages, as the cells' sites land anywhere in them (small pages would miss the TLB).
-  using SitePlaces = std::vector<std::size_t, HugePageAllocator<std::size_t>>;
-  std::vector<SitePlaces> place(team);
+  // Each zeroed by its thread (megabytes each), not all by this one.
+  std::vector<std::vector<std::size_t>> place(team);
 #pragma omp parallel for schedule(static, 1) num_threads(static_cast<int>(team))
   for (std::int64_t t = 0; t < static_cast<std::int64_t>(team); ++t) place[static_cast<std::size_t>(t)].assign(sites + 1, 0);
   const auto stretch = [&](std::size_t t, auto&& visit) {

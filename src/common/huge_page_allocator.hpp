@@ -13,8 +13,9 @@
 
 namespace qtmv {
 
-/// Arrays from this size (bytes) on get a mapping of their own in huge pages.
-constexpr std::size_t kHugePageArrayBytes = std::size_t{32} << 20;
+/// Arrays from this size (bytes) on get a mapping of their own in huge pages (two of them: an
+/// array of millions of sites' sums, read and added to anywhere, misses the TLB in small pages).
+constexpr std::size_t kHugePageArrayBytes = std::size_t{4} << 20;
 
 /// DefaultInitAllocator (resize leaves trivial elements uninitialised), but an array of
 /// kHugePageArrayBytes or more is a mapping of its own for which the kernel is asked for

@@ -34,9 +34,15 @@ class EdgeSolver {
     Recent& operator=(const Recent&) = delete;
     /// The measures of `edge`, from a slot or solved on `ellipsoid` (and kept).
     EdgeUnits units(const Ellipsoid& ellipsoid, const EdgeEnds& edge);
+    /// The same for edges[0, count) into out[0, count), the same bits, each edge's slot fetched
+    /// ahead of it.
+    void units(const Ellipsoid& ellipsoid, const EdgeEnds* edges, std::size_t count, EdgeUnits* out);
 
    private:
     struct Slot;
+    struct Keyed;
+    static Keyed keyed(const EdgeEnds& edge);
+    EdgeUnits units(const Ellipsoid& ellipsoid, const Keyed& keyed);
     std::unique_ptr<Slot[]> slots_;
   };
 

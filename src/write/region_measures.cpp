@@ -10,6 +10,7 @@
 #include <mutex>
 
 #include "common/first_exception.hpp"
+#include "common/huge_page_allocator.hpp"
 #include "common/openmp_threads.hpp"
 #include "common/parallel_sort.hpp"
 #include "grid/qtm.hpp"
@@ -88,11 +89,26 @@ EdgeTerms edge_terms(const LonLat& from, const LonLat& to, const measure::EdgeUn
 
 /// Every site's sums, shared by the threads.
 struct RegionAreaSums::Sums {
+  /// A site's three in one cache line, so that a thread adding its slot's sums misses the cache
+  /// once, not three times (the sites come in no spatial order).
+  struct alignas(32) Site {
+    std::atomic<std::uint64_t> area, rough, crossings;
+  };
   Sums(std::size_t sites, bool lengths, int cuda_device, std::string* device_problem)
-      : area(sites), rough(sites), crossings(sites), lengths(lengths), solver(cuda_device, device_problem) {
-    for (std::size_t s = 0; s < sites; ++s) area[s] = rough[s] = crossings[s] = 0;
+      : site(sites), lengths(lengths), solver(cuda_device, device_problem) {
+    // Zeroed on all cores (tens of megabytes: their pages are first touched here).
+    const auto count = static_cast<std::int64_t>(sites);
+#pragma omp parallel for schedule(static) num_threads(thread_count(0))
+    for (std::int64_t s = 0; s < count; ++s) {
+      Site& sum = site[static_cast<std::size_t>(s)];
+      sum.area.store(0, std::memory_order_relaxed);
+      sum.rough.store(0, std::memory_order_relaxed);
+      sum.crossings.store(0, std::memory_order_relaxed);
+    }
   }
-  std::vector<std::atomic<std::uint64_t>> area, rough, crossings;
+  // In huge pages: a thread's adds land anywhere in tens of megabytes, beyond what the TLB covers
+  // in small pages.
+  std::vector<Site, HugePageAllocator<Site>> site;
   const bool lengths;
   const measure::EdgeSolver solver;
   std::mutex pair_lock;
@@ -109,9 +125,12 @@ using SiteSums = RegionAreaSums::Sums;
 /// fought over by every core.
 class SumCache : public RegionEdgeObserver::Local {
  public:
-  explicit SumCache(SiteSums& shared) : shared_(shared) {
-    pending_.reserve(measure::EdgeSolver::kBatchEdges);
-    ends_.reserve(measure::EdgeSolver::kBatchEdges);
+  // A GPU's batches are large (its launch and copies cost tens of microseconds); the CPU's stay
+  // in the core's caches between being gathered and solved.
+  explicit SumCache(SiteSums& shared)
+      : shared_(shared), batch_(shared.solver.on_device() ? measure::EdgeSolver::kBatchEdges : kCpuBatchEdges) {
+    pending_.reserve(batch_);
+    ends_.reserve(batch_);
   }
   void edge(std::int32_t site, const LonLat& from, const LonLat& to, std::int32_t other) override {
     // A border edge counts for its site; an edge between two sites is solved by the lower
@@ -119,11 +138,14 @@ class SumCache : public RegionEdgeObserver::Local {
     if (other != kBorderEdge && other < site) return;
     pending_.push_back({site, other});
     ends_.push_back({from, to});
-    if (pending_.size() == measure::EdgeSolver::kBatchEdges) solve_pending();
+    if (pending_.size() == batch_) solve_pending();
   }
   void finish() override {
     solve_pending();
-    for (Slot& s : slots_) flush(s);
+    for (const Slot& s : slots_) {
+      if (s.site >= 0) evict(s);
+    }
+    flush_evicted();
     if (!shared_.lengths) return;
     for (const PairLength& p : pair_slots_) {
       if (p.units != 0) partial_pairs_.push_back(p);
@@ -134,9 +156,9 @@ class SumCache : public RegionEdgeObserver::Local {
 
  private:
   void add(std::int32_t site, const EdgeTerms& t) {
-    Slot& s = slots_[static_cast<std::size_t>(site) % kSlots];
+    Slot& s = slots_[static_cast<std::size_t>(site) % kSiteSlots];
     if (s.site != site) {
-      flush(s);
+      if (s.site >= 0) evict(s);
       s = Slot{site, {}};
     }
     s.sums.area += t.area;
@@ -170,22 +192,40 @@ class SumCache : public RegionEdgeObserver::Local {
     pending_.clear();
     ends_.clear();
   }
-  static constexpr std::size_t kSlots = 512;
+  // Slots for the sites of the last few rows of cells of every octant (the thread's 8 octants'
+  // rows in turn: OctantSteps), 128 KiB, and for the pairs.
+  static constexpr std::size_t kSiteSlots = 4096, kSlots = 512;
   struct Slot {
     std::int32_t site = -1;
     EdgeTerms sums;
   };
   PairLength pair_slots_[kSlots];
   std::vector<PairLength> partial_pairs_;
-  void flush(const Slot& s) {
-    if (s.site < 0) return;
-    const auto k = static_cast<std::size_t>(s.site);
-    shared_.area[k].fetch_add(s.sums.area, std::memory_order_relaxed);
-    shared_.rough[k].fetch_add(s.sums.rough, std::memory_order_relaxed);
-    shared_.crossings[k].fetch_add(s.sums.crossings, std::memory_order_relaxed);
+  // A slot taken by another site: its sums wait, with their site's shared sums fetched ahead
+  // (a cache miss each: the sites come in no spatial order), and are added a few dozen at a time,
+  // so that the misses overlap rather than each wait behind the last atomic add.
+  void evict(const Slot& s) {
+    __builtin_prefetch(&shared_.site[static_cast<std::size_t>(s.site)], 1);
+    evicted_[evicted_count_++] = s;
+    if (evicted_count_ == kEvicted) flush_evicted();
   }
+  void flush_evicted() {
+    for (std::size_t k = 0; k < evicted_count_; ++k) {
+      const Slot& s = evicted_[k];
+      SiteSums::Site& to = shared_.site[static_cast<std::size_t>(s.site)];
+      to.area.fetch_add(s.sums.area, std::memory_order_relaxed);
+      to.rough.fetch_add(s.sums.rough, std::memory_order_relaxed);
+      to.crossings.fetch_add(s.sums.crossings, std::memory_order_relaxed);
+    }
+    evicted_count_ = 0;
+  }
+  static constexpr std::size_t kEvicted = 32;
+  Slot evicted_[kEvicted];
+  std::size_t evicted_count_ = 0;
+  static constexpr std::size_t kCpuBatchEdges = 1024;
   SiteSums& shared_;
-  Slot slots_[kSlots];
+  const std::size_t batch_;  // edges solved at once
+  Slot slots_[kSiteSlots];
   struct Sides {
     std::int32_t site, other;
   };
@@ -219,11 +259,12 @@ RegionAreaSums::~RegionAreaSums() = default;
 std::unique_ptr<RegionEdgeObserver::Local> RegionAreaSums::local() { return std::make_unique<SumCache>(*sums_); }
 
 std::vector<double> RegionAreaSums::areas(const std::vector<std::uint64_t>& cells_per_site) const {
-  const std::size_t sites = sums_->area.size();
+  const std::size_t sites = sums_->site.size();
   std::vector<double> out(sites, 0.0);
   for (std::size_t s = 0; s < sites && s < cells_per_site.size(); ++s) {
     if (cells_per_site[s] == 0) continue;
-    out[s] = settle(sums_->area[s].load(), sums_->rough[s].load(), sums_->crossings[s].load());
+    const SiteSums::Site& sum = sums_->site[s];
+    out[s] = settle(sum.area.load(), sum.rough.load(), sum.crossings.load());
   }
   return out;
 }
@@ -255,14 +296,14 @@ std::vector<double> region_areas(const label::Outlines& whole_or_tile, int cuda_
 #pragma omp parallel num_threads(thread_count(0))
   {
     std::unique_ptr<RegionEdgeObserver::Local> cache;
-    label::NearSearch search[8];
+    OutlineWalk walk[8];
     failure.run([&] { cache = sums.local(); });
 #pragma omp for schedule(dynamic, 1)
     for (std::int64_t step = 0; step < static_cast<std::int64_t>(steps.count()); ++step) {
       failure.run([&] {
-        steps.visit(static_cast<std::size_t>(step), search, [&](std::size_t k, label::NearSearch& near) {
+        steps.visit(static_cast<std::size_t>(step), walk, [&](std::size_t k, OutlineWalk& octant_walk) {
           const std::int32_t site = cells[k].site;
-          visit_region_edges(outlines, k, near,
+          visit_region_edges(outlines, k, octant_walk,
                              [&](int, const LonLat& from, const LonLat& to, std::int32_t other) { cache->edge(site, from, to, other); });
         });
       });

@@ -385,21 +385,21 @@ RegionTracer::RegionTracer(const label::Outlines& whole_or_tile, RingVertices ve
 #pragma omp parallel num_threads(thread_count(0))
   {
     std::unique_ptr<RegionEdgeObserver::Local> seen;
-    label::NearSearch search[8];
+    OutlineWalk walk[8];
     failure.run([&] {
       if (observer) seen = observer->local();
     });
 #pragma omp for schedule(dynamic, 1)  // boundary cells, with their geodesics to solve, come in clusters
     for (std::int64_t step = 0; step < static_cast<std::int64_t>(steps.count()); ++step) {
       failure.run([&] {
-        steps.visit(static_cast<std::size_t>(step), search, [&](std::size_t k, label::NearSearch& near) {
+        steps.visit(static_cast<std::size_t>(step), walk, [&](std::size_t k, OutlineWalk& octant_walk) {
           const std::int32_t site = cells[k].site;
           std::uint8_t mask = 0;
           const auto add = [&](int e, const LonLat& from, const LonLat& to, std::int32_t other) {
             mask = static_cast<std::uint8_t>(mask | 1u << e);
             if (seen) seen->edge(site, from, to, other);
           };
-          visit_region_edges(outlines, k, near, add);
+          visit_region_edges(outlines, k, octant_walk, add);
           masks[k] = mask;
         });
       });
@@ -417,7 +417,10 @@ RegionTracer::RegionTracer(const label::Outlines& whole_or_tile, RingVertices ve
   const std::size_t table_bytes = std::max<std::size_t>(n, std::size_t{64} << 20);
   const std::size_t team = std::clamp<std::size_t>(table_bytes / (sizeof(std::size_t) * (sites + 1)), 1,
                                                    static_cast<std::size_t>(thread_count(0)));
-  std::vector<std::vector<std::size_t>> place(team, std::vector<std::size_t>(sites + 1, 0));
+  // Each zeroed by its thread (megabytes each), not all by this one.
+  std::vector<std::vector<std::size_t>> place(team);
+#pragma omp parallel for schedule(static, 1) num_threads(static_cast<int>(team))
+  for (std::int64_t t = 0; t < static_cast<std::int64_t>(team); ++t) place[static_cast<std::size_t>(t)].assign(sites + 1, 0);
   const auto stretch = [&](std::size_t t, auto&& visit) {
     for (std::size_t k = n * t / team; k < n * (t + 1) / team; ++k) {
       if (masks[k] != 0) visit(cells[k], masks[k], place[t][static_cast<std::size_t>(cells[k].site)]);

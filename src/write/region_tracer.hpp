@@ -164,19 +164,41 @@ inline bool holds_part(const label::Outlines& outlines) {
   return !holds_code(outlines, 0) || !holds_code(outlines, grid::cell_count(outlines.level) - 1);
 }
 
+/// One thread's walk over outline cells in code order (of one octant): the sites of the cells
+/// near them (label::NearSearch), and each cell's row found once for the row's cells (its
+/// columns then follow from the codes, without grid::cell_of's square root).
+class OutlineWalk {
+ public:
+  label::NearSearch search;
+  /// The cell of `code` (any code; codes in increasing order are the fast case).
+  grid::Cell cell(grid::Code code, int level) {
+    if (code < row_first_ || code >= row_end_) {
+      row_ = grid::cell_of(code, level);
+      row_first_ = code - row_.col;
+      row_end_ = row_first_ + 2 * std::uint64_t{row_.row} + 1;
+    }
+    return {row_.octant, row_.row, static_cast<std::uint32_t>(code - row_first_)};
+  }
+
+ private:
+  grid::Cell row_{0, 0, 0};
+  grid::Code row_first_ = 1, row_end_ = 0;  // the codes of row_'s row: none yet
+};
+
 /// Visits the edges of the k-th outline cell, as drawn, that bound its site's region (the region
 /// on their left): visit(edge, from, to, other), `edge` the edge's index in drawn_ring's ring,
 /// `other` the site across the edge or kBorderEdge. Only
 /// a boundary cell has a neighbour of another site; any cell may have border edges. The regions'
-/// tracing and their areas both walk the outlines by this one rule. `search`: the calling
+/// tracing and their areas both walk the outlines by this one rule. `walk`: the calling
 /// thread's, which then visits its cells in code order. Outlines of a part of the level (a tile:
 /// outlines.range) cut the regions at its edges: an edge to a cell outside the range is a border
 /// edge, seen only where the cell is flagged as a boundary cell (with_range_edges does that).
 template <class Visit>
-void visit_region_edges(const label::Outlines& outlines, std::size_t k, label::NearSearch& search, const Visit& visit) {
+void visit_region_edges(const label::Outlines& outlines, std::size_t k, OutlineWalk& walk, const Visit& visit) {
   const label::OutlineCell& outline = outlines.cells[k];
   const int level = outlines.level;
-  const grid::Cell cell = grid::cell_of(outline.code(), level);
+  label::NearSearch& search = walk.search;
+  const grid::Cell cell = walk.cell(outline.code(), level);
   LonLat ring[grid::kMaxPolygonCorners];
   int across[grid::kMaxPolygonCorners];
   const int corners = drawn_ring(cell, level, ring, across);
@@ -184,7 +206,7 @@ void visit_region_edges(const label::Outlines& outlines, std::size_t k, label::N
   if (outline.boundary()) grid::neighbours(cell, outline.code(), level, nb);
   for (int e = 0; e < corners; ++e) {
     const LonLat& from = ring[e];
-    const LonLat& to = ring[(e + 1) % corners];
+    const LonLat& to = ring[e + 1 < corners ? e + 1 : 0];  // not %: an integer division per edge
     if (across[e] == kAcrossPoleLine || on_cut(from, to)) {
       visit(e, from, to, kBorderEdge);
     } else if (outline.boundary()) {
@@ -209,13 +231,13 @@ class OctantSteps {
  public:
   explicit OctantSteps(const label::Outlines& outlines);
   std::size_t count() const { return steps_; }
-  /// Calls visit(k, search) for each outline cell k of step `step`, octant by octant in code
-  /// order, `search[octant]` the calling thread's for that octant's cells.
+  /// Calls visit(k, walk) for each outline cell k of step `step`, octant by octant in code
+  /// order, `walk[octant]` the calling thread's for that octant's cells.
   template <class Visit>
-  void visit(std::size_t step, label::NearSearch (&search)[8], const Visit& visit) const {
+  void visit(std::size_t step, OutlineWalk (&walk)[8], const Visit& visit) const {
     for (std::size_t octant = 0; octant < 8; ++octant) {
       const std::size_t* at = bounds_.data() + octant * (steps_ + 1) + step;
-      for (std::size_t k = at[0]; k < at[1]; ++k) visit(k, search[octant]);
+      for (std::size_t k = at[0]; k < at[1]; ++k) visit(k, walk[octant]);
     }
   }
 

@@ -148,6 +148,17 @@ TEST(EdgeSolver, RecentSolutionsAreEachEdgesOwnBits) {
   for (std::size_t k = 0; k < edges.size(); ++k) {
     ASSERT_TRUE(same_bits(got[k], edge_units(wgs84, edges[k]))) << "edge " << k;
   }
+  // In batches of any size (Recent takes them a chunk at a time), and one by one.
+  EdgeSolver::Recent again;
+  std::fill(got.begin(), got.end(), EdgeUnits{});
+  for (std::size_t at = 0, n = 1; at < edges.size(); at += n, n = n % 41 + 1) {
+    n = std::min(n, edges.size() - at);
+    cpu.solve(edges.data() + at, n, got.data() + at, &again);
+  }
+  for (std::size_t k = 0; k < edges.size(); ++k) {
+    ASSERT_TRUE(same_bits(got[k], edge_units(wgs84, edges[k]))) << "edge " << k;
+    ASSERT_TRUE(same_bits(again.units(wgs84, edges[k]), got[k])) << "edge " << k;
+  }
 }
 
 TEST(EdgeSolver, WithoutTheDeviceTheCpuSolves) {

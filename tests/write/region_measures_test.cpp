@@ -5,6 +5,7 @@
 #include <GeographicLib/Geodesic.hpp>
 #include <GeographicLib/PolygonArea.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <vector>
@@ -110,6 +111,46 @@ TEST(RegionMeasures, SameBitsWhateverTheThreads) {
 #else
   GTEST_SKIP() << "built without OpenMP";
 #endif
+}
+
+TEST(RegionMeasures, ManySitesInNoSpatialOrder) {
+  // Tens of thousands of small regions whose ids are shuffled, as a million random points' are:
+  // a thread's slots for the sites' sums are taken by other sites all the time and handed to the
+  // shared sums many at a time. The areas still equal their cells', on any number of threads, to
+  // the same bits.
+  const int level = 8;
+  std::vector<Code> ancestor(grid::cell_count(level));
+  for (Code code = 0; code < grid::cell_count(level); ++code) ancestor[code] = grid::parent(grid::parent(code, level), level - 1);
+  const auto sites = static_cast<std::int32_t>(grid::cell_count(level - 2));
+  std::vector<std::int32_t> id(static_cast<std::size_t>(sites));
+  for (std::int32_t s = 0; s < sites; ++s) id[static_cast<std::size_t>(s)] = s;
+  std::shuffle(id.begin(), id.end(), std::mt19937(5));
+  std::vector<std::int32_t> labels(grid::cell_count(level));
+  std::vector<double> expected(static_cast<std::size_t>(sites), 0.0);
+  for (Code code = 0; code < grid::cell_count(level); ++code) {
+    labels[code] = id[ancestor[code]];
+    expected[static_cast<std::size_t>(labels[code])] += cell_area(code, level);
+  }
+  const label::Outlines outlines = label::outlines_of_dense(level, labels.data(), nullptr, sites);
+  std::vector<double> first;
+  for (int threads : {1, 2, 4}) {
+#ifdef _OPENMP
+    const int before = omp_get_max_threads();
+    omp_set_num_threads(threads);
+#endif
+    RegionAreaSums sums(sites);
+    const RegionTracer tracer(outlines, RingVertices::corners, {}, &sums);
+    const std::vector<double> got = sums.areas(outlines.cells_per_site);
+#ifdef _OPENMP
+    omp_set_num_threads(before);
+#endif
+    ASSERT_EQ(got.size(), expected.size());
+    if (first.empty()) first = got;
+    for (std::size_t s = 0; s < got.size(); ++s) {
+      ASSERT_NEAR(got[s], expected[s], 1e-12 * kEllipsoidArea) << threads << " threads, site " << s;
+      ASSERT_EQ(got[s], first[s]) << threads << " threads, site " << s;
+    }
+  }
 }
 
 TEST(RegionMeasures, TracerPassGivesTheSameAreasWhateverTheThreads) {

@@ -165,6 +165,25 @@ TEST(RegionTracer, TilesCutRegionsAtTheirEdges) {
   check_tiles(4, labels, 3, 7);
 }
 
+TEST(RegionTracer, OutlineWalkGivesEveryCodesCell) {
+  // The walk finds a row once for the codes of the row that follow: every code in order, codes
+  // that skip rows and octants, and codes that go back.
+  for (int level : {0, 1, 4, 7}) {
+    OutlineWalk walk;
+    const auto check = [&](Code code) {
+      const grid::Cell want = grid::cell_of(code, level), got = walk.cell(code, level);
+      ASSERT_EQ(got.octant, want.octant) << "level " << level << ", code " << code;
+      ASSERT_EQ(got.row, want.row) << "level " << level << ", code " << code;
+      ASSERT_EQ(got.col, want.col) << "level " << level << ", code " << code;
+    };
+    for (Code code = 0; code < grid::cell_count(level); ++code) check(code);
+    std::mt19937_64 rng(static_cast<unsigned>(level));
+    std::uniform_int_distribution<Code> any(0, grid::cell_count(level) - 1);
+    for (int n = 0; n < 5000; ++n) check(any(rng));
+    for (Code code = 0; code < grid::cell_count(level); code += 1 + any(rng) % 97) check(code);
+  }
+}
+
 TEST(RegionTracer, OneSiteIsTheWholeRectangle) {
   const int level = 3;
   std::vector<std::int32_t> labels(grid::cell_count(level), 0);

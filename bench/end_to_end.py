@@ -77,6 +77,7 @@ CASES = {
 # Natural Earth inputs in --data: file and layer.
 NATURAL_EARTH = {"countries50": ("countries50.gpkg", "countries"), "land10": ("land10.gpkg", "land")}
 
+CHOSEN = re.compile(r"cells; (?:auto: )?([^;(,]+?)[ ;(,]")
 SUMMARY = re.compile(r"read ([0-9.]+) s .*label ([0-9.]+) s \(prepare ([0-9.]+) s\), write ([0-9.]+) s; total ([0-9.]+) s")
 
 
@@ -158,7 +159,7 @@ def run_tiles(args, command, whole_out, name, device, level, layers, whole_wall)
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--tool", required=True)
-    parser.add_argument("--device", default="both", help="cpu, cuda, both, or any -device value (cuda:all, cuda:0,1)")
+    parser.add_argument("--device", default="both", help="cpu, cuda, both, or any -device value (cuda:all, cuda:0,1, auto: every case, the choice shown)")
     parser.add_argument("--tiles", type=int, default=0, help="also run each vector case as N tile jobs and a merge")
     parser.add_argument("--cases", default=",".join(CASES), help="comma-separated case names")
     parser.add_argument("--repeat", type=int, default=3)
@@ -188,7 +189,7 @@ def main():
     for name in names:
         source, level, layers, allowed = CASES[name]
         for device, threads in [(d, t) for d in devices for t in thread_counts]:
-            if kind(device) not in allowed:
+            if device != "auto" and kind(device) not in allowed:
                 continue
             raster = layers == "tif"
             out = os.path.join(work, "%s-%s.%s" % (name, device, "tif" if raster else "gpkg"))
@@ -217,6 +218,9 @@ def main():
             stages = [SUMMARY.search(r[3]) for r in runs]
             stage = [statistics.median(float(m.group(g)) for m in stages if m) for g in (1, 2, 4)] if all(stages) else [0, 0, 0]
             size = os.path.getsize(out) / 1e6
+            if device == "auto":  # the device auto chose, from the summary line
+                chosen = CHOSEN.search(runs[0][3])
+                label = "auto (%s)" % (chosen.group(1) if chosen else "?")
             print("| %s | %s | %.2f | %.0f | %.2f / %.2f / %.2f | %.1f |" % (name, label, wall, peak, *stage, size))
             sys.stdout.flush()
             rows.append({"case": name, "device": label, "level": level, "layers": layers, "wall_s": "%.3f" % wall,

@@ -65,6 +65,13 @@ struct LabelSession::Impl {
     stats.mean_candidates = tree.mean_candidates;
   }
 
+  /// Before a look-up on the host: the host's tree (a GPU session builds it on the first), and
+  /// distances only where the session has them.
+  void ready_on_host(bool want_distance) {
+    if (gpu) std::call_once(host_tree, [&] { build_host_tree({}); });
+    if (want_distance && !with_distance) throw std::invalid_argument("this labelling session has no distances");
+  }
+
   /// The tree with the jump table of every cell's walk, for the per-cell walk of lists.
   const TreeView& walk_view() const {
     std::call_once(full_jump_once, [&] {
@@ -180,8 +187,7 @@ void LabelSession::label_range(grid::Code first, std::uint64_t count, std::int32
 void LabelSession::label_codes(const grid::Code* codes, std::size_t count, std::int32_t* site, float* distance_m,
                                std::uint8_t* boundary) const {
   Impl& s = *impl_;
-  if (s.gpu) std::call_once(s.host_tree, [&] { s.build_host_tree({}); });
-  if (distance_m && !s.with_distance) throw std::invalid_argument("this labelling session has no distances");
+  s.ready_on_host(distance_m != nullptr);
   const std::uint64_t cells = grid::cell_count(s.level);
   std::atomic<bool> bad{false};
   const TreeView& view = s.walk_view();
@@ -201,8 +207,7 @@ void LabelSession::label_codes(const grid::Code* codes, std::size_t count, std::
 void LabelSession::label_parallels(const double* lat, int rows, const double* lon, std::size_t count,
                                    std::int32_t* site, float* distance_m, std::uint8_t* boundary) const {
   Impl& s = *impl_;
-  if (s.gpu) std::call_once(s.host_tree, [&] { s.build_host_tree({}); });
-  if (distance_m && !s.with_distance) throw std::invalid_argument("this labelling session has no distances");
+  s.ready_on_host(distance_m != nullptr);
   for (int r = 0; r < rows; ++r) {
     if (!(lat[r] >= -90.0 && lat[r] <= 90.0)) throw std::invalid_argument("a latitude lies outside [-90, 90]");
   }

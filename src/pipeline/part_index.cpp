@@ -39,17 +39,6 @@ constexpr const char* kRows = "QTMV_ROWS";
 
 std::string rule_name(label::Rule rule) { return rule == label::Rule::exact ? "exact" : "cell"; }
 
-std::string join(const std::vector<std::string>& items) {
-  std::string out;
-  for (const std::string& item : items) out += (out.empty() ? "" : ",") + item;
-  return out;
-}
-
-struct DatasetCloser {
-  void operator()(GDALDataset* d) const { GDALClose(d); }
-};
-using DatasetPtr = std::unique_ptr<GDALDataset, DatasetCloser>;
-
 /// One part as its metadata and layers say: opened, checked for what makes it a part, closed.
 struct PartFile {
   std::string path;
@@ -67,7 +56,7 @@ PartFile read_part(const std::string& path) {
   part.path = path;
   gdal::ErrorCapture errors;
   const char* const drivers[] = {"GPKG", nullptr};
-  const DatasetPtr dataset(static_cast<GDALDataset*>(
+  const GDALDatasetUniquePtr dataset(GDALDataset::FromHandle(
       GDALOpenEx(path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, drivers, nullptr, nullptr)));
   if (!dataset) throw part.fail("not a part (a GeoPackage or raster that qtmvoronoi -tile K/N -part wrote)");
   part.identity = parse_part_metadata(dataset->GetMetadata(), path);
@@ -95,8 +84,9 @@ void check_same_layers(const PartFile& part, const PartFile& first) {
   const PartIdentity &a = part.identity, &b = first.identity;
   check_same_run(a, part.path, b, first.path);
   if (a.layers != b.layers || part.fields != first.fields || part.types != first.types) {
-    throw part.fail("a part with the layers " + join(a.layers) + ", but '" + first.path + "' is a part with the layers " +
-                    join(b.layers) + (a.layers == b.layers ? " (their fields differ)" : "") +
+    throw part.fail("a part with the layers " + join_with_commas(a.layers) + ", but '" + first.path +
+                    "' is a part with the layers " + join_with_commas(b.layers) +
+                    (a.layers == b.layers ? " (their fields differ)" : "") +
                     ": all parts are written with the same -layers");
   }
 }
@@ -180,10 +170,10 @@ std::vector<std::pair<std::string, std::string>> part_metadata(const PartIdentit
       {kSource, part.source},
       {kFingerprint, fingerprint}};
   if (!part.raster) {
-    items.emplace_back(kLayers, join(part.layers));
+    items.emplace_back(kLayers, join_with_commas(part.layers));
     return items;
   }
-  items.emplace_back(kBands, join(part.layers));
+  items.emplace_back(kBands, join_with_commas(part.layers));
   items.emplace_back(kRaster, part.layout + " " + std::to_string(part.width) + " " + std::to_string(part.height));
   items.emplace_back(kRows, std::to_string(part.first_row) + " " + std::to_string(part.end_row));
   return items;
@@ -279,6 +269,12 @@ std::pair<std::string, bool> path_from_index(const std::string& part, const std:
   return {relative.string(), true};
 }
 
+std::string join_with_commas(const std::vector<std::string>& items) {
+  std::string out;
+  for (const std::string& item : items) out += (out.empty() ? "" : ",") + item;
+  return out;
+}
+
 std::string xml_escaped(const std::string& text) {
   char* escaped = CPLEscapeString(text.c_str(), -1, CPLES_XML);
   std::string out = escaped;
@@ -331,7 +327,7 @@ namespace {
 /// dataset; a file that is no part is refused by the reader of vector parts.
 bool is_raster_part(const std::string& path) {
   gdal::ErrorCapture errors;
-  const DatasetPtr dataset(static_cast<GDALDataset*>(
+  const GDALDatasetUniquePtr dataset(GDALDataset::FromHandle(
       GDALOpenEx(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY, nullptr, nullptr, nullptr)));
   if (!dataset || dataset->GetRasterCount() == 0) return false;
   char** items = dataset->GetMetadata();

@@ -64,6 +64,9 @@ void check_same_run(const PartIdentity& part, const std::string& path, const Par
 /// The path of the part `part` as the index at `destination` names it, and whether it is relative
 /// to the index's directory (where both are local files), else as given.
 std::pair<std::string, bool> path_from_index(const std::string& part, const std::string& destination);
+/// The items joined with commas ("a,b,c"): a part's layers or bands in messages and metadata.
+std::string join_with_commas(const std::vector<std::string>& items);
+
 
 /// `text` escaped for XML.
 std::string xml_escaped(const std::string& text);

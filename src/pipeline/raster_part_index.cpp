@@ -19,11 +19,6 @@ namespace qtmv::pipeline {
 
 namespace {
 
-struct DatasetCloser {
-  void operator()(GDALDataset* d) const { GDALClose(d); }
-};
-using DatasetPtr = std::unique_ptr<GDALDataset, DatasetCloser>;
-
 std::string number(double value) {
   char text[40];
   std::snprintf(text, sizeof text, "%.17g", value);
@@ -57,12 +52,6 @@ struct RasterPart {
   }
 };
 
-std::string join(const std::vector<std::string>& items) {
-  std::string out;
-  for (const std::string& item : items) out += (out.empty() ? "" : ",") + item;
-  return out;
-}
-
 void read_georeferencing(GDALDataset& dataset, RasterPart& part) {
   part.georeferenced = dataset.GetGeoTransform(part.transform) == CE_None;
   const OGRSpatialReference* srs = dataset.GetSpatialRef();
@@ -80,7 +69,7 @@ RasterPart read_raster_part(const std::string& path) {
   part.path = path;
   gdal::ErrorCapture errors;
   // Opened as either kind: a vector part among raster parts is named as such (check_same_run).
-  const DatasetPtr dataset(static_cast<GDALDataset*>(
+  const GDALDatasetUniquePtr dataset(GDALDataset::FromHandle(
       GDALOpenEx(path.c_str(), GDAL_OF_RASTER | GDAL_OF_VECTOR | GDAL_OF_READONLY, nullptr, nullptr, nullptr)));
   if (!dataset) throw part.fail("not a part (a GeoPackage or raster that qtmvoronoi -tile K/N -part wrote)");
   char** items = dataset->GetMetadata();
@@ -126,8 +115,8 @@ void check_same_raster(const RasterPart& part, const RasterPart& first) {
                     ": all parts are written with the same -raster, -tr or -ts");
   }
   if (part.identity.layers != first.identity.layers) {
-    throw part.fail("a part with the bands " + join(part.identity.layers) + than + "a part with the bands " +
-                    join(first.identity.layers) + ": all parts are written with the same -bands");
+    throw part.fail("a part with the bands " + join_with_commas(part.identity.layers) + than + "a part with the bands " +
+                    join_with_commas(first.identity.layers) + ": all parts are written with the same -bands");
   }
   const PartBand &a = part.bands.front(), &b = first.bands.front();
   if (a.type != b.type || a.nodata != b.nodata) {
@@ -222,7 +211,7 @@ PartIndexSummary write_raster_part_index(const std::vector<std::string>& files, 
   summary.parts = count;
   summary.level = first->identity.level;
   summary.raster = std::to_string(first->identity.width) + " x " + std::to_string(first->identity.height) +
-                   " pixels, bands " + join(first->identity.layers);
+                   " pixels, bands " + join_with_commas(first->identity.layers);
   write_index_text(path, raster_index_xml(parts, destination), destination);
   return summary;
 }

@@ -19,7 +19,8 @@ its regions are compared with the whole run's (the rows of the GeoPackage's regi
 
 PATH is the qtmvoronoi binary or the bundle's bin/qtmvoronoi wrapper (scripts/make_bundle.sh).
 The inputs: testdata/country_centres.csv (241 points), and 135 233 and 1 000 000 points spread evenly
-over the sphere (seeded; written here as CSV, so that no GDAL tool is needed on the machine); for the
+over the sphere (seeded; written here as CSV, so that no GDAL tool is needed on the machine, and the
+million also as a GeoPackage written with sqlite3: the points1m-gpkg cases); for the
 polygon cases, Natural Earth's 50m countries and 10m land as GeoPackages in --data DIR (made by
 bench/make_natural_earth.sh where GDAL's tools are; copied to the GPU machine with the bundle).
 Standard library only: it runs on the GPU machine too.
@@ -33,6 +34,7 @@ import re
 import shutil
 import statistics
 import sqlite3
+import struct
 import hashlib
 import subprocess
 import sys
@@ -65,6 +67,9 @@ CASES = {
     "points1m-L14-regions": ("points1m", 14, "regions", ("cpu", "cuda")),
     "points1m-L16-regions": ("points1m", 16, "regions", ("cuda",)),
     "points10m-L14-regions": ("points10m", 14, "regions", ("cuda",)),
+    "points1m-gpkg-L10-regions": ("points1m-gpkg", 10, "regions", ("cpu", "cuda")),
+    "points1m-gpkg-L14-regions": ("points1m-gpkg", 14, "regions", ("cpu", "cuda")),
+    "points1m-gpkg-L16-regions": ("points1m-gpkg", 16, "regions", ("cuda",)),
     "points135k-L15-regions": ("points", 15, "regions", ("cpu", "cuda")),
     "points135k-L11-tif": ("points", 11, "tif", ("cpu", "cuda")),
     "points135k-L13-tif": ("points", 13, "tif", ("cpu", "cuda")),
@@ -89,6 +94,46 @@ def even_points(path, n=135233, seed=135233):
             z = rng.uniform(-1.0, 1.0)
             lon = rng.uniform(-180.0, 180.0)
             f.write("%d,%.7f,%.7f\n" % (k, lon, math.degrees(math.asin(z))))
+
+
+def points_geopackage(csv_path, gpkg_path):
+    """The points of a CSV of id,lon,lat (even_points) as a GeoPackage of one point layer in
+    EPSG:4326, written with sqlite3 (no GDAL on the GPU machine): the same sites in the format a
+    user's million points often come in, read by GDAL's GeoPackage driver rather than its CSV parser."""
+    if os.path.exists(gpkg_path):
+        os.remove(gpkg_path)
+    name = os.path.splitext(os.path.basename(gpkg_path))[0]
+    db = sqlite3.connect(gpkg_path)
+    db.execute("PRAGMA application_id = 1196444487")  # 'GPKG'
+    db.execute("PRAGMA user_version = 10300")
+    db.executescript("""
+        CREATE TABLE gpkg_spatial_ref_sys (srs_name TEXT NOT NULL, srs_id INTEGER PRIMARY KEY, organization TEXT NOT NULL,
+            organization_coordsys_id INTEGER NOT NULL, definition TEXT NOT NULL, description TEXT);
+        CREATE TABLE gpkg_contents (table_name TEXT NOT NULL PRIMARY KEY, data_type TEXT NOT NULL, identifier TEXT UNIQUE,
+            description TEXT DEFAULT '', last_change DATETIME NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ','now')),
+            min_x DOUBLE, min_y DOUBLE, max_x DOUBLE, max_y DOUBLE, srs_id INTEGER);
+        CREATE TABLE gpkg_geometry_columns (table_name TEXT NOT NULL, column_name TEXT NOT NULL, geometry_type_name TEXT NOT NULL,
+            srs_id INTEGER NOT NULL, z TINYINT NOT NULL, m TINYINT NOT NULL, PRIMARY KEY (table_name, column_name));""")
+    wgs84 = ('GEOGCS["WGS 84",DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563,AUTHORITY["EPSG","7030"]],'
+             'AUTHORITY["EPSG","6326"]],PRIMEM["Greenwich",0,AUTHORITY["EPSG","8901"]],UNIT["degree",0.0174532925199433,'
+             'AUTHORITY["EPSG","9122"]],AXIS["Latitude",NORTH],AXIS["Longitude",EAST],AUTHORITY["EPSG","4326"]]')
+    db.executemany("INSERT INTO gpkg_spatial_ref_sys VALUES (?, ?, ?, ?, ?, ?)",
+                   [("Undefined cartesian SRS", -1, "NONE", -1, "undefined", None),
+                    ("Undefined geographic SRS", 0, "NONE", 0, "undefined", None),
+                    ("WGS 84 geodetic", 4326, "EPSG", 4326, wgs84, None)])
+    db.execute("INSERT INTO gpkg_contents (table_name, data_type, identifier, min_x, min_y, max_x, max_y, srs_id) "
+               "VALUES (?, 'features', ?, -180, -90, 180, 90, 4326)", (name, name))
+    db.execute("INSERT INTO gpkg_geometry_columns VALUES (?, 'geom', 'POINT', 4326, 0, 0)", (name,))
+    db.execute('CREATE TABLE "%s" (fid INTEGER PRIMARY KEY AUTOINCREMENT NOT NULL, geom POINT, id INTEGER)' % name)
+    # A GeoPackage geometry: "GP", version 0, flags 1 (little-endian, no envelope), the SRS id, then WKB.
+    header = b"GP\x00\x01" + struct.pack("<i", 4326)
+    with open(csv_path) as f:
+        next(f)
+        rows = ((header + struct.pack("<BIdd", 1, 1, float(lon), float(lat)), int(k))
+                for k, lon, lat in (line.split(",") for line in f))
+        db.executemany('INSERT INTO "%s" (geom, id) VALUES (?, ?)' % name, rows)
+    db.commit()
+    db.close()
 
 
 def settle(path):
@@ -177,8 +222,11 @@ def main():
     names = [c for c in args.cases.split(",") if c]
     for source, (count, seed) in spread.items():
         inputs[source] = os.path.join(work, "%s.csv" % source)
-        if any(CASES[c][0] == source for c in names):
+        if any(CASES[c][0] in (source, source + "-gpkg") for c in names):
             even_points(inputs[source], count, seed)
+        if any(CASES[c][0] == source + "-gpkg" for c in names):
+            inputs[source + "-gpkg"] = os.path.join(work, "%s.gpkg" % source)
+            points_geopackage(inputs[source], inputs[source + "-gpkg"])
     thread_counts = [int(t) for t in args.threads.split(",") if t]
     devices = ["cpu", "cuda"] if args.device == "both" else [args.device]
     kind = lambda device: "cuda" if device.startswith("cuda") else device
@@ -202,6 +250,8 @@ def main():
             if source in NATURAL_EARTH:
                 file, layer = NATURAL_EARTH[source]
                 command += ["-l", layer, os.path.join(args.data, file), out]
+            elif source.endswith("-gpkg"):
+                command += [inputs[source], out]
             else:
                 command += CSV_OPTIONS + [inputs[source], out]
             runs = []

@@ -4,6 +4,7 @@
 #include <GeographicLib/Math.hpp>
 
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -111,6 +112,7 @@ struct RegionAreaSums::Sums {
   std::vector<Site, HugePageAllocator<Site>> site;
   const bool lengths;
   const measure::EdgeSolver solver;
+  std::atomic<std::uint64_t> solve_ns{0};  // the threads' time in solver.solve (the trace's)
   std::mutex pair_lock;
   std::vector<PairLength> pairs;  // the threads' partial sums, any order
 };
@@ -177,7 +179,11 @@ class SumCache : public RegionEdgeObserver::Local {
   }
   void solve_pending() {
     units_.resize(ends_.size());
+    const auto start = std::chrono::steady_clock::now();
     shared_.solver.solve(ends_.data(), ends_.size(), units_.data(), &recent_);
+    shared_.solve_ns.fetch_add(static_cast<std::uint64_t>(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                   std::chrono::steady_clock::now() - start).count()),
+                               std::memory_order_relaxed);
     for (std::size_t k = 0; k < pending_.size(); ++k) {
       const auto [site, other] = pending_[k];
       const EdgeTerms t = edge_terms(ends_[k].from, ends_[k].to, units_[k], sines_);
@@ -268,6 +274,8 @@ std::vector<double> RegionAreaSums::areas(const std::vector<std::uint64_t>& cell
   }
   return out;
 }
+
+double RegionAreaSums::solve_seconds() const { return static_cast<double>(sums_->solve_ns.load()) * 1e-9; }
 
 std::vector<PairLength> RegionAreaSums::pair_lengths() const {
   std::vector<PairLength> all = sums_->pairs;

@@ -58,6 +58,9 @@ class RegionAreaSums : public RegionEdgeObserver {
   /// The pairs' length sums, sorted by key (empty without `pair_lengths`). Call once every
   /// Local view is gone.
   std::vector<PairLength> pair_lengths() const;
+  /// The threads' time (seconds, summed over threads) in the geodesics' solves so far: on a GPU,
+  /// what the gathering threads wait for.
+  double solve_seconds() const;
 
   struct Sums;
 

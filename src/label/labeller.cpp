@@ -424,8 +424,11 @@ class LabellingRun {
       trace_printf(TraceStage::label, "%s: %zu tiles, kernels %.3f s, outline selection and copies %.3f s, wall %.3f s",
                    stats_.device.c_str(), stats_.tiles, stats_.label_seconds, stats_.copy_seconds,
                    now_seconds() - gpu_start);
+      const double free_start = now_seconds();
       gpu_.reset();
       cuda::release_cached_memory(device_.index);
+      trace_printf(TraceStage::label, "%s: device memory given back in %.3f s", stats_.device.c_str(),
+                   now_seconds() - free_start);
       return true;
     } catch (const cuda::OutOfMemory& e) {
       leave_gpu(e, done);
@@ -553,7 +556,9 @@ LabelStats label_outlines(const LabelInput& input, const LabelOptions& options, 
   result.site_count = input.site_count;
   result.range = range_of(options, input.level);
   const LabelStats stats = run_labelling(input, outline_options, {}, &result.cells);
+  const double count_start = now_seconds();
   result.cells_per_site = count_cells_per_site(result.cells, input.level, input.site_count, result.range.end);
+  trace_printf(TraceStage::label, "cells per site counted in %.3f s", now_seconds() - count_start);
   trace_outlines(result);
   *out = std::move(result);
   return stats;

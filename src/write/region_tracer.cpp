@@ -412,28 +412,28 @@ RegionTracer::RegionTracer(const label::Outlines& whole_or_tile, RingVertices ve
   done(0.5);
 
   // Bucketed by site, packed (packed_cell_edges.hpp), each thread taking a stretch of the cells
-  // with, per site, a byte count then next byte, and the code after its last cell, of its own
-  // (no atomics; each site's cells come in code order, a thread's first of a site whole): as
-  // many threads as keep those tables within a byte an outline cell, or 64 MiB.
+  // with a slot per site of its own (no atomics; each site's cells come in code order, a
+  // thread's first of a site whole): as many threads as keep those tables within a byte an
+  // outline cell, or 64 MiB.
+  struct SiteSlot {
+    std::size_t place;  // the site's bytes in the stretch, then where its next entry goes
+    Code after;         // the code after the site's last cell in the stretch (0: none yet)
+  };
   const std::size_t table_bytes = std::max<std::size_t>(n, std::size_t{64} << 20);
-  const std::size_t team = std::clamp<std::size_t>(table_bytes / (2 * sizeof(std::size_t) * (sites + 1)), 1,
+  const std::size_t team = std::clamp<std::size_t>(table_bytes / (sizeof(SiteSlot) * (sites + 1)), 1,
                                                    static_cast<std::size_t>(thread_count(0)));
   // Each zeroed by its thread (megabytes each), not all by this one.
-  std::vector<std::vector<std::size_t>> place(team);
-  std::vector<std::vector<Code>> after(team);
+  std::vector<std::vector<SiteSlot>> slots(team);
   const auto stretch = [&](std::size_t t, auto&& visit) {
-    after[t].assign(sites, 0);
     for (std::size_t k = n * t / team; k < n * (t + 1) / team; ++k) {
-      if (masks[k] == 0) continue;
-      const auto s = static_cast<std::size_t>(cells[k].site);
-      visit(cells[k].code(), masks[k], place[t][s], after[t][s]);
+      if (masks[k] != 0) visit(cells[k].code(), masks[k], slots[t][static_cast<std::size_t>(cells[k].site)]);
     }
   };
 #pragma omp parallel for schedule(static, 1) num_threads(static_cast<int>(team))
   for (std::int64_t t = 0; t < static_cast<std::int64_t>(team); ++t) {
-    place[static_cast<std::size_t>(t)].assign(sites + 1, 0);
-    stretch(static_cast<std::size_t>(t), [](Code code, std::uint8_t, std::size_t& bytes, Code& last) {
-      bytes += packed_cell_edges_bytes(code, last);
+    slots[static_cast<std::size_t>(t)].assign(sites, SiteSlot{0, 0});
+    stretch(static_cast<std::size_t>(t), [](Code code, std::uint8_t, SiteSlot& slot) {
+      slot.place += packed_cell_edges_bytes(code, slot.after);
     });
   }
   std::vector<std::size_t> start(sites + 1, 0);
@@ -441,8 +441,9 @@ RegionTracer::RegionTracer(const label::Outlines& whole_or_tile, RingVertices ve
   for (std::size_t s = 0; s < sites; ++s) {
     start[s] = at;
     for (std::size_t t = 0; t < team; ++t) {
-      const std::size_t count = place[t][s];
-      place[t][s] = at;
+      SiteSlot& slot = slots[t][s];
+      const std::size_t count = slot.place;
+      slot = SiteSlot{at, 0};
       at += count;
     }
   }
@@ -451,8 +452,8 @@ RegionTracer::RegionTracer(const label::Outlines& whole_or_tile, RingVertices ve
   cells_.resize(at);
 #pragma omp parallel for schedule(static, 1) num_threads(static_cast<int>(team))
   for (std::int64_t t = 0; t < static_cast<std::int64_t>(team); ++t) {
-    stretch(static_cast<std::size_t>(t), [&](Code code, std::uint8_t mask, std::size_t& next, Code& last) {
-      next = static_cast<std::size_t>(put_packed_cell_edges(cells_.data() + next, code, mask, last) - cells_.data());
+    stretch(static_cast<std::size_t>(t), [&](Code code, std::uint8_t mask, SiteSlot& slot) {
+      slot.place = static_cast<std::size_t>(put_packed_cell_edges(cells_.data() + slot.place, code, mask, slot.after) - cells_.data());
     });
   }
   start_ = std::move(start);

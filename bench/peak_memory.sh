@@ -40,9 +40,9 @@ for level in "${levels[@]}"; do
   summary=$(grep -o "read [0-9.]* s.*total [0-9.]* s" "$log")
   echo "level $level $device: peak ${peak} MB, ${outline} outline cells; $summary"
   if [ -s "$work/rss.txt" ]; then
-    awk '{ stage = $2 > 0 ? "write" : ($3 > 0 ? "label-done" : "read+label"); if ($1 > max[stage]) max[stage] = $1 }
-         END { printf "  sampled max RSS: read+label %d MB, after the outline list %d MB, write %d MB\n",
-               max["read+label"], max["label-done"], max["write"] }' "$work/rss.txt"
+    awk '{ stage = $2 > 0 ? "write" : ($3 > 0 ? "after-label" : "read+label"); if ($1 > max[stage]) max[stage] = $1 }
+         END { printf "  sampled max RSS (MB):"; n = split("read+label after-label write", order, " ")
+               for (k = 1; k <= n; ++k) if (order[k] in max) printf " %s %d", order[k], max[order[k]]; printf "\n" }' "$work/rss.txt"
   fi
   grep -o "trace: write .*" "$log" | sed 's/^trace: /  /' || true
 done

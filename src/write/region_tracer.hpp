@@ -88,8 +88,9 @@ class RegionTracer {
   std::int32_t site_count() const { return static_cast<std::int32_t>(start_.size()) - 1; }
 
   /// Host bytes the tracer holds per outline cell (for the run's memory estimate): a mask byte
-  /// while it gathers, and a packed entry (mostly 1 to 3 bytes) with the bucketing's tables.
-  static constexpr std::uint64_t kBytesPerOutlineCell = 9;
+  /// while it gathers, and a packed entry (mostly 1 to 3 bytes) with the bucketing's tables
+  /// (3.4 measured at 1M random points, level 14).
+  static constexpr std::uint64_t kBytesPerOutlineCell = 4;
 
   /// The region of `site` (0 .. site_count() - 1): its edges linked into rings and grouped into
   /// polygons. Const: callable from several threads at once.

@@ -18,6 +18,20 @@ std::uint64_t host_ram_bytes() {
                                : std::uint64_t{8} << 30;
 }
 
+ProcessMemory process_memory() {
+  ProcessMemory memory;
+  std::FILE* status = std::fopen("/proc/self/status", "r");
+  if (!status) return memory;
+  char line[256];
+  while (std::fgets(line, sizeof line, status)) {
+    unsigned long long kib = 0;  // the kernel's "kB" are KiB
+    if (std::sscanf(line, "VmRSS: %llu kB", &kib) == 1) memory.resident = kib * 1024;
+    if (std::sscanf(line, "VmHWM: %llu kB", &kib) == 1) memory.peak_resident = kib * 1024;
+  }
+  std::fclose(status);
+  return memory;
+}
+
 std::string format_gib(double bytes) {
   char text[64];
   std::snprintf(text, sizeof text, "%.2f GiB", bytes / double(std::uint64_t{1} << 30));

@@ -12,6 +12,15 @@ double now_seconds();
 /// Physical memory of the host (bytes); 8 GiB when the system does not say.
 std::uint64_t host_ram_bytes();
 
+/// This process's resident memory (bytes): now (VmRSS) and its high-water mark since it started
+/// (VmHWM, what GNU time's "maximum resident set size" reports). Zeros where the system does not
+/// say (no /proc/self/status).
+struct ProcessMemory {
+  std::uint64_t resident = 0;
+  std::uint64_t peak_resident = 0;
+};
+ProcessMemory process_memory();
+
 /// "1.25 GiB": a byte count for messages.
 std::string format_gib(double bytes);
 

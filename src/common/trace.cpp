@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "common/config_option.hpp"
+#include "common/host_info.hpp"
 
 namespace qtmv {
 
@@ -91,7 +92,11 @@ void StepTrace::operator()(const char* step, const std::string& detail) {
   const auto now = std::chrono::steady_clock::now();
   char text[256];
   std::snprintf(text, sizeof text, "%-28s %9.3f ms", step, std::chrono::duration<double, std::milli>(now - last_).count());
-  trace_line(stage_, detail.empty() ? std::string(text) : std::string(text) + "  " + detail);
+  // The process's memory at the step's end, and its peak so far: where a step's buffers meet.
+  const ProcessMemory memory = process_memory();
+  char rss[96];
+  std::snprintf(rss, sizeof rss, "  [rss %.1f MB, peak %.1f MB]", memory.resident / 1e6, memory.peak_resident / 1e6);
+  trace_line(stage_, (detail.empty() ? std::string(text) : std::string(text) + "  " + detail) + rss);
   last_ = now;
 }
 

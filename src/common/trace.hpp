@@ -48,7 +48,9 @@ class ScopedTraceSink {
 };
 
 /// The steps of one stage, each traced with its time since the step before:
-/// "trace: <stage> <step> <milliseconds> ms <detail>". Off (and free) unless the stage is enabled.
+/// "trace: <stage> <step> <milliseconds> ms <detail>  [rss <MB> MB, peak <MB> MB]" (the process's
+/// resident memory at the step's end and its peak so far, 10^6 bytes: common/host_info.hpp's
+/// process_memory). Off (and free) unless the stage is enabled.
 class StepTrace {
  public:
   explicit StepTrace(TraceStage stage);

@@ -67,7 +67,7 @@ constexpr std::uint64_t kCpuTileBytes = std::uint64_t{64} << 20;
 // Host bytes per outline cell at the run's peak: the cell itself (label::OutlineCell, 12) and the
 // most held beside the cells: the CPU outline pass's join (its threads' lists, about 1.6 listings
 // a cell, a sort's spare of one list, and the result: up to 2.6 cells' worth more), the
-// regions' tracer (RegionTracer::kBytesPerOutlineCell, 9), the Voronoi edges (32 bytes per cell
+// regions' tracer (RegionTracer::kBytesPerOutlineCell, 4), the Voronoi edges (32 bytes per cell
 // edge between sites, the edges and their sort's spare, about 0.7 of them per outline cell); the
 // margin covers the rows in flight and the per-site arrays. (Before the cells were packed and the tracer's lists made in place,
 // the regions' peak alone held 32 bytes a cell.)

@@ -9,6 +9,7 @@
 #include "common/openmp_threads.hpp"
 #include "grid/qtm_checks.hpp"
 #include "common/first_exception.hpp"
+#include "write/packed_cell_edges.hpp"
 
 namespace qtmv::write {
 namespace {
@@ -115,7 +116,6 @@ struct Box {
 /// A tracing thread's buffers, kept from one region to the next (a region allocates only its own
 /// rings).
 struct TraceScratch {
-  std::vector<RegionTracer::CellEdges> cells;
   std::vector<Edge> edges;
   std::vector<std::size_t> table, next, position;
   std::vector<char> used;
@@ -411,42 +411,49 @@ RegionTracer::RegionTracer(const label::Outlines& whole_or_tile, RingVertices ve
   failure.rethrow();
   done(0.5);
 
-  // Bucketed by site, each thread taking a stretch of the cells with a count and a next slot
-  // per site of its own (no atomics; each site's cells come in code order): as many threads as
-  // keep those tables within a byte an outline cell, or 64 MiB.
+  // Bucketed by site, packed (packed_cell_edges.hpp), each thread taking a stretch of the cells
+  // with a slot per site of its own (no atomics; each site's cells come in code order, a
+  // thread's first of a site whole): as many threads as keep those tables within a byte an
+  // outline cell, or 64 MiB.
+  struct SiteSlot {
+    std::size_t place;  // the site's bytes in the stretch, then where its next entry goes
+    Code after;         // the code after the site's last cell in the stretch (0: none yet)
+  };
   const std::size_t table_bytes = std::max<std::size_t>(n, std::size_t{64} << 20);
-  const std::size_t team = std::clamp<std::size_t>(table_bytes / (sizeof(std::size_t) * (sites + 1)), 1,
+  const std::size_t team = std::clamp<std::size_t>(table_bytes / (sizeof(SiteSlot) * (sites + 1)), 1,
                                                    static_cast<std::size_t>(thread_count(0)));
   // Each zeroed by its thread (megabytes each), not all by this one.
-  std::vector<std::vector<std::size_t>> place(team);
-#pragma omp parallel for schedule(static, 1) num_threads(static_cast<int>(team))
-  for (std::int64_t t = 0; t < static_cast<std::int64_t>(team); ++t) place[static_cast<std::size_t>(t)].assign(sites + 1, 0);
+  std::vector<std::vector<SiteSlot>> slots(team);
   const auto stretch = [&](std::size_t t, auto&& visit) {
     for (std::size_t k = n * t / team; k < n * (t + 1) / team; ++k) {
-      if (masks[k] != 0) visit(cells[k], masks[k], place[t][static_cast<std::size_t>(cells[k].site)]);
+      if (masks[k] != 0) visit(cells[k].code(), masks[k], slots[t][static_cast<std::size_t>(cells[k].site)]);
     }
   };
 #pragma omp parallel for schedule(static, 1) num_threads(static_cast<int>(team))
   for (std::int64_t t = 0; t < static_cast<std::int64_t>(team); ++t) {
-    stretch(static_cast<std::size_t>(t), [](const label::OutlineCell&, std::uint8_t, std::size_t& count) { ++count; });
+    slots[static_cast<std::size_t>(t)].assign(sites, SiteSlot{0, 0});
+    stretch(static_cast<std::size_t>(t), [](Code code, std::uint8_t, SiteSlot& slot) {
+      slot.place += packed_cell_edges_bytes(code, slot.after);
+    });
   }
   std::vector<std::size_t> start(sites + 1, 0);
   std::size_t at = 0;
   for (std::size_t s = 0; s < sites; ++s) {
     start[s] = at;
     for (std::size_t t = 0; t < team; ++t) {
-      const std::size_t count = place[t][s];
-      place[t][s] = at;
+      SiteSlot& slot = slots[t][s];
+      const std::size_t count = slot.place;
+      slot = SiteSlot{at, 0};
       at += count;
     }
   }
   start[sites] = at;
-  // Not zeroed (gigabytes at the finer levels, on one core): every slot is written below, on all cores.
+  // Not zeroed (gigabytes at the finer levels, on one core): every byte is written below, on all cores.
   cells_.resize(at);
 #pragma omp parallel for schedule(static, 1) num_threads(static_cast<int>(team))
   for (std::int64_t t = 0; t < static_cast<std::int64_t>(team); ++t) {
-    stretch(static_cast<std::size_t>(t), [&](const label::OutlineCell& cell, std::uint8_t mask, std::size_t& next) {
-      cells_[next++] = cell.code() << kEdgeMaskBits | mask;
+    stretch(static_cast<std::size_t>(t), [&](Code code, std::uint8_t mask, SiteSlot& slot) {
+      slot.place = static_cast<std::size_t>(put_packed_cell_edges(cells_.data() + slot.place, code, mask, slot.after) - cells_.data());
     });
   }
   start_ = std::move(start);
@@ -457,17 +464,18 @@ Region RegionTracer::trace(std::int32_t site) const {
   const auto s = static_cast<std::size_t>(site);
   // The site's edges drawn again from its cells, in code order (so that the rings do not depend
   // on the order the threads listed the cells in).
+  // The bucketing's threads took stretches of the codes in order, so a list is in code order.
   thread_local TraceScratch scratch;
-  std::vector<CellEdges>& cells = scratch.cells;
-  cells.assign(cells_.begin() + static_cast<std::ptrdiff_t>(start_[s]), cells_.begin() + static_cast<std::ptrdiff_t>(start_[s + 1]));
-  std::sort(cells.begin(), cells.end());
   std::vector<Edge>& edges = scratch.edges;
   edges.clear();
-  for (const CellEdges entry : cells) {
+  PackedCellEdgesReader list(cells_.data() + start_[s], cells_.data() + start_[s + 1]);
+  Code code = 0;
+  unsigned mask = 0;
+  while (list.next(code, mask)) {
     LonLat ring[grid::kMaxPolygonCorners];
-    const int corners = grid::cell_polygon(grid::cell_of(entry >> kEdgeMaskBits, level_), level_, ring);
+    const int corners = grid::cell_polygon(grid::cell_of(code, level_), level_, ring);
     for (int e = 0; e < corners; ++e) {
-      if (entry >> e & 1) edges.push_back({ring[e], ring[(e + 1) % corners]});
+      if (mask >> e & 1) edges.push_back({ring[e], ring[(e + 1) % corners]});
     }
   }
   return link_rings(edges.data(), edges.size(), vertices_, scratch);

@@ -71,9 +71,10 @@ class RegionEdgeObserver {
 /// neighbour's site comes from label::NearSearch. Work and memory follow the outline cells,
 /// and a writer holds only the regions it is writing.
 ///
-/// The lists hold 8 bytes per outline cell with region edges (its code and which of its drawn
-/// edges bound the region), made in place from a byte per outline cell (9 bytes a cell at the
-/// most); a site's edges are drawn again in code order and linked when it is traced.
+/// The lists hold each outline cell with region edges (its code and which of its drawn edges bound
+/// the region) packed in a few bytes (packed_cell_edges.hpp: 1 to 3, where a code took 8), made
+/// from a byte per outline cell; a site's edges are drawn again in code order and linked when it
+/// is traced.
 class RegionTracer {
  public:
   /// Gathers the edges on all cores. `step_done` (may be empty) is called on the calling thread
@@ -86,8 +87,10 @@ class RegionTracer {
 
   std::int32_t site_count() const { return static_cast<std::int32_t>(start_.size()) - 1; }
 
-  /// Host bytes the tracer holds per outline cell at the most (for the run's memory estimate).
-  static constexpr std::uint64_t kBytesPerOutlineCell = 9;
+  /// Host bytes the tracer holds per outline cell (for the run's memory estimate): a mask byte
+  /// while it gathers, and a packed entry (mostly 1 to 3 bytes) with the bucketing's tables
+  /// (3.4 measured at 1M random points, level 14).
+  static constexpr std::uint64_t kBytesPerOutlineCell = 4;
 
   /// The region of `site` (0 .. site_count() - 1): its edges linked into rings and grouped into
   /// polygons. Const: callable from several threads at once.
@@ -98,18 +101,13 @@ class RegionTracer {
     LonLat from, to;
   };
 
-  /// An outline cell with edges of its site's region: code << kEdgeMaskBits | mask, bit e of the
-  /// mask set when the cell's drawn edge e (drawn_ring) bounds the region.
-  using CellEdges = std::uint64_t;
-  static constexpr int kEdgeMaskBits = grid::kMaxPolygonCorners;
-  static_assert(2 * grid::kMaxLevel + 3 + kEdgeMaskBits <= 64, "a code and its edge mask fit 64 bits");
-
  private:
   int level_;
   RingVertices vertices_;
-  using CellEdgesList = std::vector<CellEdges, HugePageAllocator<CellEdges>>;
-  CellEdgesList cells_;              // every site's outline cells with region edges, site after site
-  std::vector<std::size_t> start_;  // site s's: [start_[s], start_[s + 1])
+  // Every site's outline cells with region edges and their edge masks, site after site, packed
+  // (write/packed_cell_edges.hpp): about 1.5 bytes a cell where codes and masks took 8.
+  std::vector<std::uint8_t, HugePageAllocator<std::uint8_t>> cells_;
+  std::vector<std::size_t> start_;  // site s's bytes: [start_[s], start_[s + 1])
 };
 
 /// The outlines of a tile (outlines.range, whole rows) made ready to trace its regions cut at

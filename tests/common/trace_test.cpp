@@ -7,11 +7,13 @@
 #include <stdlib.h>
 
 #include <cstring>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "common/config_option.hpp"
+#include "common/host_info.hpp"
 
 namespace qtmv {
 namespace {
@@ -69,6 +71,30 @@ TEST(Trace, LinesGoToTheSinkAtDebugSeverityOnlyWhenOn) {
   EXPECT_NE(lines[1].second.find("of which tracing"), std::string::npos) << lines[1].second;
   EXPECT_NE(lines[1].second.find("500.000 ms"), std::string::npos) << lines[1].second;
   EXPECT_EQ(lines[2].second, "trace: write raster 3 strips");
+  // A step's line ends with the process's memory: now and its peak so far.
+  EXPECT_NE(lines[0].second.find("42 rows  [rss "), std::string::npos) << lines[0].second;
+  EXPECT_NE(lines[0].second.find(" MB, peak "), std::string::npos) << lines[0].second;
+}
+
+TEST(ProcessMemory, IsPlausibleAndGrowsWithTouchedMemory) {
+#if defined(__linux__)
+  const ProcessMemory before = process_memory();
+  EXPECT_GT(before.resident, std::uint64_t{1} << 20);  // a test binary holds more than a MiB
+  EXPECT_LT(before.resident, host_ram_bytes());
+  EXPECT_GE(before.peak_resident, before.resident);
+  // 64 MiB touched page by page: resident now, and in the peak.
+  constexpr std::size_t kBytes = std::size_t{64} << 20;
+  const std::unique_ptr<char[]> buffer(new char[kBytes]);
+  for (std::size_t k = 0; k < kBytes; k += 4096) buffer[k] = static_cast<char>(k);
+  volatile char sink = buffer[kBytes / 2];
+  (void)sink;
+  const ProcessMemory after = process_memory();
+  EXPECT_GE(after.resident, before.resident + kBytes * 9 / 10);
+  EXPECT_GE(after.peak_resident, after.resident);
+  EXPECT_GE(after.peak_resident, before.peak_resident);
+#else
+  GTEST_SKIP() << "no /proc/self/status";
+#endif
 }
 
 const char* fake_lookup(const char* name, const char*) {

@@ -10,6 +10,10 @@
 #include <random>
 #include <vector>
 
+#if defined(_OPENMP)
+#include <omp.h>
+#endif
+
 #include "grid/qtm.hpp"
 #include "grid/qtm_code_ranges.hpp"
 #include "write/region_measures.hpp"
@@ -163,6 +167,52 @@ TEST(RegionTracer, TilesCutRegionsAtTheirEdges) {
   std::vector<std::int32_t> labels(grid::cell_count(4));
   for (auto& l : labels) l = site(rng);
   check_tiles(4, labels, 3, 7);
+}
+
+/// Whether two regions are the same rings, vertex for vertex, in the same order.
+bool same_region(const Region& a, const Region& b) {
+  const auto same_ring = [](const std::vector<LonLat>& p, const std::vector<LonLat>& q) {
+    if (p.size() != q.size()) return false;
+    for (std::size_t k = 0; k < p.size(); ++k) {
+      if (!same_point(p[k], q[k])) return false;
+    }
+    return true;
+  };
+  if (a.size() != b.size()) return false;
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    if (!same_ring(a[k].shell, b[k].shell) || a[k].holes.size() != b[k].holes.size()) return false;
+    for (std::size_t h = 0; h < a[k].holes.size(); ++h) {
+      if (!same_ring(a[k].holes[h], b[k].holes[h])) return false;
+    }
+  }
+  return true;
+}
+
+TEST(RegionTracer, SameRegionsWhateverTheThreads) {
+#if defined(_OPENMP)
+  // The bucketing's threads each take a stretch of the outline cells and pack their part of a
+  // site's list on their own (its first cell whole): a site's list then has parts from several
+  // threads, which must read back as the one list of one thread.
+  const int level = 6;
+  std::mt19937_64 rng(23);
+  std::uniform_int_distribution<std::int32_t> site(0, 3);
+  std::vector<std::int32_t> labels(grid::cell_count(level));
+  for (auto& l : labels) l = site(rng);  // every site's cells all over the level
+  for (const auto& [sites, cells] : {std::make_pair(40, nearest_point_labels(level, 40, 3)), std::make_pair(4, labels)}) {
+    const int before = omp_get_max_threads();
+    omp_set_num_threads(1);
+    const std::vector<Region> one = trace_regions(level, cells.data(), sites);
+    for (int threads : {2, 3, 8}) {
+      omp_set_num_threads(threads);
+      const std::vector<Region> many = trace_regions(level, cells.data(), sites);
+      ASSERT_EQ(many.size(), one.size());
+      for (std::size_t s = 0; s < one.size(); ++s) EXPECT_TRUE(same_region(many[s], one[s])) << threads << " threads, site " << s;
+    }
+    omp_set_num_threads(before);
+  }
+#else
+  GTEST_SKIP() << "no OpenMP";
+#endif
 }
 
 TEST(RegionTracer, OutlineWalkGivesEveryCodesCell) {

@@ -22,6 +22,7 @@
 #include "sites/lonlat_transform.hpp"
 #include "sites/polygon_validity.hpp"
 #include "sites/read_step.hpp"
+#include "sites/split_read.hpp"
 
 namespace qtmv::sites {
 
@@ -140,7 +141,9 @@ class LayerReader {
   const LayerCrs crs_;
   const std::uint32_t layer_index_;  // the layer's source in the site table
   PolygonValidityCheck validity_;
-  FeatureCount feature_count_;
+  // The layer's features read by several GDAL datasets at once, in its order; null: by the layer.
+  const std::unique_ptr<SplitRead> split_;
+  FeatureCount feature_count_;  // not counted for a split read (its progress is its lines')
   std::vector<OGRFeatureUniquePtr>* const selected_;  // null: the layer's features
   std::size_t next_selected_ = 0;
   ThreadTransforms transforms_;
@@ -173,13 +176,14 @@ LayerReader::LayerReader(const OgrSource& source, std::size_t layer_number, std:
       crs_(layer_crs(*layer_, where_from_, options, errors, wgs84)),
       layer_index_(totals.out.table.add_source(layer_->GetLayerDefn(), source.name, source.layers[layer_number].name)),
       validity_(options, crs_.source, where_from_),
-      feature_count_(source, layer_number, options, totals.builders.threads()),
+      split_(selected ? nullptr : SplitRead::open(source, layer_number, options, totals.builders.threads(), where_from_)),
+      feature_count_(split_ ? FeatureCount() : FeatureCount(source, layer_number, options, totals.builders.threads())),
       selected_(selected),
       transforms_(crs_.transform.get(), totals.builders.threads()) {}
 
 void LayerReader::read() {
   errors_.take();
-  if (!selected_) layer_->ResetReading();
+  if (!selected_ && !split_) layer_->ResetReading();
   std::size_t chunks = 0;  // chunks read so far
   for (std::size_t r = 0; step(r, chunks); ++r) {
   }
@@ -258,7 +262,9 @@ void LayerReader::read_chunk(FeatureChunk& chunk) {
     if (options_.progress && summary_.features % 256 == 0) {
       // The layer's start while its count is not known (yet): a stop is still asked for.
       const GIntBig count = feature_count();
-      const double done = count > 0 ? std::min(1.0, static_cast<double>(summary_.features - features_before_) / count) : 0.0;
+      const double done = split_      ? split_->fraction_done()
+                          : count > 0 ? std::min(1.0, static_cast<double>(summary_.features - features_before_) / count)
+                                      : 0.0;
       if (!options_.progress((static_cast<double>(layer_number_) + done) / static_cast<double>(layer_count_),
                              "reading sites")) {
         throw Interrupted();
@@ -269,6 +275,7 @@ void LayerReader::read_chunk(FeatureChunk& chunk) {
 }
 
 OGRFeatureUniquePtr LayerReader::next_feature() {
+  if (split_) return split_->next();
   if (!selected_) return OGRFeatureUniquePtr(layer_->GetNextFeature());
   if (next_selected_ == selected_->size()) return nullptr;
   return std::move((*selected_)[next_selected_++]);

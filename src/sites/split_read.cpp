@@ -242,6 +242,9 @@ void SplitRead::Impl::work() {
     } catch (const std::exception& e) {
       part->features.clear();
       part->messages.push_back({0, CE_Failure, CPLE_AppDefined, std::string("split read: ") + e.what()});
+    } catch (...) {  // the reading thread must get every part, or it would wait for ever
+      part->features.clear();
+      part->messages.push_back({0, CE_Failure, CPLE_AppDefined, "split read: unknown failure"});
     }
     {
       const std::lock_guard<std::mutex> lock(mutex);
@@ -329,7 +332,7 @@ namespace {
 /// Why layer `layer_number` of `source` is read as one sequence; empty when it may be split.
 /// Sets `s`'s file, header, sidecars and ranges on the way.
 std::string split_refusal(const OgrSource& source, const ReadOptions& options, int threads, SplitRead::Impl& s) {
-  if (threads < 2) return "one thread";
+  if (threads < 2) return "the run has one thread";
   if (const char* split = config_option("QTMV_READ_SPLIT"); split && !CPLTestBool(split)) return "QTMV_READ_SPLIT=NO";
   if (!options.sql.empty()) return "-sql";
   if (!EQUAL(source.dataset->GetDriverName(), "CSV")) {

@@ -51,7 +51,7 @@ Read same_as_sequential(const std::string& path, const ReadOptions& options, std
   std::vector<std::string> traced;
   const ScopedTraceSink sink([&traced](Severity, const std::string& line) { traced.push_back(line); });
   Read one = test::read_with(path, options, 1);
-  EXPECT_TRUE(test::any_contains(traced, "read on one thread: one thread"));
+  EXPECT_TRUE(test::any_contains(traced, "read on one thread: the run has one thread"));
   for (const int threads : {2, 8}) {
     SCOPED_TRACE(std::to_string(threads) + " threads");
     traced.clear();

@@ -188,6 +188,42 @@ bool read_sidecar(const std::string& path, std::string& out) {
   return file.ok() && file.read(0, static_cast<std::size_t>(stat.st_size), out);
 }
 
+/// A CSV in memory (/vsimem/): `bytes` at `path`, the sidecars beside it (extension, bytes), all
+/// referenced, not copied; removed with it.
+class MemoryCsv {
+ public:
+  MemoryCsv(std::string path, const std::string& bytes, const std::vector<std::pair<std::string, std::string>>& sidecars)
+      : files_{std::move(path)} {
+    add(files_[0], bytes);
+    for (const auto& [extension, sidecar] : sidecars) {
+      files_.emplace_back(CPLResetExtension(files_[0].c_str(), extension.c_str()));
+      add(files_.back(), sidecar);
+    }
+  }
+  ~MemoryCsv() {
+    for (const std::string& f : files_) VSIUnlink(f.c_str());
+    VSIRmdir(CPLGetPath(files_[0].c_str()));
+  }
+  MemoryCsv(const MemoryCsv&) = delete;
+  MemoryCsv& operator=(const MemoryCsv&) = delete;
+
+  /// Opened by GDAL's CSV driver with `open_options`; null when it does not open.
+  GDALDatasetUniquePtr open(const std::vector<std::string>& open_options) const {
+    CPLStringList options;
+    for (const std::string& option : open_options) options.AddString(option.c_str());
+    const char* const csv_only[] = {"CSV", nullptr};
+    return GDALDatasetUniquePtr(
+        GDALDataset::Open(files_[0].c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, csv_only, options.List()));
+  }
+
+ private:
+  static void add(const std::string& path, const std::string& bytes) {
+    VSIFCloseL(VSIFileFromMemBuffer(path.c_str(), reinterpret_cast<GByte*>(const_cast<char*>(bytes.data())),
+                                    bytes.size(), FALSE));
+  }
+  std::vector<std::string> files_;
+};
+
 std::atomic<std::uint64_t> split_reads{0};  // each split read's /vsimem/ folder its own name
 
 }  // namespace
@@ -270,38 +306,22 @@ void SplitRead::Impl::read_part(std::size_t r, Part& part) {
 
 /// GDAL's CSV driver reads part `r`'s bytes (the header and its lines) from memory.
 void SplitRead::Impl::read_bytes(std::size_t r, Part& part, const std::string& bytes) {
-  const std::string path = part_path(r);
-  std::vector<std::string> files{path};
-  VSIFCloseL(VSIFileFromMemBuffer(path.c_str(), reinterpret_cast<GByte*>(const_cast<char*>(bytes.data())),
-                                  bytes.size(), FALSE));
-  for (const auto& [extension, sidecar] : sidecars) {
-    files.push_back(CPLResetExtension(path.c_str(), extension.c_str()));
-    VSIFCloseL(VSIFileFromMemBuffer(files.back().c_str(), reinterpret_cast<GByte*>(const_cast<char*>(sidecar.data())),
-                                    sidecar.size(), FALSE));
-  }
-  {
-    MessageLog log(part);
-    CPLStringList options;
-    for (const std::string& option : open_options) options.AddString(option.c_str());
-    const char* const csv_only[] = {"CSV", nullptr};
-    GDALDatasetUniquePtr dataset(
-        GDALDataset::Open(path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, csv_only, options.List()));
-    OGRLayer* const layer = dataset && dataset->GetLayerCount() == 1 ? dataset->GetLayer(0) : nullptr;
-    if (!layer) {
-      part.messages.push_back({0, CE_Failure, CPLE_OpenFailed, "cannot read part " + std::to_string(r) + " of the split read"});
-    } else if (!where.empty() && layer->SetAttributeFilter(where.c_str()) != OGRERR_NONE) {
-      part.messages.push_back({0, CE_Failure, CPLE_AppDefined, "bad -where: " + where});
-    } else {
-      while (!stop.load(std::memory_order_relaxed)) {
-        OGRFeatureUniquePtr feature(layer->GetNextFeature());
-        if (!feature) break;
-        part.features.push_back(std::move(feature));
-      }
+  const MemoryCsv csv(part_path(r), bytes, sidecars);
+  MessageLog log(part);
+  const GDALDatasetUniquePtr dataset = csv.open(open_options);
+  OGRLayer* const layer = dataset && dataset->GetLayerCount() == 1 ? dataset->GetLayer(0) : nullptr;
+  if (!layer) {
+    part.messages.push_back({0, CE_Failure, CPLE_OpenFailed, "cannot read part " + std::to_string(r) + " of the split read"});
+  } else if (!where.empty() && layer->SetAttributeFilter(where.c_str()) != OGRERR_NONE) {
+    part.messages.push_back({0, CE_Failure, CPLE_AppDefined, "bad -where: " + where});
+  } else {
+    while (!stop.load(std::memory_order_relaxed)) {
+      OGRFeatureUniquePtr feature(layer->GetNextFeature());
+      if (!feature) break;
+      part.features.push_back(std::move(feature));
     }
-  }  // the dataset closed (its features keep its definition) before its files go
-  for (const std::string& f : files) VSIUnlink(f.c_str());
-  VSIRmdir(CPLGetPath(path.c_str()));
-}
+  }
+}  // the dataset closed (its features keep its definition) before its files go
 
 /// Raises a part's message on this thread as the sequential read would have: the file's own
 /// name, and a once-a-layer warning once, with the record number of the whole file.
@@ -377,36 +397,18 @@ std::string split_refusal(const OgrSource& source, const ReadOptions& options, i
 /// Why a part of the header alone does not read as the layer (no feature, the same fields,
 /// geometry fields and CRS): the first line is not a header, or a sidecar is not found; empty
 /// when it does.
-std::string header_refusal(OGRLayer& layer, SplitRead::Impl& s) {
-  const std::string path = s.folder + "/probe/" + s.file_name;
-  std::vector<std::string> files{path};
-  VSIFCloseL(VSIFileFromMemBuffer(path.c_str(), reinterpret_cast<GByte*>(s.header.data()), s.header.size(), FALSE));
-  for (const auto& [extension, sidecar] : s.sidecars) {
-    files.push_back(CPLResetExtension(path.c_str(), extension.c_str()));
-    VSIFCloseL(VSIFileFromMemBuffer(files.back().c_str(), reinterpret_cast<GByte*>(const_cast<char*>(sidecar.data())), sidecar.size(), FALSE));
+std::string header_refusal(OGRLayer& layer, const SplitRead::Impl& s) {
+  const MemoryCsv csv(s.folder + "/probe/" + s.file_name, s.header, s.sidecars);
+  const gdal::ErrorCapture quiet;
+  const GDALDatasetUniquePtr dataset = csv.open(s.open_options);
+  OGRLayer* const probe = dataset && dataset->GetLayerCount() == 1 ? dataset->GetLayer(0) : nullptr;
+  const OGRSpatialReference *a = probe ? probe->GetSpatialRef() : nullptr, *b = layer.GetSpatialRef();
+  if (!probe) return "the header line alone does not open";
+  if (OGRFeatureUniquePtr(probe->GetNextFeature())) return "the first line is data, not a header";
+  if (!probe->GetLayerDefn()->IsSame(layer.GetLayerDefn()) || (a == nullptr) != (b == nullptr) || (a && !a->IsSame(b))) {
+    return "the header line alone reads with other fields or CRS";
   }
-  std::string why;
-  {
-    gdal::ErrorCapture quiet;
-    CPLStringList options;
-    for (const std::string& option : s.open_options) options.AddString(option.c_str());
-    const char* const csv_only[] = {"CSV", nullptr};
-    GDALDatasetUniquePtr dataset(
-        GDALDataset::Open(path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, csv_only, options.List()));
-    OGRLayer* const probe = dataset && dataset->GetLayerCount() == 1 ? dataset->GetLayer(0) : nullptr;
-    const OGRSpatialReference *a = probe ? probe->GetSpatialRef() : nullptr, *b = layer.GetSpatialRef();
-    if (!probe) {
-      why = "the header line alone does not open";
-    } else if (OGRFeatureUniquePtr(probe->GetNextFeature())) {
-      why = "the first line is data, not a header";
-    } else if (!probe->GetLayerDefn()->IsSame(layer.GetLayerDefn()) || (a == nullptr) != (b == nullptr) ||
-               (a && !a->IsSame(b))) {
-      why = "the header line alone reads with other fields or CRS";
-    }
-  }
-  for (const std::string& f : files) VSIUnlink(f.c_str());
-  VSIRmdir(CPLGetPath(path.c_str()));
-  return why;
+  return {};
 }
 
 }  // namespace

@@ -169,5 +169,52 @@ TEST(SplitRead, WhatItCannotProveTheSameIsReadOnOneThread) {
   EXPECT_THROW(test::read_with(empty, o, 2), ReadError);
 }
 
+
+// A line longer than -oo MAX_LINE_SIZE: GDAL's read fails there and ends, sequential or split
+// (the ranges after it are not handed on); the read fails with the same message.
+TEST(SplitRead, AFailedPartEndsTheReadAsTheSequentialReadEnds) {
+  const std::string path = temp_path("long_line.csv");
+  std::string text = points_text(3000, "\n", 7);
+  const std::size_t at = text.find("\n", text.size() / 2) + 1;
+  text.insert(at, "1,2,3," + std::string(300, 'x') + "\n");
+  write_file(path, text);
+  ReadOptions o = lonlat_options(8);
+  o.open_options.push_back("MAX_LINE_SIZE=200");
+  const ScopedEnv ranges("QTMV_READ_RANGE_BYTES", "2000");
+  std::string sequential;
+  try {
+    test::read_with(path, o, 1);
+  } catch (const ReadError& e) {
+    sequential = e.what();
+  }
+  EXPECT_NE(sequential.find("reading failed"), std::string::npos) << sequential;
+  for (const int threads : {2, 8}) {
+    try {
+      test::read_with(path, o, threads);
+      ADD_FAILURE() << "no error with " << threads << " threads";
+    } catch (const ReadError& e) {
+      EXPECT_EQ(e.what(), sequential);
+    }
+  }
+}
+
+// The progress callback's stop ends a split read (its threads stopped and joined) with Interrupted.
+TEST(SplitRead, AStopAskedForEndsTheRead) {
+  const std::string path = temp_path("points.csv");
+  write_file(path, points_text(60000, "\n", 8));
+  const ScopedEnv ranges("QTMV_READ_RANGE_BYTES", "20000");
+  ReadOptions o = lonlat_options(8);
+  int calls = 0;
+  double last = 0.0;
+  o.progress = [&](double done, const std::string&) {
+    last = done;
+    return ++calls < 50;
+  };
+  EXPECT_THROW(test::read_with(path, o, 4), Interrupted);
+  EXPECT_EQ(calls, 50);
+  EXPECT_GT(last, 0.0);  // the ranges handed on
+  EXPECT_LT(last, 1.0);
+}
+
 }  // namespace
 }  // namespace qtmv::sites

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <atomic>
 #include <condition_variable>
+#include <cstdlib>
 #include <cstring>
 #include <mutex>
 #include <thread>
@@ -377,10 +378,14 @@ std::string split_refusal(const OgrSource& source, const ReadOptions& options, i
   if (std::count(s.header.begin(), s.header.end(), '"') % 2 != 0) return "a quoted header that goes on past its line";
   s.data_start = lf + 1;
   const std::size_t data = s.size - s.data_start;
-  const char* const range_bytes = config_option("QTMV_READ_RANGE_BYTES");  // the tests' small ranges
-  s.range_bytes = range_bytes ? std::max<std::size_t>(1, std::strtoull(range_bytes, nullptr, 10))
-                              : std::clamp(data / (static_cast<std::size_t>(threads) * kRangesPerThread),
-                                           kMinRangeBytes, kMaxRangeBytes);
+  // QTMV_READ_RANGE_BYTES: the tests' small ranges (a value that is not a positive number: the default).
+  const char* const asked = config_option("QTMV_READ_RANGE_BYTES");
+  char* asked_end = nullptr;
+  const unsigned long long range_bytes = asked ? std::strtoull(asked, &asked_end, 10) : 0;
+  s.range_bytes = range_bytes > 0 && *asked_end == '\0'
+                      ? static_cast<std::size_t>(range_bytes)
+                      : std::clamp(data / (static_cast<std::size_t>(threads) * kRangesPerThread), kMinRangeBytes,
+                                   kMaxRangeBytes);
   s.ranges = (data + s.range_bytes - 1) / s.range_bytes;
   if (s.ranges < 2) return "one range of " + std::to_string(data) + " bytes";
   for (const char* extension : {"csvt", "prj"}) {

@@ -30,6 +30,7 @@ constexpr std::size_t kMaxRangeBytes = std::size_t{8} << 20;    // the parts in 
 constexpr std::size_t kRangesPerThread = 8;                      // the threads end together
 constexpr std::size_t kScanBlock = std::size_t{1} << 20;
 constexpr std::size_t kMostHeaderBytes = std::size_t{1} << 20;
+constexpr std::size_t kMinPartFeatures = 8192;  // a GeoPackage part's open is worth its read
 
 /// A file read by offset (pread: any thread, no shared position), closed with it.
 class PlainFile {
@@ -238,6 +239,12 @@ struct SplitRead::Impl {
   std::size_t data_start = 0, size = 0, range_bytes = 0, ranges = 0;
   std::string folder;  // /vsimem/ folder of the parts
   std::unique_ptr<PlainFile> file;
+  // A GeoPackage table's ranges of FIDs (rowids) instead of a CSV's ranges of bytes: read in
+  // rowid order, as its sequential read (a full scan of the table) is.
+  bool by_fid = false;
+  std::string layer_name, fid_column;
+  GIntBig first_fid = 0, fid_step = 0;
+  const OGRFeatureDefn* layer_definition = nullptr;
 
   // --- the parts' threads ---
   std::mutex mutex;
@@ -259,6 +266,9 @@ struct SplitRead::Impl {
   std::string part_path(std::size_t r) const { return folder + "/" + std::to_string(r) + "/" + file_name; }
 
   void read_part(std::size_t r, Part& part);
+  void read_fid_range(std::size_t r, Part& part);
+  /// Reads `layer`'s features (its filter set) into `part`, until the end or a stop.
+  void read_features(OGRLayer& layer, Part& part);
   void read_bytes(std::size_t r, Part& part, const std::string& bytes);
   void work();
   void raise(const PartMessage& message);
@@ -292,6 +302,10 @@ void SplitRead::Impl::work() {
 }
 
 void SplitRead::Impl::read_part(std::size_t r, Part& part) {
+  if (by_fid) {
+    read_fid_range(r, part);
+    return;
+  }
   const std::size_t nominal = data_start + r * range_bytes;
   const std::size_t start = r == 0 ? data_start : line_start_from(*file, nominal, size);
   const std::size_t end = r + 1 == ranges ? size : line_start_from(*file, nominal + range_bytes, size);
@@ -316,20 +330,47 @@ void SplitRead::Impl::read_bytes(std::size_t r, Part& part, const std::string& b
   } else if (!where.empty() && layer->SetAttributeFilter(where.c_str()) != OGRERR_NONE) {
     part.messages.push_back({0, CE_Failure, CPLE_AppDefined, "bad -where: " + where});
   } else {
-    while (!stop.load(std::memory_order_relaxed)) {
-      OGRFeatureUniquePtr feature(layer->GetNextFeature());
-      if (!feature) break;
-      part.features.push_back(std::move(feature));
-    }
+    read_features(*layer, part);
   }
 }  // the dataset closed (its features keep its definition) before its files go
+
+void SplitRead::Impl::read_features(OGRLayer& layer, Part& part) {
+  while (!stop.load(std::memory_order_relaxed)) {
+    OGRFeatureUniquePtr feature(layer.GetNextFeature());
+    if (!feature) break;
+    part.features.push_back(std::move(feature));
+  }
+}
+
+/// The GeoPackage read again (its own SQLite connection) for part `r`'s FIDs, in rowid order.
+void SplitRead::Impl::read_fid_range(std::size_t r, Part& part) {
+  MessageLog log(part);
+  CPLStringList options;
+  for (const std::string& option : open_options) options.AddString(option.c_str());
+  const char* const gpkg_only[] = {"GPKG", nullptr};
+  const GDALDatasetUniquePtr dataset(
+      GDALDataset::Open(source_path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, gpkg_only, options.List()));
+  OGRLayer* const layer = dataset ? dataset->GetLayerByName(layer_name.c_str()) : nullptr;
+  const GIntBig from = first_fid + static_cast<GIntBig>(r) * fid_step;
+  const std::string filter = "\"" + fid_column + "\" >= " + std::to_string(from) + " AND \"" + fid_column + "\" < " +
+                             std::to_string(from + fid_step);
+  if (!layer || !layer->GetLayerDefn()->IsSame(layer_definition)) {
+    part.messages.push_back({0, CE_Failure, CPLE_OpenFailed, "cannot read part " + std::to_string(r) + " of the split read"});
+  } else if (layer->SetAttributeFilter(filter.c_str()) != OGRERR_NONE) {
+    part.messages.push_back({0, CE_Failure, CPLE_AppDefined, "split read: bad FID filter " + filter});
+  } else {
+    read_features(*layer, part);
+  }
+}
 
 /// Raises a part's message on this thread as the sequential read would have: the file's own
 /// name, and a once-a-layer warning once, with the record number of the whole file.
 void SplitRead::Impl::raise(const PartMessage& message) {
   std::string text = message.text;
-  const std::string path = part_path(handed - 1);
-  for (std::size_t at; (at = text.find(path)) != std::string::npos;) text.replace(at, path.size(), source_path);
+  const std::string path = by_fid ? source_path : part_path(handed - 1);
+  for (std::size_t at; !by_fid && (at = text.find(path)) != std::string::npos;) {
+    text.replace(at, path.size(), source_path);
+  }
   if (text.find("This warning will no longer be emitted") != std::string::npos) {
     std::string key = text;
     const std::size_t record = text.find("record ");
@@ -352,16 +393,58 @@ namespace {
 
 /// Why layer `layer_number` of `source` is read as one sequence; empty when it may be split.
 /// Sets `s`'s file, header, sidecars and ranges on the way.
-std::string split_refusal(const OgrSource& source, const ReadOptions& options, int threads, SplitRead::Impl& s) {
+/// Why a GeoPackage layer is read as one sequence; empty when its FIDs may be split in ranges.
+std::string fid_range_refusal(const OgrSource& source, OGRLayer& layer, const ReadOptions& options, int threads,
+                              SplitRead::Impl& s) {
+  // SQLite may read a filtered table in an index's order, not its rowids'.
+  if (!options.where.empty()) return "-where (SQLite may read it in an index's order)";
+  const std::string name = layer.GetName(), fid = layer.GetFIDColumn() ? layer.GetFIDColumn() : "";
+  if (fid.empty()) return "the layer has no FID column";
+  const auto quoted = [](const std::string& text, char quote) {
+    std::string out(1, quote);
+    for (const char c : text) out += c == quote ? std::string(2, c) : std::string(1, c);
+    return out + quote;
+  };
+  const gdal::ErrorCapture quiet;
+  GDALDataset* const dataset = source.dataset.get();
+  const std::string sql = "SELECT (SELECT COUNT(*) FROM sqlite_master WHERE type = 'table' AND name = " +
+                          quoted(name, '\'') + "), MIN(" + quoted(fid, '"') + "), MAX(" + quoted(fid, '"') +
+                          "), COUNT(*) FROM " + quoted(name, '"');
+  OGRLayer* const result = dataset->ExecuteSQL(sql.c_str(), nullptr, "SQLITE");
+  if (!result) return "its FIDs cannot be counted";
+  const OGRFeatureUniquePtr row(result->GetNextFeature());
+  const bool table = row && row->GetFieldAsInteger64(0) == 1;
+  const GIntBig first = row ? row->GetFieldAsInteger64(1) : 0, last = row ? row->GetFieldAsInteger64(2) : 0;
+  const GIntBig count = row ? row->GetFieldAsInteger64(3) : 0;
+  dataset->ReleaseResultSet(result);
+  if (!table) return "not a table (a view is read in its own order)";
+  const GIntBig parts = std::min<GIntBig>(static_cast<GIntBig>(threads) * static_cast<GIntBig>(kRangesPerThread),
+                                          count / static_cast<GIntBig>(kMinPartFeatures));
+  if (parts < 2) return std::to_string(count) + " features";
+  s.by_fid = true;
+  s.source_path = source.name;
+  s.layer_name = name;
+  s.fid_column = fid;
+  s.first_fid = first;
+  s.fid_step = (last - first) / parts + 1;
+  s.ranges = static_cast<std::size_t>((last - first) / s.fid_step + 1);
+  s.open_options = options.open_options;
+  s.layer_definition = layer.GetLayerDefn();
+  return {};
+}
+
+std::string split_refusal(const OgrSource& source, OGRLayer& layer, const ReadOptions& options, int threads,
+                          SplitRead::Impl& s) {
   if (threads < 2) return "the run has one thread";
   if (const char* split = config_option("QTMV_READ_SPLIT"); split && !CPLTestBool(split)) return "QTMV_READ_SPLIT=NO";
   if (!options.sql.empty()) return "-sql";
-  if (!EQUAL(source.dataset->GetDriverName(), "CSV")) {
-    return std::string("the ") + source.dataset->GetDriverName() + " driver's reads are not split";
-  }
   struct stat local;
   if (source.name.rfind("/vsi", 0) == 0 || ::stat(source.name.c_str(), &local) != 0 || !S_ISREG(local.st_mode)) {
     return "not a plain file";
+  }
+  if (EQUAL(source.dataset->GetDriverName(), "GPKG")) return fid_range_refusal(source, layer, options, threads, s);
+  if (!EQUAL(source.dataset->GetDriverName(), "CSV")) {
+    return std::string("the ") + source.dataset->GetDriverName() + " driver's reads are not split";
   }
   if (std::string why = open_option_refusal(options.open_options); !why.empty()) return why;
   if (CPLString(options.where).ifind("fid") != std::string::npos) return "-where names an FID (each part numbers its own)";
@@ -421,15 +504,21 @@ std::string header_refusal(OGRLayer& layer, const SplitRead::Impl& s) {
 std::unique_ptr<SplitRead> SplitRead::open(const OgrSource& source, std::size_t layer_number,
                                            const ReadOptions& options, int threads, const std::string& where_from) {
   auto s = std::make_unique<Impl>();
-  std::string why = split_refusal(source, options, threads, *s);
-  if (why.empty()) why = header_refusal(*source.layers[layer_number].layer, *s);
+  OGRLayer& layer = *source.layers[layer_number].layer;
+  std::string why = split_refusal(source, layer, options, threads, *s);
+  if (why.empty() && !s->by_fid) why = header_refusal(layer, *s);
   if (!why.empty()) {
     trace_printf(TraceStage::read, "%s: read on one thread: %s", where_from.c_str(), why.c_str());
     return nullptr;
   }
   const std::size_t readers = std::min<std::size_t>(static_cast<std::size_t>(threads), s->ranges);
-  trace_printf(TraceStage::read, "%s: split read: %zu ranges of about %zu bytes, read by %zu threads",
-               where_from.c_str(), s->ranges, s->range_bytes, readers);
+  if (s->by_fid) {
+    trace_printf(TraceStage::read, "%s: split read: %zu ranges of %lld FIDs, read by %zu threads", where_from.c_str(),
+                 s->ranges, static_cast<long long>(s->fid_step), readers);
+  } else {
+    trace_printf(TraceStage::read, "%s: split read: %zu ranges of about %zu bytes, read by %zu threads",
+                 where_from.c_str(), s->ranges, s->range_bytes, readers);
+  }
   s->parts.resize(s->ranges);
   s->window = 2 * readers + 2;
   Impl* const impl = s.get();

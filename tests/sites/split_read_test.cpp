@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <random>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -214,6 +215,45 @@ TEST(SplitRead, AStopAskedForEndsTheRead) {
   EXPECT_EQ(calls, 50);
   EXPECT_GT(last, 0.0);  // the ranges handed on
   EXPECT_LT(last, 1.0);
+}
+
+/// A GeoPackage layer "points" of `n` seeded points with a name, every 1000th FID deleted.
+std::string points_gpkg(int n) {
+  const std::string path = temp_path("points.gpkg");
+  GDALAllRegister();
+  GDALDatasetUniquePtr ds(GetGDALDriverManager()->GetDriverByName("GPKG")->Create(path.c_str(), 0, 0, 0, GDT_Unknown, nullptr));
+  OGRSpatialReference wgs84 = test::srs_of("EPSG:4326");
+  OGRLayer* layer = ds->CreateLayer("points", &wgs84, wkbPoint, nullptr);
+  OGRFieldDefn field("name", OFTString);
+  layer->CreateField(&field);
+  std::mt19937_64 random(9);
+  std::uniform_real_distribution<double> uniform(-1.0, 1.0);
+  ds->StartTransaction();
+  for (int k = 0; k < n; ++k) {
+    OGRFeatureUniquePtr feature(OGRFeature::CreateFeature(layer->GetLayerDefn()));
+    feature->SetField("name", ("g" + std::to_string(k)).c_str());
+    feature->SetGeometryDirectly(new OGRPoint(180.0 * uniform(random), 89.0 * uniform(random)));
+    if (layer->CreateFeature(feature.get()) != OGRERR_NONE) throw std::runtime_error("cannot write " + path);
+  }
+  for (GIntBig fid = 1000; fid <= n; fid += 1000) {
+    if (layer->DeleteFeature(fid) != OGRERR_NONE) throw std::runtime_error("cannot delete from " + path);
+  }
+  ds->CommitTransaction();
+  return path;
+}
+
+// A GeoPackage table is read in FID ranges, each on its own connection, in rowid order as its
+// whole read is; a feature GDAL cannot decode is skipped with GDAL's message at its place.
+TEST(SplitRead, AGeoPackageInFidRangesIsTheSequentialRead) {
+  const std::string path = points_gpkg(40000);
+  test::corrupt_geometry(path, 31234);
+  const Read read = same_as_sequential(path, test::options_at(9, nullptr), 0, true);
+  EXPECT_EQ(read.set.summary.features, 40000u - 40);
+  EXPECT_EQ(read.set.summary.skipped_unreadable, 1u);
+  EXPECT_EQ(read.set.table.sites.back().fid, 39999);
+  ReadOptions where = test::options_at(9, nullptr);
+  where.where = "name LIKE 'g1%'";
+  same_as_sequential(path, where, 0, false, "-where (SQLite may read it in an index's order)");
 }
 
 }  // namespace

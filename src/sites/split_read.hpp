@@ -6,8 +6,10 @@
 // the places, of one sequential read. Only where that is provably the same read: no quote in the
 // data (a quoted field may hold a line break), no carriage return but before a line feed, no NUL,
 // a header line that a header-only part reads with the layer's own definition and no feature,
-// only open options that apply line by line, no -sql, no FID in -where; else the layer is read
-// as one sequence, and the read trace says why.
+// only open options that apply line by line, no -sql, no FID in -where. A GeoPackage table is
+// read in ranges of FIDs (rowids), each on its own connection, in rowid order as its whole read
+// (a full scan) is; not with -where (SQLite may read it in an index's order) nor a view. Else the
+// layer is read as one sequence, and the read trace says why.
 #pragma once
 
 #include <cstddef>

@@ -106,7 +106,8 @@ std::string unsplittable(const char* bytes, std::size_t size, bool before_more) 
 std::string open_option_refusal(const std::vector<std::string>& open_options) {
   static const char* const kLineByLine[] = {"X_POSSIBLE_NAMES", "Y_POSSIBLE_NAMES", "Z_POSSIBLE_NAMES",
                                             "GEOM_POSSIBLE_NAMES", "KEEP_GEOM_COLUMNS", "EMPTY_STRING_AS_NULL",
-                                            "MERGE_SEPARATOR", "MAX_LINE_SIZE"};
+                                            "MAX_LINE_SIZE"};
+  // Not MERGE_SEPARATOR: a line of separators alone may then be no record (no FID) for GDAL.
   for (const std::string& option : open_options) {
     const std::string name = option.substr(0, option.find('='));
     const char* value = option.find('=') == std::string::npos ? "" : option.c_str() + option.find('=') + 1;

@@ -201,12 +201,14 @@ bool LayerReader::step(std::size_t r, std::size_t& chunks) {
   const std::size_t builds = built ? built->batch.slice_count() : 0;
   const std::size_t examines = examined ? examined->chunk.block_count() : 0;
   const std::size_t copies = appended ? appended->append.unit_count() : 0;
+  // A split read's features were made on other threads: their memory goes back on all threads.
+  const std::size_t releases = appended && split_ ? appended->chunk.block_count() : 0;
   const int threads = totals_.builders.threads();
   ReadTimes& times = totals_.times;
   const Examination examination{crs_.range, validity_, transforms_};
   auto share_end = std::chrono::steady_clock::now();
   run_step(
-      threads, builds + examines + copies,
+      threads, builds + examines + copies + releases,
       [&] {
         const auto start = share_end;
         if (reading) read_chunk(reading->chunk);
@@ -224,8 +226,11 @@ bool LayerReader::step(std::size_t r, std::size_t& chunks) {
         } else if (u < builds + examines) {
           examined->chunk.examine_block(u - builds, examination);
           add_time(times.examined_s, seconds_since(start));
-        } else {
+        } else if (u < builds + examines + copies) {
           appended->append.copy(u - builds - examines);
+          add_time(times.appended_s, seconds_since(start));
+        } else {
+          appended->chunk.release_block(u - builds - examines - copies);
           add_time(times.appended_s, seconds_since(start));
         }
       });
@@ -299,7 +304,8 @@ void LayerReader::settle_chunk(Slot& slot) {
 void LayerReader::settle(FeatureChunk& chunk, std::size_t k, SiteBatch& batch) {
   PendingFeature& pending = chunk.feature(k);
   const GIntBig fid = pending.fid;
-  const auto release = [&pending] {  // its geometry's memory back before the next
+  const auto release = [&pending, this] {  // its geometry's memory back before the next
+    if (split_) return;  // made on another thread: given back by the team (release_block)
     pending.geometry.reset();
     pending.feature.reset();
   };

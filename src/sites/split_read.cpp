@@ -512,6 +512,8 @@ std::unique_ptr<SplitRead> SplitRead::open(const OgrSource& source, std::size_t 
     trace_printf(TraceStage::read, "%s: read on one thread: %s", where_from.c_str(), why.c_str());
     return nullptr;
   }
+  // A part's thread for each of the run's threads: the reading thread mostly waits for them (on 2
+  // cores, 1M points: whole read 1.36 s, against 1.85 s with one part's thread fewer).
   const std::size_t readers = std::min<std::size_t>(static_cast<std::size_t>(threads), s->ranges);
   if (s->by_fid) {
     trace_printf(TraceStage::read, "%s: split read: %zu ranges of %lld FIDs, read by %zu threads", where_from.c_str(),

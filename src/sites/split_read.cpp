@@ -120,6 +120,13 @@ std::string open_option_refusal(const std::vector<std::string>& open_options) {
   return {};
 }
 
+/// `text` quoted for SQL with `quote` (' for a string, " for a name), a quote inside doubled.
+std::string sql_quoted(const std::string& text, char quote) {
+  std::string out(1, quote);
+  for (const char c : text) out += c == quote ? std::string(2, c) : std::string(1, c);
+  return out + quote;
+}
+
 /// A GDAL message raised while reading a part: before the part's feature `at` was returned
 /// (`at` == the part's feature count: by the read that found its end).
 struct PartMessage {
@@ -353,8 +360,8 @@ void SplitRead::Impl::read_fid_range(std::size_t r, Part& part) {
       GDALDataset::Open(source_path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, gpkg_only, options.List()));
   OGRLayer* const layer = dataset ? dataset->GetLayerByName(layer_name.c_str()) : nullptr;
   const GIntBig from = first_fid + static_cast<GIntBig>(r) * fid_step;
-  const std::string filter = "\"" + fid_column + "\" >= " + std::to_string(from) + " AND \"" + fid_column + "\" < " +
-                             std::to_string(from + fid_step);
+  const std::string filter = sql_quoted(fid_column, '"') + " >= " + std::to_string(from) + " AND " +
+                             sql_quoted(fid_column, '"') + " < " + std::to_string(from + fid_step);
   if (!layer || !layer->GetLayerDefn()->IsSame(layer_definition)) {
     part.messages.push_back({0, CE_Failure, CPLE_OpenFailed, "cannot read part " + std::to_string(r) + " of the split read"});
   } else if (layer->SetAttributeFilter(filter.c_str()) != OGRERR_NONE) {
@@ -368,9 +375,9 @@ void SplitRead::Impl::read_fid_range(std::size_t r, Part& part) {
 /// name, and a once-a-layer warning once, with the record number of the whole file.
 void SplitRead::Impl::raise(const PartMessage& message) {
   std::string text = message.text;
-  const std::string path = by_fid ? source_path : part_path(handed - 1);
-  for (std::size_t at; !by_fid && (at = text.find(path)) != std::string::npos;) {
-    text.replace(at, path.size(), source_path);
+  if (!by_fid) {
+    const std::string path = part_path(handed - 1);
+    for (std::size_t at; (at = text.find(path)) != std::string::npos;) text.replace(at, path.size(), source_path);
   }
   if (text.find("This warning will no longer be emitted") != std::string::npos) {
     std::string key = text;
@@ -392,8 +399,6 @@ void SplitRead::Impl::raise(const PartMessage& message) {
 
 namespace {
 
-/// Why layer `layer_number` of `source` is read as one sequence; empty when it may be split.
-/// Sets `s`'s file, header, sidecars and ranges on the way.
 /// Why a GeoPackage layer is read as one sequence; empty when its FIDs may be split in ranges.
 std::string fid_range_refusal(const OgrSource& source, OGRLayer& layer, const ReadOptions& options, int threads,
                               SplitRead::Impl& s) {
@@ -401,16 +406,11 @@ std::string fid_range_refusal(const OgrSource& source, OGRLayer& layer, const Re
   if (!options.where.empty()) return "-where (SQLite may read it in an index's order)";
   const std::string name = layer.GetName(), fid = layer.GetFIDColumn() ? layer.GetFIDColumn() : "";
   if (fid.empty()) return "the layer has no FID column";
-  const auto quoted = [](const std::string& text, char quote) {
-    std::string out(1, quote);
-    for (const char c : text) out += c == quote ? std::string(2, c) : std::string(1, c);
-    return out + quote;
-  };
   const gdal::ErrorCapture quiet;
   GDALDataset* const dataset = source.dataset.get();
   const std::string sql = "SELECT (SELECT COUNT(*) FROM sqlite_master WHERE type = 'table' AND name = " +
-                          quoted(name, '\'') + "), MIN(" + quoted(fid, '"') + "), MAX(" + quoted(fid, '"') +
-                          "), COUNT(*) FROM " + quoted(name, '"');
+                          sql_quoted(name, '\'') + "), MIN(" + sql_quoted(fid, '"') + "), MAX(" + sql_quoted(fid, '"') +
+                          "), COUNT(*) FROM " + sql_quoted(name, '"');
   OGRLayer* const result = dataset->ExecuteSQL(sql.c_str(), nullptr, "SQLITE");
   if (!result) return "its FIDs cannot be counted";
   const OGRFeatureUniquePtr row(result->GetNextFeature());
@@ -434,6 +434,8 @@ std::string fid_range_refusal(const OgrSource& source, OGRLayer& layer, const Re
   return {};
 }
 
+/// Why `layer` of `source` is read as one sequence; empty when it may be split. Sets `s`'s file,
+/// header, sidecars and ranges (or FID ranges) on the way.
 std::string split_refusal(const OgrSource& source, OGRLayer& layer, const ReadOptions& options, int threads,
                           SplitRead::Impl& s) {
   if (threads < 2) return "the run has one thread";

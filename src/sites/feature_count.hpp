@@ -15,6 +15,8 @@ namespace qtmv::sites {
 
 class FeatureCount {
  public:
+  /// Not counted (-1): a read whose progress comes from elsewhere.
+  FeatureCount() = default;
   /// Counts layer `layer_number` of `source` (its -where set): at once when the driver knows
   /// the count cheaply, when the read has one thread, or when the layer is a -sql result or not
   /// in a file; else beside the reading.

@@ -154,6 +154,13 @@ void FeatureChunk::examine_block(std::size_t b, const Examination& examination) 
 
 FeatureParts& FeatureChunk::own_parts() { return own_parts_.emplace_back(); }
 
+void FeatureChunk::release_block(std::size_t b) {
+  for (std::size_t k = blocks_[b].first; k < blocks_[b].last; ++k) {
+    features_[k].feature.reset();
+    features_[k].geometry.reset();
+  }
+}
+
 void FeatureChunk::clear() {
   for (std::size_t k = 0; k < count_; ++k) {
     features_[k].feature.reset();

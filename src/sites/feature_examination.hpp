@@ -80,6 +80,10 @@ class FeatureChunk {
   FeatureParts& own_parts();
   /// Forgets the features (their memory kept for the next chunk).
   void clear();
+  /// Destroys block `b`'s features and geometries (any thread, once per block; before clear):
+  /// for features made on other threads, whose memory a thread of the team gives back beside
+  /// the others instead of the reading thread one by one.
+  void release_block(std::size_t b);
 
  private:
   struct Block {

@@ -22,6 +22,7 @@
 #include "sites/lonlat_transform.hpp"
 #include "sites/polygon_validity.hpp"
 #include "sites/read_step.hpp"
+#include "sites/split_read.hpp"
 
 namespace qtmv::sites {
 
@@ -140,7 +141,9 @@ class LayerReader {
   const LayerCrs crs_;
   const std::uint32_t layer_index_;  // the layer's source in the site table
   PolygonValidityCheck validity_;
-  FeatureCount feature_count_;
+  // The layer's features read by several GDAL datasets at once, in its order; null: by the layer.
+  const std::unique_ptr<SplitRead> split_;
+  FeatureCount feature_count_;  // not counted for a split read (its progress is its lines')
   std::vector<OGRFeatureUniquePtr>* const selected_;  // null: the layer's features
   std::size_t next_selected_ = 0;
   ThreadTransforms transforms_;
@@ -173,13 +176,14 @@ LayerReader::LayerReader(const OgrSource& source, std::size_t layer_number, std:
       crs_(layer_crs(*layer_, where_from_, options, errors, wgs84)),
       layer_index_(totals.out.table.add_source(layer_->GetLayerDefn(), source.name, source.layers[layer_number].name)),
       validity_(options, crs_.source, where_from_),
-      feature_count_(source, layer_number, options, totals.builders.threads()),
+      split_(selected ? nullptr : SplitRead::open(source, layer_number, options, totals.builders.threads(), where_from_)),
+      feature_count_(split_ ? FeatureCount() : FeatureCount(source, layer_number, options, totals.builders.threads())),
       selected_(selected),
       transforms_(crs_.transform.get(), totals.builders.threads()) {}
 
 void LayerReader::read() {
   errors_.take();
-  if (!selected_) layer_->ResetReading();
+  if (!selected_ && !split_) layer_->ResetReading();
   std::size_t chunks = 0;  // chunks read so far
   for (std::size_t r = 0; step(r, chunks); ++r) {
   }
@@ -197,12 +201,14 @@ bool LayerReader::step(std::size_t r, std::size_t& chunks) {
   const std::size_t builds = built ? built->batch.slice_count() : 0;
   const std::size_t examines = examined ? examined->chunk.block_count() : 0;
   const std::size_t copies = appended ? appended->append.unit_count() : 0;
+  // A split read's features were made on other threads: their memory goes back on all threads.
+  const std::size_t releases = appended && split_ ? appended->chunk.block_count() : 0;
   const int threads = totals_.builders.threads();
   ReadTimes& times = totals_.times;
   const Examination examination{crs_.range, validity_, transforms_};
   auto share_end = std::chrono::steady_clock::now();
   run_step(
-      threads, builds + examines + copies,
+      threads, builds + examines + copies + releases,
       [&] {
         const auto start = share_end;
         if (reading) read_chunk(reading->chunk);
@@ -220,8 +226,11 @@ bool LayerReader::step(std::size_t r, std::size_t& chunks) {
         } else if (u < builds + examines) {
           examined->chunk.examine_block(u - builds, examination);
           add_time(times.examined_s, seconds_since(start));
-        } else {
+        } else if (u < builds + examines + copies) {
           appended->append.copy(u - builds - examines);
+          add_time(times.appended_s, seconds_since(start));
+        } else {
+          appended->chunk.release_block(u - builds - examines - copies);
           add_time(times.appended_s, seconds_since(start));
         }
       });
@@ -258,7 +267,9 @@ void LayerReader::read_chunk(FeatureChunk& chunk) {
     if (options_.progress && summary_.features % 256 == 0) {
       // The layer's start while its count is not known (yet): a stop is still asked for.
       const GIntBig count = feature_count();
-      const double done = count > 0 ? std::min(1.0, static_cast<double>(summary_.features - features_before_) / count) : 0.0;
+      const double done = split_      ? split_->fraction_done()
+                          : count > 0 ? std::min(1.0, static_cast<double>(summary_.features - features_before_) / count)
+                                      : 0.0;
       if (!options_.progress((static_cast<double>(layer_number_) + done) / static_cast<double>(layer_count_),
                              "reading sites")) {
         throw Interrupted();
@@ -269,6 +280,7 @@ void LayerReader::read_chunk(FeatureChunk& chunk) {
 }
 
 OGRFeatureUniquePtr LayerReader::next_feature() {
+  if (split_) return split_->next();
   if (!selected_) return OGRFeatureUniquePtr(layer_->GetNextFeature());
   if (next_selected_ == selected_->size()) return nullptr;
   return std::move((*selected_)[next_selected_++]);
@@ -292,7 +304,8 @@ void LayerReader::settle_chunk(Slot& slot) {
 void LayerReader::settle(FeatureChunk& chunk, std::size_t k, SiteBatch& batch) {
   PendingFeature& pending = chunk.feature(k);
   const GIntBig fid = pending.fid;
-  const auto release = [&pending] {  // its geometry's memory back before the next
+  const auto release = [&pending, this] {  // its geometry's memory back before the next
+    if (split_) return;  // made on another thread: given back by the team (release_block)
     pending.geometry.reset();
     pending.feature.reset();
   };

@@ -343,9 +343,21 @@ void SplitRead::Impl::read_bytes(std::size_t r, Part& part, const std::string& b
 }  // the dataset closed (its features keep its definition) before its files go
 
 void SplitRead::Impl::read_features(OGRLayer& layer, Part& part) {
+  GIntBig last_fid = 0;
   while (!stop.load(std::memory_order_relaxed)) {
     OGRFeatureUniquePtr feature(layer.GetNextFeature());
     if (!feature) break;
+    // A CSV part's FIDs are shifted by the records before it: that holds only while GDAL numbers
+    // a part's features by its non-empty lines, as 3.6 does. Any other numbering (a driver that
+    // took an FID column) fails the read loudly rather than give features other FIDs.
+    if (!by_fid && (feature->GetFID() <= last_fid || feature->GetFID() > part.records)) {
+      part.messages.push_back({part.features.size(), CE_Failure, CPLE_AppDefined,
+                               "split read: GDAL gave FID " + std::to_string(feature->GetFID()) +
+                                   " to a feature of a part of " + std::to_string(part.records) +
+                                   " lines; read it on one thread with --config QTMV_READ_SPLIT NO"});
+      break;
+    }
+    last_fid = feature->GetFID();
     part.features.push_back(std::move(feature));
   }
 }

@@ -93,9 +93,12 @@ void StepTrace::operator()(const char* step, const std::string& detail) {
   char text[256];
   std::snprintf(text, sizeof text, "%-28s %9.3f ms", step, std::chrono::duration<double, std::milli>(now - last_).count());
   // The process's memory at the step's end, and its peak so far: where a step's buffers meet.
+  // (Nothing where the system does not say: no /proc.)
   const ProcessMemory memory = process_memory();
-  char rss[96];
-  std::snprintf(rss, sizeof rss, "  [rss %.1f MB, peak %.1f MB]", memory.resident / 1e6, memory.peak_resident / 1e6);
+  char rss[96] = "";
+  if (memory.resident > 0) {
+    std::snprintf(rss, sizeof rss, "  [rss %.1f MB, peak %.1f MB]", memory.resident / 1e6, memory.peak_resident / 1e6);
+  }
   trace_line(stage_, (detail.empty() ? std::string(text) : std::string(text) + "  " + detail) + rss);
   last_ = now;
 }

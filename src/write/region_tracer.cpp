@@ -413,13 +413,13 @@ RegionTracer::RegionTracer(const label::Outlines& whole_or_tile, RingVertices ve
 
   // Bucketed by site, packed (packed_cell_edges.hpp), each thread taking a stretch of the cells
   // with a slot per site of its own (no atomics; each site's cells come in code order, a
-  // thread's first of a site whole): as many threads as keep those tables within a byte an
-  // outline cell, or 64 MiB.
+  // thread's first of a site whole): as many threads as keep those tables within two bytes an
+  // outline cell, or 128 MiB (the packed lists saved six: a 16-byte slot must not halve the team).
   struct SiteSlot {
     std::size_t place;  // the site's bytes in the stretch, then where its next entry goes
     Code after;         // the code after the site's last cell in the stretch (0: none yet)
   };
-  const std::size_t table_bytes = std::max<std::size_t>(n, std::size_t{64} << 20);
+  const std::size_t table_bytes = std::max<std::size_t>(2 * n, std::size_t{128} << 20);
   const std::size_t team = std::clamp<std::size_t>(table_bytes / (sizeof(SiteSlot) * (sites + 1)), 1,
                                                    static_cast<std::size_t>(thread_count(0)));
   // Each zeroed by its thread (megabytes each), not all by this one.
@@ -462,9 +462,8 @@ RegionTracer::RegionTracer(const label::Outlines& whole_or_tile, RingVertices ve
 
 Region RegionTracer::trace(std::int32_t site) const {
   const auto s = static_cast<std::size_t>(site);
-  // The site's edges drawn again from its cells, in code order (so that the rings do not depend
-  // on the order the threads listed the cells in).
-  // The bucketing's threads took stretches of the codes in order, so a list is in code order.
+  // The site's edges drawn again from its cells in code order, so that the rings do not depend on
+  // the threads: the bucketing's threads took stretches of the codes in order.
   thread_local TraceScratch scratch;
   std::vector<Edge>& edges = scratch.edges;
   edges.clear();

@@ -88,7 +88,7 @@ class RegionTracer {
   std::int32_t site_count() const { return static_cast<std::int32_t>(start_.size()) - 1; }
 
   /// Host bytes the tracer holds per outline cell (for the run's memory estimate): a mask byte
-  /// while it gathers, and a packed entry (mostly 1 to 3 bytes) with the bucketing's tables
+  /// while it gathers, and a packed entry (mostly 1 to 3 bytes up to level 15, 4 to 5 at the finest levels) with the bucketing's tables
   /// (3.4 measured at 1M random points, level 14).
   static constexpr std::uint64_t kBytesPerOutlineCell = 4;
 

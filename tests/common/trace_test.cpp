@@ -71,14 +71,19 @@ TEST(Trace, LinesGoToTheSinkAtDebugSeverityOnlyWhenOn) {
   EXPECT_NE(lines[1].second.find("of which tracing"), std::string::npos) << lines[1].second;
   EXPECT_NE(lines[1].second.find("500.000 ms"), std::string::npos) << lines[1].second;
   EXPECT_EQ(lines[2].second, "trace: write raster 3 strips");
-  // A step's line ends with the process's memory: now and its peak so far.
-  EXPECT_NE(lines[0].second.find("42 rows  [rss "), std::string::npos) << lines[0].second;
-  EXPECT_NE(lines[0].second.find(" MB, peak "), std::string::npos) << lines[0].second;
+  // A step's line ends with the process's memory: now and its peak so far (where /proc says).
+  if (process_memory().resident > 0) {
+    EXPECT_NE(lines[0].second.find("42 rows  [rss "), std::string::npos) << lines[0].second;
+    EXPECT_NE(lines[0].second.find(" MB, peak "), std::string::npos) << lines[0].second;
+  } else {
+    EXPECT_EQ(lines[0].second.find("[rss "), std::string::npos) << lines[0].second;
+  }
 }
 
 TEST(ProcessMemory, IsPlausibleAndGrowsWithTouchedMemory) {
 #if defined(__linux__)
   const ProcessMemory before = process_memory();
+  if (before.resident == 0) GTEST_SKIP() << "no /proc/self/status (a sandbox without /proc)";
   EXPECT_GT(before.resident, std::uint64_t{1} << 20);  // a test binary holds more than a MiB
   EXPECT_LT(before.resident, host_ram_bytes());
   EXPECT_GE(before.peak_resident, before.resident);

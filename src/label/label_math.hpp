@@ -240,4 +240,25 @@ QTMV_HD inline double prune_threshold_above(double min_chord2, double radius) {
   return 4.0 * half_chord * half_chord * (1.0 + 1e-12);
 }
 
+/// Slack (in x.(a - b), a squared chord's half) by which beyond_bisector must clear the bisector:
+/// far above the float64 rounding of the squared chords compared (a few 1e-16), about 6 micrometres
+/// on the Earth.
+constexpr double kBisectorMargin = 1e-12;
+
+/// True when every point x within `radius` (radians) of the node centre c (unit vector) is nearer
+/// to the point a than to the point b (unit vectors), with kBisectorMargin to spare: the node lies
+/// wholly on a's side of their bisector, so b is never the nearest in it. This separates points
+/// far closer to each other than the node is large, which the distance bounds of prune_threshold
+/// cannot: a tight cluster of sites seen from far away. With w = a - b, chord2(x, b) - chord2(x, a)
+/// = 2 x.w (|a| = |b| = 1), and for x within angle r of c, x.w >= c.w - |w| (r + r^2 / 2), since
+/// cos(t + r) >= cos t - sin r - (1 - cos r) for cos t >= 0. Only + - * and sqrt, correctly
+/// rounded in float64 on the host and the device alike, so the two builds decide the same bits.
+QTMV_HD inline bool beyond_bisector(const Vec3& c, double radius, const Vec3& a, const Vec3& b) {
+  const double wx = a.x - b.x, wy = a.y - b.y, wz = a.z - b.z;
+  const double along = c.x * wx + c.y * wy + c.z * wz;
+  if (!(along > kBisectorMargin)) return false;
+  const double w = sqrt(wx * wx + wy * wy + wz * wz);
+  return along > w * (radius + 0.5 * radius * radius) + kBisectorMargin;
+}
+
 }  // namespace qtmv::label

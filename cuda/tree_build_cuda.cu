@@ -80,6 +80,8 @@ struct LevelBuild {
   PoolBuffer<Vec3> centre;
   PoolBuffer<double> radius, threshold;
   PoolBuffer<unsigned long long> start_in, start, min_bits, key;
+  PoolBuffer<unsigned long long> point_bits;  ///< per node: the nearest point item's squared chord (bits)
+  PoolBuffer<std::int32_t> reference;         ///< per node: that point item, the bisector rule's reference
   PoolBuffer<std::int32_t> site_min, site_max, kind, count, value;
   PoolBuffer<unsigned long long> keep, keep_pos;  // 64 bits: a loose group may refine to many items
   PoolBuffer<std::int32_t> owner_heads, owner;
@@ -113,6 +115,8 @@ struct LevelBuild {
     start_in.need(n + 1);
     start.need(n + 1);
     min_bits.need(n);
+    point_bits.need(n);
+    reference.need(n);
     key.need(n);
     site_min.need(n);
     site_max.need(n);
@@ -128,7 +132,8 @@ struct LevelBuild {
   /// Per node its centre, radius and list start (a scan of the parent lists' lengths).
   void init_nodes(int l, bool last, std::int32_t nn) {
     level_init_kernel<<<blocks_of(n), kBlock>>>(pending.get(), nn, l, last, centre.get(), radius.get(), start_in.get(),
-                                                min_bits.get(), site_min.get(), site_max.get(), key.get());
+                                                min_bits.get(), site_min.get(), site_max.get(), key.get(),
+                                                point_bits.get(), reference.get());
     QTMV_CUDA_CHECK_LAUNCH("level_init_kernel");
     std::size_t bytes = 0;
     QTMV_CUDA_CHECK(cub::DeviceScan::ExclusiveSum(nullptr, bytes, start_in.get(), start.get(), n + 1));
@@ -137,7 +142,8 @@ struct LevelBuild {
   }
 
   /// The work items' passes: at the labelling level each node's winner; above it each item's
-  /// owner, the nodes' thresholds and the items each entry keeps (keep).
+  /// owner, the nodes' thresholds and reference points (the bisector rule), and the items each
+  /// entry keeps (keep).
   void bound_items(bool last, std::int32_t nn) {
     // Groups of four nodes share a list (n and entries are multiples of 4).
     const std::int32_t groups = nn / 4;
@@ -160,13 +166,17 @@ struct LevelBuild {
     QTMV_CUDA_CHECK(
         cub::DeviceScan::InclusiveScan(temp.get(), owner_bytes, owner_heads.get(), owner.get(), MaxI32{}, items));
     level_min_kernel<<<blocks_of(items), kBlock>>>(pending.get(), owner.get(), start.get(), items, parent_lists.get(),
-                                                   pieces, runs, centre.get(), min_bits.get());
+                                                   pieces, runs, centre.get(), min_bits.get(), point_bits.get());
     QTMV_CUDA_CHECK_LAUNCH("level_min_kernel");
+    level_reference_kernel<<<blocks_of(items), kBlock>>>(pending.get(), owner.get(), start.get(), items,
+                                                         parent_lists.get(), pieces, runs, centre.get(),
+                                                         point_bits.get(), reference.get());
+    QTMV_CUDA_CHECK_LAUNCH("level_reference_kernel");
     level_threshold_kernel<<<blocks_of(n), kBlock>>>(nn, min_bits.get(), radius.get(), threshold.get());
     QTMV_CUDA_CHECK_LAUNCH("level_threshold_kernel");
     level_keep_kernel<<<blocks_of(items), kBlock>>>(pending.get(), owner.get(), start.get(), items, parent_lists.get(),
                                                     pieces, runs, centre.get(), radius.get(), threshold.get(),
-                                                    keep.get(), site_min.get(), site_max.get());
+                                                    reference.get(), keep.get(), site_min.get(), site_max.get());
     QTMV_CUDA_CHECK_LAUNCH("level_keep_kernel");
   }
 

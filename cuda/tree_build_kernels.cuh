@@ -19,9 +19,11 @@ namespace qtmv::label::cuda {
 // level at a time, every (node, parent-list entry) pair is one work item; per node the nearest
 // candidate's squared chord (an atomicMin on the float64 bits: the chords are >= 0, so their bit
 // patterns order as the values), then the kept entries (d2 <= prune_threshold) are compacted in
-// list order by a scan, and the nodes' kinds (decide_node, as on the host; a node covered by one
-// site's fixed cells from cover_lookup) and offsets and children follow from scans in node
-// order, as the host's parts do.
+// list order by a scan. A point the interval test keeps is dropped where the node lies beyond its
+// bisector with the node's nearest point (beyond_bisector): that point's squared chord comes from
+// a second atomicMin over the points alone, its item (the least among equals) from a third. The
+// nodes' kinds (decide_node, as on the host; a node covered by one site's fixed cells from
+// cover_lookup) and offsets and children follow from scans in node order, as the host's parts do.
 
 /// A node of the level being built (see tree_build.cpp's Pending).
 struct DevPending {
@@ -46,7 +48,8 @@ struct AddSums {
 
 __global__ void level_init_kernel(const DevPending* pending, std::int32_t n, int level, bool last, Vec3* centre,
                                   double* radius, unsigned long long* start_in, unsigned long long* min_bits,
-                                  std::int32_t* site_min, std::int32_t* site_max, unsigned long long* key) {
+                                  std::int32_t* site_min, std::int32_t* site_max, unsigned long long* key,
+                                  unsigned long long* point_bits, std::int32_t* reference) {
   const std::int32_t q = blockIdx.x * blockDim.x + threadIdx.x;
   if (q >= n) return;
   const DevPending p = pending[q];
@@ -55,6 +58,8 @@ __global__ void level_init_kernel(const DevPending* pending, std::int32_t n, int
   start_in[q] = p.parent_count;
   if (q == 0) start_in[n] = 0;
   min_bits[q] = ~0ull;
+  point_bits[q] = ~0ull;
+  reference[q] = INT_MAX;
   site_min[q] = INT_MAX;
   site_max[q] = INT_MIN;
   key[q] = ~0ull;
@@ -140,18 +145,42 @@ __device__ inline std::int32_t visit_item_nodes(const DevPending* pending, const
   return g;
 }
 
-/// Pass 1: per node the least upper bound of the items' distances (squared chords).
+/// Whether a list item is a point piece (the bisector rule's candidates; never a group).
+__device__ inline bool is_point_item(std::int32_t item, const Piece* pieces) {
+  return !is_group_item(item) && (pieces[item].flags & kPiecePoint) != 0;
+}
+
+/// Pass 1: per node the least upper bound of the items' distances (squared chords), and the least
+/// of the point items' alone.
 __global__ void level_min_kernel(const DevPending* pending, const std::int32_t* owner, const unsigned long long* start,
                                  unsigned long long items, const std::int32_t* parent_lists, const Piece* pieces,
-                                 const PieceGroup* runs, const Vec3* centre, unsigned long long* min_bits) {
-  unsigned long long bits[4] = {~0ull, ~0ull, ~0ull, ~0ull};
+                                 const PieceGroup* runs, const Vec3* centre, unsigned long long* min_bits,
+                                 unsigned long long* point_bits) {
+  unsigned long long bits[4] = {~0ull, ~0ull, ~0ull, ~0ull}, points[4] = {~0ull, ~0ull, ~0ull, ~0ull};
   const std::int32_t g = visit_item_nodes(pending, owner, start, items, parent_lists, pieces, runs, centre,
                                           [&](const NodeItem& n) {
                                             bits[n.c] = static_cast<unsigned long long>(__double_as_longlong(n.ub2));
+                                            if (is_point_item(n.item, pieces)) points[n.c] = bits[n.c];
                                           });
   for (int c = 0; c < 4; ++c) {
     if (warp_segment_reduce(g, bits[c], MinU64{})) atomicMin(&min_bits[4 * g + c], bits[c]);
+    if (warp_segment_reduce(g, points[c], MinU64{}) && points[c] != ~0ull) atomicMin(&point_bits[4 * g + c], points[c]);
   }
+}
+
+/// Pass 1b: per node its reference point for the bisector rule, the point item nearest its centre
+/// (the least item among equals).
+__global__ void level_reference_kernel(const DevPending* pending, const std::int32_t* owner,
+                                       const unsigned long long* start, unsigned long long items,
+                                       const std::int32_t* parent_lists, const Piece* pieces, const PieceGroup* runs,
+                                       const Vec3* centre, const unsigned long long* point_bits,
+                                       std::int32_t* reference) {
+  visit_item_nodes(pending, owner, start, items, parent_lists, pieces, runs, centre, [&](const NodeItem& n) {
+    if (is_point_item(n.item, pieces) &&
+        static_cast<unsigned long long>(__double_as_longlong(n.lb2)) == point_bits[n.node]) {
+      atomicMin(&reference[n.node], n.item);
+    }
+  });
 }
 
 /// Pass 2 (levels above the labelling level): per entry the items it leaves to the node (0, 1,
@@ -159,15 +188,21 @@ __global__ void level_min_kernel(const DevPending* pending, const std::int32_t* 
 __global__ void level_keep_kernel(const DevPending* pending, const std::int32_t* owner, const unsigned long long* start,
                                   unsigned long long items, const std::int32_t* parent_lists, const Piece* pieces,
                                   const PieceGroup* runs, const Vec3* centre, const double* radius,
-                                  const double* threshold, unsigned long long* keep, std::int32_t* site_min,
-                                  std::int32_t* site_max) {
+                                  const double* threshold, const std::int32_t* reference, unsigned long long* keep,
+                                  std::int32_t* site_min, std::int32_t* site_max) {
   std::int32_t lo[4] = {INT_MAX, INT_MAX, INT_MAX, INT_MAX}, hi[4] = {INT_MIN, INT_MIN, INT_MIN, INT_MIN};
   const std::int32_t g = visit_item_nodes(
       pending, owner, start, items, parent_lists, pieces, runs, centre, [&](const NodeItem& n) {
-        const std::int32_t kept =
+        std::int32_t kept =
             n.lb2 <= threshold[n.node]
                 ? refine_kept(centre[n.node], n.item, pieces, runs, radius[n.node], threshold[n.node], nullptr)
                 : 0;
+        // A kept point beyond its bisector with the reference point is never nearest here.
+        const std::int32_t ref = reference[n.node];
+        if (kept > 0 && ref != INT_MAX && ref != n.item && is_point_item(n.item, pieces) &&
+            beyond_bisector(centre[n.node], radius[n.node], pieces[ref].a, pieces[n.item].a)) {
+          kept = 0;
+        }
         keep[start[n.node] + n.position] = static_cast<unsigned long long>(kept);
         if (kept > 0) lo[n.c] = hi[n.c] = n.site;
       });

@@ -310,7 +310,7 @@ float Labeller::download(std::uint64_t offset, std::uint64_t count, std::int32_t
   return m.elapsed_ms();
 }
 
-float Labeller::select_outline(grid::Code first, std::uint64_t count, OutlineCells* out) {
+float Labeller::select_outline(grid::Code first, std::uint64_t count, OutlineCells* out, std::uint64_t cells_left) {
   Impl& m = *impl_;
   if (count > m.capacity || !m.boundary) {
     throw std::invalid_argument("Labeller::select_outline: the last run had no flags for these cells");
@@ -328,7 +328,7 @@ float Labeller::select_outline(grid::Code first, std::uint64_t count, OutlineCel
     m.output_bytes += m.bytes - before;
   }
   QTMV_CUDA_CHECK(cudaEventRecord(m.start));
-  m.outline.select(first, count, m.level, m.site.get(), m.boundary.get(), out);
+  m.outline.select(first, count, m.level, m.site.get(), m.boundary.get(), out, cells_left);
   return m.elapsed_ms();
 }
 

@@ -36,7 +36,7 @@ void OutlineSelection::allocate(std::uint64_t chunk, std::uint64_t tile_cells, s
 }
 
 void OutlineSelection::select(grid::Code first, std::uint64_t count, int level, const std::int32_t* site,
-                              const std::uint8_t* boundary, OutlineCells* out) {
+                              const std::uint8_t* boundary, OutlineCells* out, std::uint64_t cells_left) {
   const std::uint64_t segments = (count + kSelectSegmentCells - 1) / kSelectSegmentCells;
   if (segments + 1 > offset_.size()) throw std::invalid_argument("OutlineSelection::select: a tile larger than allocated");
   count_outline_kernel<<<grid_blocks(segments), kBlock>>>(boundary, first, count, level, segments, per_segment_.get());
@@ -62,7 +62,9 @@ void OutlineSelection::select(grid::Code first, std::uint64_t count, int level, 
     cuts.push_back(segments);
   }
   const std::size_t at = out->size();
-  grow_outline_cells(out, at + total, host_threads(0));
+  const double rate = static_cast<double>(total) / static_cast<double>(count);
+  grow_outline_cells(out, at + total + static_cast<std::size_t>(rate * 1.1 * static_cast<double>(cells_left)),
+                     host_threads(0));
   out->resize(at + total);
   OutlineCell* to = out->data() + at;
   try {
@@ -88,15 +90,31 @@ void OutlineSelection::write_runs(grid::Code first, std::uint64_t count, int lev
 }
 
 OutlineCell* OutlineSelection::copy_to_host(std::uint64_t cells, OutlineCell* to) {
-  // Through page-locked memory in pieces, each copied on to the list on all cores: small
-  // pageable copies, and the vector's growth, were most of the time.
-  constexpr std::uint64_t kStagedCells = std::uint64_t{1} << 22;  // 64 MiB
+  // Through page-locked memory in pieces, each copied on to the list on all cores (small
+  // pageable copies, and the vector's growth, were most of the time) while the next piece
+  // crosses into the buffer's other half.
+  constexpr std::uint64_t kStagedCells = std::uint64_t{1} << 22;  // 48 MiB a half
+  if (cells == 0) return to;
   const std::uint64_t staged = std::min(cells, kStagedCells);
-  auto* host = static_cast<OutlineCell*>(host_.get(staged * sizeof(OutlineCell)));
-  for (std::uint64_t done = 0; done < cells; done += staged) {
-    const std::uint64_t n = std::min(staged, cells - done);
-    QTMV_CUDA_CHECK(cudaMemcpy(host, cells_.get() + done, n * sizeof(OutlineCell), cudaMemcpyDeviceToHost));
-    qtmv::parallel_copy(to + done, host, n * sizeof(OutlineCell), host_threads(0));
+  auto* host = static_cast<OutlineCell*>(host_.get(2 * staged * sizeof(OutlineCell)));
+  for (cudaEvent_t& e : staging_.copied) {
+    if (!e) QTMV_CUDA_CHECK(cudaEventCreateWithFlags(&e, cudaEventDisableTiming));
+  }
+  // Piece k goes to half k % 2, once the host has copied on the piece before it there.
+  const auto start_copy = [&](std::uint64_t piece) {
+    const std::uint64_t done = piece * staged, n = std::min(staged, cells - done);
+    QTMV_CUDA_CHECK(cudaMemcpyAsync(host + (piece & 1) * staged, cells_.get() + done, n * sizeof(OutlineCell),
+                                    cudaMemcpyDeviceToHost, nullptr));
+    QTMV_CUDA_CHECK(cudaEventRecord(staging_.copied[piece & 1], nullptr));
+  };
+  const std::uint64_t pieces = (cells + staged - 1) / staged;
+  start_copy(0);
+  for (std::uint64_t piece = 0; piece < pieces; ++piece) {
+    if (piece + 1 < pieces) start_copy(piece + 1);
+    QTMV_CUDA_CHECK(cudaEventSynchronize(staging_.copied[piece & 1]));
+    const std::uint64_t done = piece * staged;
+    qtmv::parallel_copy(to + done, host + (piece & 1) * staged, std::min(staged, cells - done) * sizeof(OutlineCell),
+                        host_threads(0));
   }
   return to + cells;
 }

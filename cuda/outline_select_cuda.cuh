@@ -29,9 +29,10 @@ class OutlineSelection {
   /// tiles of up to `tile_cells` cells; their bytes added to *bytes.
   void allocate(std::uint64_t chunk, std::uint64_t tile_cells, std::size_t* bytes, device_memory::FaultStep injected);
   /// Appends the outline cells of the tile's cells [0, count) (codes first.., labels `site`,
-  /// flags `boundary`) to *out, in code order.
+  /// flags `boundary`) to *out, in code order; *out grows with room for `cells_left` more cells
+  /// at this tile's rate (Labeller::select_outline).
   void select(grid::Code first, std::uint64_t count, int level, const std::int32_t* site,
-              const std::uint8_t* boundary, OutlineCells* out);
+              const std::uint8_t* boundary, OutlineCells* out, std::uint64_t cells_left);
   /// Frees the device buffers (the page-locked buffer stays, for the next tiles).
   void free_device();
 
@@ -42,12 +43,26 @@ class OutlineSelection {
   /// Copies the first `cells` outline cells of the device buffer to `to`; returns to + cells.
   OutlineCell* copy_to_host(std::uint64_t cells, OutlineCell* to);
 
+  /// The two halves of the page-locked buffer and the events of their copies from the device.
+  struct Staging {
+    cudaEvent_t copied[2] = {nullptr, nullptr};
+    Staging() = default;
+    Staging(const Staging&) = delete;
+    Staging& operator=(const Staging&) = delete;
+    ~Staging() {
+      for (cudaEvent_t e : copied) {
+        if (e) (void)cudaEventDestroy(e);
+      }
+    }
+  };
+
   std::uint64_t chunk_ = 0;
   device_memory::DeviceArray<OutlineCell> cells_;
   device_memory::DeviceArray<std::uint64_t> per_segment_;
   device_memory::DeviceArray<std::uint64_t> offset_;
   device_memory::DeviceArray<unsigned char> temp_;
   device_memory::PinnedBuffer host_;
+  Staging staging_;
 };
 
 }  // namespace qtmv::label::cuda

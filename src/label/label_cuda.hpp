@@ -105,8 +105,11 @@ class Labeller {
                  std::uint8_t* boundary);
   /// Appends the outline cells (outline_cells.hpp) of the last run's cells [0, count), codes
   /// first.., to *out, counted and written on the device segment by segment (CUB's scan); the run
-  /// must have had boundary flags. Returns the time (milliseconds) of selection and copies.
-  float select_outline(grid::Code first, std::uint64_t count, OutlineCells* out);
+  /// must have had boundary flags. `cells_left`: the cells of the range still to be labelled
+  /// after these, for which *out is given room at this tile's rate (and a tenth more) when it
+  /// grows, so that it grows once, not again (a copy of all it holds) for the next tile.
+  /// Returns the time (milliseconds) of selection and copies.
+  float select_outline(grid::Code first, std::uint64_t count, OutlineCells* out, std::uint64_t cells_left = 0);
   /// Bytes this object holds on the device now.
   std::size_t device_bytes() const;
   /// The float64 brute-force labels of the given codes (the reference of the benchmark's check).

@@ -29,7 +29,7 @@ void Labeller::download_tree(DefaultInitVector<TreeNode>*, DefaultInitVector<std
 void Labeller::reserve(std::uint64_t, bool, bool) {}
 float Labeller::run(grid::Code, std::uint64_t, bool, bool) { return 0; }
 float Labeller::download(std::uint64_t, std::uint64_t, std::int32_t*, float*, std::uint8_t*) { return 0; }
-float Labeller::select_outline(grid::Code, std::uint64_t, OutlineCells*) { return 0; }
+float Labeller::select_outline(grid::Code, std::uint64_t, OutlineCells*, std::uint64_t) { return 0; }
 std::size_t Labeller::device_bytes() const { return 0; }
 std::vector<std::int32_t> Labeller::brute_sites(const std::vector<grid::Code>&) { return {}; }
 const std::int32_t* Labeller::device_sites() const { return nullptr; }

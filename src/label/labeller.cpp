@@ -212,9 +212,8 @@ void label_on_gpu(cuda::Labeller& gpu, int device, int level, grid::CodeRange ra
     const double run_end = now_seconds();
     ++stats.tiles;
     if (outline) {
-      stats.copy_seconds += gpu.select_outline(first, count, outline) / 1e3;
-      done = first + count;
-      reserve_for_rest(outline, done - range.first, range.end - done);
+      stats.copy_seconds += gpu.select_outline(first, count, outline, range.end - (first + count)) / 1e3;
+      done = first + count;  // select_outline gave the list room for the rest
       if (trace) {
         trace_printf(TraceStage::label, "tile of %llu cells: run %.3f s, outline selection %.3f s (%zu outline cells so far)",
                      static_cast<unsigned long long>(count), run_end - tile_start, now_seconds() - run_end, outline->size());

@@ -32,6 +32,17 @@ ProcessMemory process_memory() {
   return memory;
 }
 
+std::uint64_t available_memory_bytes() {
+  std::FILE* info = std::fopen("/proc/meminfo", "r");
+  if (!info) return host_ram_bytes();
+  char line[256];
+  unsigned long long kib = 0;
+  bool found = false;
+  while (!found && std::fgets(line, sizeof line, info)) found = std::sscanf(line, "MemAvailable: %llu kB", &kib) == 1;
+  std::fclose(info);
+  return found ? kib * 1024 : host_ram_bytes();
+}
+
 std::string format_gib(double bytes) {
   char text[64];
   std::snprintf(text, sizeof text, "%.2f GiB", bytes / double(std::uint64_t{1} << 30));

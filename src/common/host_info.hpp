@@ -21,6 +21,10 @@ struct ProcessMemory {
 };
 ProcessMemory process_memory();
 
+/// Memory the host can still give (bytes): the kernel's MemAvailable (free pages and the page
+/// cache it can drop), or host_ram_bytes() where the system does not say (no /proc/meminfo).
+std::uint64_t available_memory_bytes();
+
 /// "1.25 GiB": a byte count for messages.
 std::string format_gib(double bytes);
 

@@ -8,9 +8,11 @@
 #include <cstdlib>
 #include <memory>
 #include <stdexcept>
+#include <string>
 #include <utility>
 #include <vector>
 
+#include "common/config_option.hpp"
 #include "common/host_info.hpp"
 #include "common/trace.hpp"
 #include "grid/qtm_checks.hpp"
@@ -159,6 +161,7 @@ class TreeBuilder {
         t_level = now_seconds();
       }
       if (level_done) level_done(static_cast<double>(l + 1) / static_cast<double>(level_ + 1));
+      if (l < level_) check_level_fits(l + 1);
     }
     tree_.mean_candidates = weighted_candidates / static_cast<double>(tree_.labelled_cells());
 
@@ -315,6 +318,27 @@ class TreeBuilder {
   }
 
   const PartLists& parent_part(const Pending& p) const { return (*parent_parts_)[p.parent.part]; }
+
+  /// Throws, rather than the kernel ending the process, before level l's filter when the lists
+  /// its nodes may keep (each at most its parent's: 4 bytes an entry) and their children's
+  /// pending entries cannot fit in half the memory the host can still give. Sites in tight
+  /// clusters far from most nodes (lines, polygons: the bisector rule prunes points only) keep
+  /// whole clusters in every node, four times as many entries a level.
+  void check_level_fits(int l) const {
+    std::uint64_t entries = 0;
+    for (const Pending& p : pending_) entries += p.parent.items;
+    const std::uint64_t bytes = 4 * entries + 4 * pending_.size() * (sizeof(Pending) + sizeof(Decision));
+    // The tests make the host small (QTMV_FAULT_AVAILABLE_MEMORY, bytes).
+    const std::string small = fault_switch("QTMV_FAULT_AVAILABLE_MEMORY");
+    const std::uint64_t available = small.empty() ? available_memory_bytes() : std::stoull(small);
+    if (bytes <= available / 2) return;
+    throw std::runtime_error("the labeller's tree would need up to " + format_gib(double(bytes)) + " at level " +
+                             std::to_string(l) + " of " + std::to_string(level_) + " (" + std::to_string(entries) +
+                             " candidate entries in " + std::to_string(pending_.size()) +
+                             " nodes), more than half the " + format_gib(double(available)) +
+                             " this host has free: sites in tight clusters far from most cells (see MEMORY AND "
+                             "WORK in the manual); choose a lower -level");
+  }
 
   Scratch& thread_scratch() {
 #ifdef _OPENMP

@@ -102,6 +102,13 @@ TEST(ProcessMemory, IsPlausibleAndGrowsWithTouchedMemory) {
 #endif
 }
 
+TEST(AvailableMemory, IsAtMostTheHostsAndAtLeastAPage) {
+  // MemAvailable never exceeds MemTotal (sysconf's physical pages), and a running test has some.
+  const std::uint64_t available = available_memory_bytes();
+  EXPECT_LE(available, host_ram_bytes());
+  EXPECT_GE(available, std::uint64_t{4096});
+}
+
 const char* fake_lookup(const char* name, const char*) {
   return std::strcmp(name, "QTMV_FAULT_TEST") == 0 ? "allocate" : nullptr;
 }

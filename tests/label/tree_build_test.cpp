@@ -1,7 +1,7 @@
 // The host's tree build (build_tree: tree_build.cpp over tree_items and tree_point_bins) against
 // a reference written here: the plain level-by-level filter, every node testing every item of its
-// parent's list (item_bounds against prune_threshold, refine_kept, decide_node), the algorithm
-// the host built with before the spatial order. The two trees must be the same node for node,
+// parent's list (item_bounds against prune_threshold, the bisector rule of its nearest point item,
+// refine_kept, decide_node), the algorithm the host built with before the spatial order. The two trees must be the same node for node,
 // list entry for list entry (the labels, the device build's comparison and the digests depend on
 // it), for points, lines, polygons, fixed nodes and mixtures, at several levels, with and without
 // distances, whole and focused, on 1, 2 and 8 threads.
@@ -97,8 +97,20 @@ Tree reference_tree(const std::vector<Piece>& candidates, int level, bool with_d
           min_ub2 = std::min(min_ub2, ub2);
         }
         const double threshold = prune_threshold(min_ub2, radius);
+        // The bisector rule: the point items within the threshold that lie wholly beyond the
+        // bisector of the nearest of them (least lb2, then least item) go as if beyond it.
+        auto is_point = [&](std::int32_t k) { return list[k] >= 0 && (candidates[list[k]].flags & kPiecePoint); };
+        std::int32_t a = -1;
+        for (std::int32_t k = 0; k < n; ++k) {
+          if (!is_point(k) || !(lb2[k] <= threshold)) continue;
+          if (a < 0 || lb2[k] < lb2[a] || (lb2[k] == lb2[a] && list[k] < list[a])) a = k;
+        }
         for (std::int32_t k = 0; k < n; ++k) {
           if (!(lb2[k] <= threshold)) continue;
+          if (a >= 0 && k != a && is_point(k) &&
+              beyond_bisector(c, radius, candidates[list[a]].a, candidates[list[k]].a)) {
+            continue;
+          }
           const std::int32_t count = refine_kept(c, list[k], candidates.data(), groups, radius, threshold, nullptr);
           if (count == 0) continue;
           const std::size_t at = kept.size();

@@ -1,7 +1,9 @@
 // The host's build of the pruned tree (label_tree.hpp), level by level on all cores: long lists
 // block by block (tree_items.hpp), short lists of points by bins (tree_point_bins.hpp); the
 // device build (cuda/tree_build_cuda.cu) makes the same tree with the same node rule
-// (tree_node_rule.hpp).
+// (tree_node_rule.hpp). A node keeps its parent's items within its distance threshold
+// (prune_threshold) less the point items wholly beyond the bisector with its nearest point item
+// (BisectorCut, beyond_bisector): every path below finds that point first, then filters.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>

@@ -6,8 +6,9 @@
 // shows that every item in it would be, and tests its items one by one otherwise.
 //
 // Every decision is the one of the plain filter, item by item (item_bounds against
-// prune_threshold, refine_kept): a cap decides only with a margin far above the float64
-// rounding, and items are tested with the very same float64 operations. The lists, once put
+// prune_threshold, the bisector rule of BisectorCut, refine_kept): a cap decides only with a
+// margin far above the float64 rounding, and items are tested with the very same float64
+// operations. The lists, once put
 // back in the candidates' order (SpatialItems::write_in_order), are the plain filter's.
 #pragma once
 

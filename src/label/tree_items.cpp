@@ -504,14 +504,17 @@ int SpatialItems::cap_beyond(const NodeBounds& node, const ItemBlock& b, double 
   // Every point of the block lies within reach_rep of its centre m: inside the sure ball?
   const double far = sqrt(d2) + b.reach_rep + kCapMargin;
   if (far * far + kCapMargin <= cut.sure2) return kCapNoneBeyond;
-  // For such a point p, c.(a - p) - k |a - p| (beyond_bisector's test, k = r + r^2 / 2) lies
-  // within reach_rep (1 + k) of c.(a - m) - k |a - m|; margins far above the rounding.
-  const Vec3 am = cut.a - b.centre;
+  // For such a point p, beyond_bisector's (|c - p|^2 - |c - a|^2) / 2 - k |a - p| (k = r + r^2 /
+  // 2), with |c - p| and |a - p| within reach_rep of |c - m| and |a - m|; margins far above the
+  // rounding.
+  const double rho = b.reach_rep;
   const double k = node.radius + 0.5 * node.radius * node.radius;
-  const double mid = grid::dot(node.centre, am) - k * sqrt(grid::dot(am, am));
-  const double spread = b.reach_rep * (1.0 + k);
-  if (mid + spread <= 0.5 * kBisectorMargin) return kCapNoneBeyond;
-  if (b.points && mid - spread >= 2.0 * kBisectorMargin) return kCapAllBeyond;
+  const double dm = sqrt(d2), am = sqrt(grid::chord2(cut.a, b.centre));
+  const double near = dm > rho ? dm - rho : 0.0;
+  const double hi = 0.5 * ((dm + rho) * (dm + rho) - cut.lb2) - k * (am > rho ? am - rho : 0.0);
+  if (hi <= 0.5 * kBisectorMargin) return kCapNoneBeyond;
+  const double lo = 0.5 * (near * near - cut.lb2) - k * (am + rho);
+  if (b.points && lo >= 2.0 * kBisectorMargin) return kCapAllBeyond;
   return kCapUnsure;
 }
 

@@ -54,7 +54,8 @@ struct BisectorCut {
   Vec3 a{0.0, 0.0, 0.0};
   double lb2 = kChord2Infinity;  ///< a's squared chord from the node's centre
   /// No point at a squared chord up to this from the node's centre is beyond a's bisector:
-  /// beyond it needs d(c, b) + d(c, a) > 2 (r + r^2 / 2) (chords), with margins far above the
+  /// beyond it needs (d(c, b)^2 - d(c, a)^2) / 2 > (r + r^2 / 2) |a - b| >= (r + r^2 / 2)
+  /// (d(c, b) - d(c, a)), so d(c, b) + d(c, a) > 2 (r + r^2 / 2) (chords); margins far above the
   /// rounding of the chords (-1: no such shortcut).
   double sure2 = -1.0;
 

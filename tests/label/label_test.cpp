@@ -1056,7 +1056,7 @@ TEST(LabelOutlines, TreePassGivesTheDenseLabelsOutlines) {
 // distance and boundary flag, and each of their edge neighbours the whole tree's site; its
 // outline pass over the range gives the whole tree's outline cells. For ranges of whole rows and
 // ranges cut inside rows, with distances (full jump table) and without (the outline pass's
-// tree), and it builds a fraction of the whole tree's nodes.
+// tree), and it builds a fraction of the whole tree's nodes (about the range's share).
 TEST(LabelTree, FocusedTreeLabelsItsRangeAsTheWholeTree) {
   const std::vector<SiteSet> sets = {{"points L8", random_points(8, 300, 23)},
                                      {"arcs L8", arcs(8, 5, 20, 709)},
@@ -1081,7 +1081,10 @@ TEST(LabelTree, FocusedTreeLabelsItsRangeAsTheWholeTree) {
                      std::to_string(range.first) + " to " + std::to_string(range.end));
         const Tree focused = build_tree(candidates, level, with_distance, 2, {}, &view, jump, range);
         EXPECT_EQ(focused.focus, range);
-        EXPECT_LT(focused.nodes.size() * 2, whole.nodes.size());
+        // A fraction of the whole tree's nodes: about the range's share of the cells, more where
+        // the sites' detail lies in the range (the polygon lies mostly in the third cut in rows).
+        const double share = static_cast<double>(range.end - range.first) / static_cast<double>(all.end);
+        EXPECT_LT(static_cast<double>(focused.nodes.size()), (share + 0.25) * static_cast<double>(whole.nodes.size()));
         const TreeView fv = focused.view(candidates.data());
         std::uint64_t mismatches = 0, neighbour_mismatches = 0;
         for (Code code = range.first; code < range.end; ++code) {

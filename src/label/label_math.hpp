@@ -250,12 +250,15 @@ constexpr double kBisectorMargin = 1e-12;
 /// wholly on a's side of their bisector, so b is never the nearest in it. This separates points
 /// far closer to each other than the node is large, which the distance bounds of prune_threshold
 /// cannot: a tight cluster of sites seen from far away. With w = a - b, chord2(x, b) - chord2(x, a)
-/// = 2 x.w (|a| = |b| = 1), and for x within angle r of c, x.w >= c.w - |w| (r + r^2 / 2), since
-/// cos(t + r) >= cos t - sin r - (1 - cos r) for cos t >= 0. Only + - * and sqrt, correctly
-/// rounded in float64 on the host and the device alike, so the two builds decide the same bits.
+/// = |b|^2 - |a|^2 + 2 x.w = chord2(c, b) - chord2(c, a) + 2 (x - c).w, and for x within angle r
+/// of c, (x - c).w >= -|w| (r + r^2 / 2), since cos(t + r) >= cos t - sin r - (1 - cos r) for
+/// cos t >= 0. The squared chords from c, not c.w alone: pieces a few ulps off the unit sphere
+/// (exact ties made so in the tests) differ in |a|^2 - |b|^2 by more than the margin. Only + - *
+/// and sqrt, correctly rounded in float64 on the host and the device alike, so the two builds
+/// decide the same bits.
 QTMV_HD inline bool beyond_bisector(const Vec3& c, double radius, const Vec3& a, const Vec3& b) {
   const double wx = a.x - b.x, wy = a.y - b.y, wz = a.z - b.z;
-  const double along = c.x * wx + c.y * wy + c.z * wz;
+  const double along = 0.5 * (grid::chord2(c, b) - grid::chord2(c, a));
   if (!(along > kBisectorMargin)) return false;
   const double w = sqrt(wx * wx + wy * wy + wz * wz);
   return along > w * (radius + 0.5 * radius * radius) + kBisectorMargin;

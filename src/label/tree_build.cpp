@@ -1,7 +1,9 @@
 // The host's build of the pruned tree (label_tree.hpp), level by level on all cores: long lists
 // block by block (tree_items.hpp), short lists of points by bins (tree_point_bins.hpp); the
 // device build (cuda/tree_build_cuda.cu) makes the same tree with the same node rule
-// (tree_node_rule.hpp).
+// (tree_node_rule.hpp). A node keeps its parent's items within its distance threshold
+// (prune_threshold) less the point items wholly beyond the bisector with its nearest point item
+// (BisectorCut, beyond_bisector): every path below finds that point first, then filters.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -188,9 +190,20 @@ class TreeBuilder {
     return false;
   }
 
+  bool is_point_item(std::int32_t item) const {
+    return !is_group_item(item) && (candidates_[item].flags & kPiecePoint) != 0;
+  }
+
+  /// Notes in node.cut the loose point items within node.threshold (their bounds in s.lb2).
+  void note_loose_points(const std::int32_t* loose, std::uint32_t count, const Scratch& s, NodeBounds& node) const {
+    for (std::uint32_t k = 0; k < count; ++k) {
+      if (s.lb2[k] <= node.threshold && is_point_item(loose[k])) node.cut.note(loose[k], candidates_[loose[k]].a, s.lb2[k]);
+    }
+  }
+
   /// Filters the parent's list of p (a node of level l < L, centre c): the items it keeps go to
-  /// `kept` (item_bounds against prune_threshold, refine_kept), as blocks or as points (binned:
-  /// their bins in *bins).
+  /// `kept` (item_bounds against prune_threshold, the bisector rule of its nearest point item:
+  /// BisectorCut, refine_kept), as blocks or as points (binned: their bins in *bins).
   ListForm filter(const Pending& p, int l, const Vec3& c, const CoverLookup& covered, Scratch& s,
                   RadiusStretches& stretches, KeptList& kept, PointBins* bins) const {
     const PartLists& from = parent_part(p);
@@ -206,13 +219,17 @@ class TreeBuilder {
     }
     const double radius = node_radius(l, p.cell, stretches(l, p.cell.row));
     bool points = false;
-    NodeBounds node{c, radius, 0.0};
+    NodeBounds node{c, radius, 0.0, {}};
     if (p.parent.points) {
       const std::int32_t* list = from.points.data() + p.parent.at;
       const PointBins* parent_bins = p.parent.bins >= 0 ? &from.bins[p.parent.bins] : nullptr;
       node.threshold =
           prune_threshold(binned_least(*items_, c, list, p.parent.length, parent_bins, min_ub2, s.points), radius);
       binned_keep(*items_, node, list, p.parent.length, parent_bins, s.points);
+      note_loose_points(loose, p.parent.loose, s, node);
+      note_kept_points(*items_, s.points, node.cut);
+      node.cut.settle(radius);
+      drop_beyond_bisector(*items_, node, s.points);
       points = true;
     } else {
       const ListBlock* blocks = from.blocks.data() + p.parent.at;
@@ -225,8 +242,20 @@ class TreeBuilder {
       min_ub2 = flat ? items_->flat_bounds(c, s.flat, min_ub2)
                      : items_->least_upper_bound(c, blocks, p.parent.length, min_ub2, s.filter);
       node.threshold = prune_threshold(min_ub2, radius);
+      note_loose_points(loose, p.parent.loose, s, node);
+      if (flat) {
+        items_->note_flat_points(s.flat, node.threshold, node.cut);
+      } else if (s.filter.nearest_point.active && s.filter.nearest_point.lb2 == min_ub2) {
+        // The least upper bound is a point's: the list's least point, found with its equals.
+        const BisectorCut& near = s.filter.nearest_point;
+        node.cut.note(near.item, near.a, near.lb2);
+      } else {
+        items_->note_least_point(c, blocks, p.parent.length, node.threshold, s.filter, node.cut);
+      }
+      node.cut.settle(radius);
       if (flat && s.flat.points) {
         flat_points_keep(s.flat, node, s.points);
+        drop_beyond_bisector(*items_, node, s.points);
         points = true;
       } else if (flat) {
         items_->flat_keep(node, s.flat, kept);
@@ -253,6 +282,7 @@ class TreeBuilder {
     }
     for (std::uint32_t k = 0; k < p.parent.loose; ++k) {
       if (!(s.lb2[k] <= node.threshold)) continue;
+      if (is_point_item(loose[k]) && node.drops(candidates_[loose[k]].a, s.lb2[k])) continue;
       const std::size_t at = kept.loose->size();
       const std::int32_t n = refine_kept(c, loose[k], candidates_.data(), groups_, radius, node.threshold, nullptr);
       if (n == 0) continue;  // none of a loose group's pieces is near the node

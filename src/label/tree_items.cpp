@@ -16,6 +16,9 @@ constexpr double kCapMargin = 1e-12;
 /// Relative margin on a cap's reach (the rounding of its sums and roots).
 constexpr double kReachMargin = 1.0 + 1e-12;
 
+/// cap_beyond's answers.
+constexpr int kCapUnsure = 0, kCapNoneBeyond = 1, kCapAllBeyond = 2;
+
 /// The 16 low bits of v spread to every third bit.
 std::uint64_t spread_bits(std::uint64_t v) {
   v &= 0xffff;
@@ -221,7 +224,7 @@ DefaultInitVector<ListBlock> SpatialItems::whole() const {
 }
 
 void SpatialItems::nearest_in_block(const Vec3& x, int tier, std::int64_t index, std::uint8_t mask, double d2,
-                                    double& best, double& root) const {
+                                    double& best, double& root, BisectorCut& point) const {
   const ItemBlock& b = tiers_[tier][index];
   // Every item's bounds are at least |x - centre| - reach: none below `best` when that is above
   // sqrt(best) (the margin covers the rounding of both sides).
@@ -232,7 +235,7 @@ void SpatialItems::nearest_in_block(const Vec3& x, int tier, std::int64_t index,
     const std::int64_t last = std::min<std::int64_t>(first + 4, static_cast<std::int64_t>(tiers_[tier - 1].size()));
     for (std::int64_t c = first; c < last; ++c) {
       const double c2 = grid::chord2(x, tiers_[tier - 1][c].centre);
-      nearest_in_block(x, tier - 1, c, tier == 1 ? full_mask(c) : std::uint8_t{0xff}, c2, best, root);
+      nearest_in_block(x, tier - 1, c, tier == 1 ? full_mask(c) : std::uint8_t{0xff}, c2, best, root, point);
     }
     return;
   }
@@ -241,10 +244,61 @@ void SpatialItems::nearest_in_block(const Vec3& x, int tier, std::int64_t index,
     if (!(mask >> k & 1)) continue;
     double lb2, ub2;
     bounds(x, first + k, &lb2, &ub2);
+    if (point_[first + k]) point.note(item_[first + k], rep_[first + k], lb2);
     if (ub2 < best) {
       best = ub2;
       root = sqrt(best);
     }
+  }
+}
+
+void SpatialItems::nearest_point_in_block(const Vec3& x, int tier, std::int64_t index, std::uint8_t mask, double d2,
+                                          double limit2, double& root, BisectorCut& cut) const {
+  // Every point of the block lies within reach_rep of its centre (as nearest_in_block).
+  const double limit = root + tiers_[tier][index].reach_rep + kCapMargin;
+  if (d2 > limit * limit) return;
+  if (tier > 0) {
+    const std::int64_t first = index << kFanoutBits;
+    const std::int64_t last = std::min<std::int64_t>(first + 4, static_cast<std::int64_t>(tiers_[tier - 1].size()));
+    for (std::int64_t c = first; c < last; ++c) {
+      const double c2 = grid::chord2(x, tiers_[tier - 1][c].centre);
+      nearest_point_in_block(x, tier - 1, c, tier == 1 ? full_mask(c) : std::uint8_t{0xff}, c2, limit2, root, cut);
+    }
+    return;
+  }
+  const std::int64_t first = block_begin(0, index);
+  for (int k = 0; k < 8; ++k) {
+    if (!(mask >> k & 1) || !point_[first + k]) continue;
+    double lb2, ub2;
+    bounds(x, first + k, &lb2, &ub2);
+    if (lb2 <= limit2) {
+      cut.note(item_[first + k], rep_[first + k], lb2);
+      root = sqrt(std::min(limit2, cut.lb2));
+    }
+  }
+}
+
+void SpatialItems::note_least_point(const Vec3& x, const ListBlock* list, std::uint32_t count, double limit2,
+                                    const FilterScratch& s, BisectorCut& cut) const {
+  if (count == 0) return;
+  std::uint32_t nearest = 0;
+  for (std::uint32_t k = 1; k < count; ++k) {
+    if (s.chord2[k] < s.chord2[nearest]) nearest = k;
+  }
+  double root = sqrt(cut.active && cut.lb2 < limit2 ? cut.lb2 : limit2);
+  const ListBlock& n = list[nearest];
+  nearest_point_in_block(x, n.tier, n.index, n.mask, s.chord2[nearest], limit2, root, cut);
+  for (std::uint32_t k = 0; k < count; ++k) {
+    if (k != nearest) {
+      nearest_point_in_block(x, list[k].tier, list[k].index, list[k].mask, s.chord2[k], limit2, root, cut);
+    }
+  }
+}
+
+void SpatialItems::note_flat_points(const FlatList& f, double threshold, BisectorCut& cut) const {
+  for (std::size_t k = 0; k < f.pos.size(); ++k) {
+    const std::int32_t pos = f.pos[k];
+    if (point_[pos] && f.lb2[k] <= threshold) cut.note(item_[pos], rep_[pos], f.lb2[k]);
   }
 }
 
@@ -260,9 +314,12 @@ double SpatialItems::least_upper_bound(const Vec3& x, const ListBlock* list, std
   // The block nearest first: its items make `best` small, so that most others are passed over.
   double root = sqrt(best);
   const ListBlock& n = list[nearest];
-  nearest_in_block(x, n.tier, n.index, n.mask, s.chord2[nearest], best, root);
+  s.nearest_point = BisectorCut{};
+  nearest_in_block(x, n.tier, n.index, n.mask, s.chord2[nearest], best, root, s.nearest_point);
   for (std::uint32_t k = 0; k < count; ++k) {
-    if (k != nearest) nearest_in_block(x, list[k].tier, list[k].index, list[k].mask, s.chord2[k], best, root);
+    if (k != nearest) {
+      nearest_in_block(x, list[k].tier, list[k].index, list[k].mask, s.chord2[k], best, root, s.nearest_point);
+    }
   }
   return best;
 }
@@ -288,12 +345,18 @@ void SpatialItems::keep_items(const NodeBounds& node, std::int64_t index, std::u
   unsigned kept = 0;
   if (tiers_[0][index].points) {
     // Points: their bounds are their squared chords, and none is split.
+    double d2[8];
     for (int k = 0; k < 8; ++k) {
       const Vec3& a = rep_[first + (mask >> k & 1 ? k : 0)];
       const double dx = node.centre.x - a.x, dy = node.centre.y - a.y, dz = node.centre.z - a.z;
-      kept |= (dx * dx + dy * dy + dz * dz <= node.threshold ? 1u : 0u) << k;  // as piece_chord2
+      d2[k] = dx * dx + dy * dy + dz * dz;  // as piece_chord2
+      kept |= (d2[k] <= node.threshold ? 1u : 0u) << k;
     }
     kept &= mask;
+    for (unsigned m = kept; m != 0; m &= m - 1) {
+      const int k = __builtin_ctz(m);
+      if (node.drops(rep_[first + k], d2[k])) kept &= ~(1u << k);
+    }
     out.count += static_cast<std::uint64_t>(__builtin_popcount(kept));
     for (unsigned m = kept; m != 0 && !out.several_sites(); m &= m - 1) {
       const std::int32_t site = site_[first + __builtin_ctz(m)];
@@ -306,6 +369,7 @@ void SpatialItems::keep_items(const NodeBounds& node, std::int64_t index, std::u
       double lb2, ub2;
       bounds(node.centre, pos, &lb2, &ub2);
       if (!(lb2 <= node.threshold)) continue;
+      if (point_[pos] && node.drops(rep_[pos], lb2)) continue;
       if (spread_[pos] > kGroupSplit * node.radius) {
         keep_split(node, pos, out);
         continue;
@@ -390,6 +454,7 @@ void SpatialItems::flat_keep(const NodeBounds& node, FlatList& f, KeptList& out)
   for (std::size_t j = 0; j < m; ++j) {
     const std::int32_t k = kept[j];
     const std::int32_t pos = f.pos[k];
+    if (point_[pos] && node.drops(rep_[pos], lb2[k])) continue;
     if (spread_[pos] > kGroupSplit * node.radius) {
       keep_split(node, pos, out);
       continue;
@@ -407,9 +472,11 @@ void SpatialItems::keep_block(const NodeBounds& node, double root, int tier, std
   // Every item's lower bound is above the threshold when the cap lies beyond sqrt(threshold).
   const double beyond = root + b.reach + kCapMargin;
   if (d2 > beyond * beyond) return;
+  const int cut = cap_beyond(node, b, d2);
+  if (cut == kCapAllBeyond) return;
   // Every item's lower bound is within it (and none is split) when the cap lies inside.
   const double inside = root - b.reach_rep - kCapMargin;
-  if (inside >= 0.0 && d2 <= inside * inside && b.spread <= kGroupSplit * node.radius) {
+  if (cut == kCapNoneBeyond && inside >= 0.0 && d2 <= inside * inside && b.spread <= kGroupSplit * node.radius) {
     if (tier == 0) {
       add_items(index, mask, out);
     } else {
@@ -429,6 +496,26 @@ void SpatialItems::keep_block(const NodeBounds& node, double root, int tier, std
     return;
   }
   keep_items(node, index, mask, out);
+}
+
+int SpatialItems::cap_beyond(const NodeBounds& node, const ItemBlock& b, double d2) const {
+  const BisectorCut& cut = node.cut;
+  if (!cut.active) return kCapNoneBeyond;
+  // Every point of the block lies within reach_rep of its centre m: inside the sure ball?
+  const double far = sqrt(d2) + b.reach_rep + kCapMargin;
+  if (far * far + kCapMargin <= cut.sure2) return kCapNoneBeyond;
+  // For such a point p, beyond_bisector's (|c - p|^2 - |c - a|^2) / 2 - k |a - p| (k = r + r^2 /
+  // 2), with |c - p| and |a - p| within reach_rep of |c - m| and |a - m|; margins far above the
+  // rounding.
+  const double rho = b.reach_rep;
+  const double k = node.radius + 0.5 * node.radius * node.radius;
+  const double dm = sqrt(d2), am = sqrt(grid::chord2(cut.a, b.centre));
+  const double near = dm > rho ? dm - rho : 0.0;
+  const double hi = 0.5 * ((dm + rho) * (dm + rho) - cut.lb2) - k * (am > rho ? am - rho : 0.0);
+  if (hi <= 0.5 * kBisectorMargin) return kCapNoneBeyond;
+  const double lo = 0.5 * (near * near - cut.lb2) - k * (am + rho);
+  if (b.points && lo >= 2.0 * kBisectorMargin) return kCapAllBeyond;
+  return kCapUnsure;
 }
 
 void SpatialItems::keep(const NodeBounds& node, const ListBlock* list, std::uint32_t count, FilterScratch& s,

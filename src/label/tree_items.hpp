@@ -6,8 +6,9 @@
 // shows that every item in it would be, and tests its items one by one otherwise.
 //
 // Every decision is the one of the plain filter, item by item (item_bounds against
-// prune_threshold, refine_kept): a cap decides only with a margin far above the float64
-// rounding, and items are tested with the very same float64 operations. The lists, once put
+// prune_threshold, the bisector rule of BisectorCut, refine_kept): a cap decides only with a
+// margin far above the float64 rounding, and items are tested with the very same float64
+// operations. The lists, once put
 // back in the candidates' order (SpatialItems::write_in_order), are the plain filter's.
 #pragma once
 
@@ -44,12 +45,50 @@ struct ItemBlock {
   std::int32_t points;    ///< 1: every item is a point piece
 };
 
-/// A node as its filter sees it: centre (unit vector), radius (radians, node_radius) and the
-/// pruning threshold (squared chord, prune_threshold).
+/// A node's bisector rule (label_math.hpp, beyond_bisector): of the point items within its
+/// threshold, those wholly beyond the bisector of the nearest one, a (least squared chord, then
+/// least item), are dropped as if beyond the threshold. Inactive when no point item is within it.
+struct BisectorCut {
+  bool active = false;
+  std::int32_t item = -1;  ///< a's item
+  Vec3 a{0.0, 0.0, 0.0};
+  double lb2 = kChord2Infinity;  ///< a's squared chord from the node's centre
+  /// No point at a squared chord up to this from the node's centre is beyond a's bisector:
+  /// beyond it needs (d(c, b)^2 - d(c, a)^2) / 2 > (r + r^2 / 2) |a - b| >= (r + r^2 / 2)
+  /// (d(c, b) - d(c, a)), so d(c, b) + d(c, a) > 2 (r + r^2 / 2) (chords); margins far above the
+  /// rounding of the chords (-1: no such shortcut).
+  double sure2 = -1.0;
+
+  /// Notes a point item within the threshold (squared chord lb2 from the node's centre).
+  void note(std::int32_t point_item, const Vec3& p, double point_lb2) {
+    if (!active || point_lb2 < lb2 || (point_lb2 == lb2 && point_item < item)) {
+      active = true;
+      item = point_item;
+      a = p;
+      lb2 = point_lb2;
+    }
+  }
+  /// Sets sure2, once a is settled, for a node of `radius` (radians).
+  void settle(double radius) {
+    if (!active) return;
+    const double base = 2.0 * (radius + 0.5 * radius * radius) - sqrt(lb2) - 1e-7;
+    sure2 = base > 0.0 ? base * base * (1.0 - 1e-12) : -1.0;
+  }
+  /// True when the point b (squared chord chord2 from the centre c of a node of `radius`) is
+  /// dropped: beyond_bisector(c, radius, a, b), the same bits.
+  bool drops(const Vec3& c, double radius, const Vec3& b, double chord2) const {
+    return active && chord2 > sure2 && beyond_bisector(c, radius, a, b);
+  }
+};
+
+/// A node as its filter sees it: centre (unit vector), radius (radians, node_radius), the
+/// pruning threshold (squared chord, prune_threshold) and the bisector rule.
 struct NodeBounds {
   Vec3 centre;
   double radius;
   double threshold;
+  BisectorCut cut;
+  bool drops(const Vec3& b, double chord2) const { return cut.drops(centre, radius, b, chord2); }
 };
 
 /// What a node keeps (written to the given buffers): blocks and loose items, how many items in
@@ -94,6 +133,9 @@ struct FilterScratch {
     std::int32_t winner;
   };
   std::vector<Achiever> achievers;   ///< best_in_list's
+  /// least_upper_bound's least point item among those it measured (the least of the list's
+  /// when its squared chord is the least upper bound).
+  BisectorCut nearest_point;
 };
 
 class SpatialItems {
@@ -138,9 +180,16 @@ class SpatialItems {
   double least_upper_bound(const Vec3& x, const ListBlock* list, std::uint32_t count, double best,
                            FilterScratch& s) const;
 
-  /// Keeps the positions of `list` that the node keeps (lower bound within its threshold; a
-  /// group too loose for the node refined into loose items). Needs s.chord2 from
-  /// least_upper_bound for the same node and list.
+  /// The least point item of `list` (squared chord, then item) within `limit2` (squared chord)
+  /// of x noted in cut, found from the nearest blocks out. Needs s.chord2 from least_upper_bound.
+  void note_least_point(const Vec3& x, const ListBlock* list, std::uint32_t count, double limit2,
+                        const FilterScratch& s, BisectorCut& cut) const;
+  /// Notes in cut f's point items within `threshold` (f.lb2: their squared chords).
+  void note_flat_points(const FlatList& f, double threshold, BisectorCut& cut) const;
+
+  /// Keeps the positions of `list` that the node keeps (lower bound within its threshold and not
+  /// dropped by its bisector rule; a group too loose for the node refined into loose items).
+  /// Needs s.chord2 from least_upper_bound for the same node and list.
   void keep(const NodeBounds& node, const ListBlock* list, std::uint32_t count, FilterScratch& s,
             KeptList& out) const;
 
@@ -191,7 +240,12 @@ class SpatialItems {
   }
   void keep_split(const NodeBounds& node, std::int64_t pos, KeptList& out) const;
   void nearest_in_block(const Vec3& x, int tier, std::int64_t index, std::uint8_t mask, double d2, double& best,
-                        double& root) const;
+                        double& root, BisectorCut& point) const;
+  void nearest_point_in_block(const Vec3& x, int tier, std::int64_t index, std::uint8_t mask, double d2,
+                              double limit2, double& root, BisectorCut& cut) const;
+  /// Whether no point of the block (cap centre m, reach_rep) is dropped by the node's bisector
+  /// rule (1), every one is (2), or neither is certain (0).
+  int cap_beyond(const NodeBounds& node, const ItemBlock& b, double d2) const;
   void keep_block(const NodeBounds& node, double root, int tier, std::int64_t index, std::uint8_t mask, double d2,
                   KeptList& out) const;
   void keep_items(const NodeBounds& node, std::int64_t index, std::uint8_t mask, KeptList& out) const;

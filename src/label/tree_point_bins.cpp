@@ -130,6 +130,35 @@ bool points_of_blocks(const SpatialItems& items, const Vec3& x, const ListBlock*
   return points;
 }
 
+void note_kept_points(const SpatialItems& items, const PointScratch& s, BisectorCut& cut) {
+  const std::size_t n = s.pos.size();
+  if (n == 0) return;
+  // The least squared chord first (no branch a point), then the least item among its equals.
+  double least = s.kept_chord2[0];
+  for (std::size_t k = 1; k < n; ++k) least = s.kept_chord2[k] < least ? s.kept_chord2[k] : least;
+  const std::int32_t* item = items.items();
+  for (std::size_t k = 0; k < n; ++k) {
+    if (s.kept_chord2[k] == least) cut.note(item[s.pos[k]], items.points()[s.pos[k]], least);
+  }
+}
+
+void drop_beyond_bisector(const SpatialItems& items, const NodeBounds& node, PointScratch& s) {
+  if (!node.cut.active) return;
+  const Vec3* rep = items.points();
+  const std::size_t n = s.pos.size();
+  std::size_t m = 0;
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::int32_t pos = s.pos[k];
+    const double d2 = s.kept_chord2[k];
+    if (d2 > node.cut.sure2 && node.drops(rep[pos], d2)) continue;
+    s.pos[m] = pos;
+    s.kept_chord2[m] = d2;
+    ++m;
+  }
+  s.pos.resize(m);
+  s.kept_chord2.resize(m);
+}
+
 bool emit_points(const SpatialItems& items, const NodeBounds& node, PointScratch& s, KeptList& out, PointBins* bins) {
   const std::size_t n = s.pos.size();
   const std::size_t at = out.points->size();

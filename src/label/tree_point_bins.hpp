@@ -58,6 +58,11 @@ void flat_points_keep(const FlatList& f, const NodeBounds& node, PointScratch& s
 bool points_of_blocks(const SpatialItems& items, const Vec3& x, const ListBlock* blocks, std::uint32_t count,
                       PointScratch& s);
 
+/// Notes the points s.pos (squared chords s.kept_chord2, all within the node's threshold) in cut.
+void note_kept_points(const SpatialItems& items, const PointScratch& s, BisectorCut& cut);
+/// Drops from s.pos (and s.kept_chord2) the points that the node's bisector rule drops.
+void drop_beyond_bisector(const SpatialItems& items, const NodeBounds& node, PointScratch& s);
+
 /// The points s.pos (squared chords s.kept_chord2 from the node's centre) appended to
 /// *out.points, their count and sites noted in out: binned about the node, their bins in *bins
 /// (returns true), unless they are few (at most kPlainPoints) or `bins` is null (a node that cannot

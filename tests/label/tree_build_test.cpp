@@ -1,7 +1,7 @@
 // The host's tree build (build_tree: tree_build.cpp over tree_items and tree_point_bins) against
 // a reference written here: the plain level-by-level filter, every node testing every item of its
-// parent's list (item_bounds against prune_threshold, refine_kept, decide_node), the algorithm
-// the host built with before the spatial order. The two trees must be the same node for node,
+// parent's list (item_bounds against prune_threshold, the bisector rule of its nearest point item,
+// refine_kept, decide_node), the algorithm the host built with before the spatial order. The two trees must be the same node for node,
 // list entry for list entry (the labels, the device build's comparison and the digests depend on
 // it), for points, lines, polygons, fixed nodes and mixtures, at several levels, with and without
 // distances, whole and focused, on 1, 2 and 8 threads.
@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <memory>
 #include <random>
 #include <string>
@@ -21,6 +22,7 @@
 #include "label/labeller.hpp"
 #include "label/synthetic_sites.hpp"
 #include "label/tree_node_rule.hpp"
+#include "cluster_sites.hpp"
 #include "wiggly_sites.hpp"
 
 namespace qtmv::label {
@@ -43,9 +45,10 @@ bool reference_in_focus(const grid::CodeRange& focus, bool focused, const Cell& 
 }
 
 /// The tree by the plain filter: each node of each level, in order, filters its parent's whole
-/// list (the octants: the runs' top items in candidate order).
+/// list (the octants: the runs' top items in candidate order). Without `bisector`, the rule of
+/// before the bisector rule (distance bounds only), for comparison.
 Tree reference_tree(const std::vector<Piece>& candidates, int level, bool with_distance, const CoverView* given,
-                    JumpTable jump, grid::CodeRange focus = {}) {
+                    JumpTable jump, grid::CodeRange focus = {}, bool bisector = true) {
   Tree t;
   t.level = level;
   t.nodes.resize(grid::kOctants);
@@ -97,8 +100,20 @@ Tree reference_tree(const std::vector<Piece>& candidates, int level, bool with_d
           min_ub2 = std::min(min_ub2, ub2);
         }
         const double threshold = prune_threshold(min_ub2, radius);
+        // The bisector rule: the point items within the threshold that lie wholly beyond the
+        // bisector of the nearest of them (least lb2, then least item) go as if beyond it.
+        auto is_point = [&](std::int32_t k) { return list[k] >= 0 && (candidates[list[k]].flags & kPiecePoint); };
+        std::int32_t a = -1;
+        for (std::int32_t k = 0; k < n && bisector; ++k) {
+          if (!is_point(k) || !(lb2[k] <= threshold)) continue;
+          if (a < 0 || lb2[k] < lb2[a] || (lb2[k] == lb2[a] && list[k] < list[a])) a = k;
+        }
         for (std::int32_t k = 0; k < n; ++k) {
           if (!(lb2[k] <= threshold)) continue;
+          if (a >= 0 && k != a && is_point(k) &&
+              beyond_bisector(c, radius, candidates[list[a]].a, candidates[list[k]].a)) {
+            continue;
+          }
           const std::int32_t count = refine_kept(c, list[k], candidates.data(), groups, radius, threshold, nullptr);
           if (count == 0) continue;
           const std::size_t at = kept.size();
@@ -306,15 +321,16 @@ std::vector<Case> small_cases() {
   return cases;
 }
 
-/// The build against the reference for one input: both rules (where the input has them), with
-/// and without distances, with the labeller's cover, on `threads`.
-void expect_reference_trees(const Case& c, std::vector<int> threads) {
+/// The build against the reference for one input: both rules (where the input has them; the
+/// cell rule unless `cell_rule` is false), with and without distances, with the labeller's
+/// cover, on `threads`.
+void expect_reference_trees(const Case& c, std::vector<int> threads, bool cell_rule = true) {
   const PreparedInput prepared = prepare_input(c.g.input(), true);
   const LabelInput& in = prepared.input;
   const CoverView view = prepared.cover.view();
   for (const Rule rule : {Rule::exact, Rule::cell}) {
     if (rule == Rule::exact && in.piece_count == 0 && in.fixed_cell_count == 0) continue;
-    if (rule == Rule::cell && in.site_cell_count == 0 && in.fixed_cell_count == 0) continue;
+    if (rule == Rule::cell && ((in.site_cell_count == 0 && in.fixed_cell_count == 0) || !cell_rule)) continue;
     const std::vector<Piece> candidates = make_candidates(in, rule, 2);
     for (const bool with_distance : {false, true}) {
       const JumpTable jump = with_distance ? JumpTable::full : JumpTable::outline;
@@ -385,6 +401,109 @@ TEST(TreeBuild, LabelsOfManyPointsAreTheBruteForces) {
     }
   }
   EXPECT_EQ(wrong, 0u);
+}
+
+// --- clustered sites: the bisector rule ----------------------------------------------------------
+
+/// n points within `degrees` of (lon, lat) added to g under sites above its own.
+void add_cluster(SiteGeometry& g, int n, double lon, double lat, double degrees, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-1, 1);
+  const std::int32_t base = g.site_count;
+  for (int k = 0; k < n; ++k) add_point(g, lon + degrees * u(rng), lat + degrees * u(rng), base + k);
+}
+
+/// Sites of three points each (line runs: group items), all within `degrees` of (lon, lat).
+SiteGeometry clustered_multipoint_sites(int level, int sites, double lon, double lat, double degrees,
+                                        std::uint64_t seed) {
+  SiteGeometry g;
+  g.level = level;
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (int s = 0; s < sites; ++s) {
+    const double lo = lon + degrees * u(rng), la = lat + degrees * u(rng);
+    for (int k = 0; k < 3; ++k) add_point(g, lo + 0.2 * degrees * u(rng), la + 0.2 * degrees * u(rng), s);
+  }
+  add_random_points(g, 3, seed + 1, sites);
+  return g;
+}
+
+// A tight cluster far from most nodes: only the bisector rule tells its points apart there. Under
+// the cell rule a cluster is a few cells' centres, each shared by many sites (exact duplicates,
+// which no rule of distances can drop): its trees are as large as before, so the finer and
+// larger clusters are built under the exact rule only, as are the multi-point sites (group
+// items, which the rule leaves alone).
+TEST(TreeBuild, ClusteredPointsEqualThePlainFilter) {
+  for (const int level : {6, 8, 10}) {
+    expect_reference_trees({"cluster", test::clustered_points(level, 2000, 10, 45, 0.02, 3, 200 + level, 50)},
+                           {1, 2, 8}, level < 10);
+  }
+  expect_reference_trees({"cluster at a pole", test::clustered_points(7, 800, 30, 89.995, 0.02, 3, 210, 40)}, {1, 2});
+  expect_reference_trees({"cluster at a pole", test::clustered_points(9, 800, 30, 89.995, 0.02, 3, 211, 40)},
+                         {1, 2, 8}, false);
+  expect_reference_trees({"cluster of duplicates", test::clustered_points(6, 500, -120, -33, 0.01, 3, 212, 1)},
+                         {1, 2});
+  expect_reference_trees({"cluster of duplicates", test::clustered_points(8, 500, -120, -33, 0.01, 3, 212, 1)},
+                         {1, 2}, false);
+  SiteGeometry lines = test::random_arcs(8, 40, 20, 213);
+  add_cluster(lines, 1500, 10, 45, 0.02, 214);
+  expect_reference_trees({"cluster and lines", lines}, {1, 2, 8});
+  expect_reference_trees({"cluster of multi-point sites", clustered_multipoint_sites(7, 300, 10, 45, 0.02, 215)},
+                         {1, 2}, false);
+  // Long lists (over kFlatList items): filtered block by block at the coarse levels.
+  expect_reference_trees({"big cluster", test::clustered_points(10, 9000, -70, -20, 0.02, 3, 216, 97)}, {2}, false);
+  SiteGeometry city = random_points(9, 20000, 217);
+  add_cluster(city, 6000, 139.7, 35.7, 0.05, 218);
+  expect_reference_trees({"city in a country", city}, {1, 2});
+}
+
+// The fix: far from the cluster the nodes keep a few of its points, not all of them.
+TEST(TreeBuild, ClusteredPointsKeepShortLists) {
+  const SiteGeometry g = test::clustered_points(7, 2000, 10, 45, 0.02, 3, 221);
+  const PreparedInput prepared = prepare_input(g.input(), true);
+  const CoverView view = prepared.cover.view();
+  const std::vector<Piece> candidates = make_candidates(prepared.input, Rule::exact, 2);
+  const Tree before = reference_tree(candidates, 7, false, &view, JumpTable::outline, {}, false);
+  const Tree after = build_tree(candidates, 7, false, 2, {}, &view, JumpTable::outline);
+  EXPECT_LT(after.mean_candidates * 10, before.mean_candidates);
+  EXPECT_LT(after.nodes.size() * 10, before.nodes.size());
+  // Level 10, as the reproducer (/work/cluster.csv): the old rule's mean was over 100.
+  const SiteGeometry g10 = test::clustered_points(10, 2000, 10, 45, 0.02, 3, 222);
+  const PreparedInput p10 = prepare_input(g10.input(), true);
+  const CoverView v10 = p10.cover.view();
+  const Tree t10 = build_tree(make_candidates(p10.input, Rule::exact, 2), 10, true, 2, {}, &v10, JumpTable::full);
+  EXPECT_LT(t10.mean_candidates, 10.0);
+  std::printf("clustered points: mean candidates at level 7 %.2f before, %.2f after; %zu and %zu nodes; "
+              "level 10 with distances %.2f\n", before.mean_candidates, after.mean_candidates, before.nodes.size(),
+              after.nodes.size(), t10.mean_candidates);
+}
+
+// The labels over the tree against the float64 brute force on clustered points: cells spread
+// over the globe (where the bisector rule prunes) and cells in and around the cluster.
+TEST(TreeBuild, LabelsOfClusteredPointsAreTheBruteForces) {
+  for (const double degrees : {0.02, 0.5}) {
+    const SiteGeometry g = test::clustered_points(10, 2000, 10, 45, degrees, 3, 231, 50);
+    const LabelInput in = g.input();
+    LabelOptions options;
+    options.device = "cpu";
+    options.algorithm = Algorithm::hier;
+    options.threads = 2;
+    const LabelResult got = label_all(in, options);
+    const std::vector<Piece> candidates = make_candidates(in, Rule::exact, 2);
+    std::mt19937_64 rng(232);
+    std::uniform_int_distribution<Code> pick(0, grid::cell_count(in.level) - 1);
+    std::uniform_real_distribution<double> u(-3, 3);
+    std::uint64_t wrong = 0;
+    for (int k = 0; k < 4000; ++k) {
+      const Code code = k % 2 ? pick(rng) : grid::lonlat_to_code(10 + degrees * u(rng), 45 + degrees * u(rng), 10);
+      const Best want = reference_best(candidates, code, in.level);
+      const double metres = chord2_to_metres(want.chord2);
+      if (got.site[code] != want.site || !(std::fabs(got.distance_m[code] - metres) <= 1e-3 + 1e-6 * metres)) {
+        if (++wrong <= 5) ADD_FAILURE() << "cell " << code << ": site " << got.site[code] << ", brute force " << want.site;
+      }
+    }
+    EXPECT_EQ(wrong, 0u) << degrees << " degrees";
+  }
 }
 
 }  // namespace

@@ -20,7 +20,7 @@ namespace qtmv::label::cuda {
 // candidate's squared chord (an atomicMin on the float64 bits: the chords are >= 0, so their bit
 // patterns order as the values), then the kept entries (d2 <= prune_threshold) are compacted in
 // list order by a scan. A point the interval test keeps is dropped where the node lies beyond its
-// bisector with the node's nearest point (beyond_bisector): that point's squared chord comes from
+// bisector with the node's nearest point (point_never_nearest): that point's squared chord comes from
 // a second atomicMin over the points alone, its item (the least among equals) from a third. The
 // nodes' kinds (decide_node, as on the host; a node covered by one site's fixed cells from
 // cover_lookup) and offsets and children follow from scans in node order, as the host's parts do.
@@ -200,7 +200,7 @@ __global__ void level_keep_kernel(const DevPending* pending, const std::int32_t*
         // A kept point beyond its bisector with the reference point is never nearest here.
         const std::int32_t ref = reference[n.node];
         if (kept > 0 && ref != INT_MAX && ref != n.item && is_point_item(n.item, pieces) &&
-            beyond_bisector(centre[n.node], radius[n.node], pieces[ref].a, pieces[n.item].a)) {
+            point_never_nearest(centre[n.node], radius[n.node], pieces[ref], pieces[n.item])) {
           kept = 0;
         }
         keep[start[n.node] + n.position] = static_cast<unsigned long long>(kept);

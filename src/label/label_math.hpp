@@ -264,4 +264,17 @@ QTMV_HD inline bool beyond_bisector(const Vec3& c, double radius, const Vec3& a,
   return along > w * (radius + 0.5 * radius * radius) + kBisectorMargin;
 }
 
+/// The bisector rule for two point pieces, a the node's nearest (least squared chord from its
+/// centre, then least item): b is never the nearest piece anywhere in the node when it lies
+/// wholly beyond their bisector, or when it is a's exact duplicate (the same bits, the same
+/// fixed-cell flag) of a site no lower than a's, since consider() then gives every tie to a.
+/// The duplicates matter: many sites at one point (a geocoder's town centre, the cell rule's
+/// cell centres) are otherwise candidates of every node far from them.
+QTMV_HD inline bool point_never_nearest(const Vec3& c, double radius, const Piece& a, const Piece& b) {
+  if (a.a.x == b.a.x && a.a.y == b.a.y && a.a.z == b.a.z) {
+    return (a.flags & kPieceFixed) == (b.flags & kPieceFixed) && a.site <= b.site;
+  }
+  return beyond_bisector(c, radius, a.a, b.a);
+}
+
 }  // namespace qtmv::label

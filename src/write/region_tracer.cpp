@@ -424,17 +424,26 @@ RegionTracer::RegionTracer(const label::Outlines& whole_or_tile, RingVertices ve
                                                    static_cast<std::size_t>(thread_count(0)));
   // Each zeroed by its thread (megabytes each), not all by this one.
   std::vector<std::vector<SiteSlot>> slots(team);
-  const auto stretch = [&](std::size_t t, auto&& visit) {
-    for (std::size_t k = n * t / team; k < n * (t + 1) / team; ++k) {
-      if (masks[k] != 0) visit(cells[k].code(), masks[k], slots[t][static_cast<std::size_t>(cells[k].site)]);
+  // A site's slot is a cache miss (the sites come in no spatial order), and so is where its
+  // next entry goes: the slot is fetched kAhead cells before its cell, and fetch_ahead(slot) is
+  // called kAhead / 2 cells before, so that the misses overlap.
+  constexpr std::size_t kAhead = 16;
+  const auto stretch = [&](std::size_t t, auto&& visit, auto&& fetch_ahead) {
+    const std::size_t first = n * t / team, end = n * (t + 1) / team;
+    SiteSlot* const slot = slots[t].data();
+    for (std::size_t k = first; k < end; ++k) {
+      if (k + kAhead < end) __builtin_prefetch(slot + cells[k + kAhead].site, 1);
+      if (k + kAhead / 2 < end && masks[k + kAhead / 2] != 0) fetch_ahead(slot[cells[k + kAhead / 2].site]);
+      if (masks[k] != 0) visit(cells[k].code(), masks[k], slot[static_cast<std::size_t>(cells[k].site)]);
     }
   };
 #pragma omp parallel for schedule(static, 1) num_threads(static_cast<int>(team))
   for (std::int64_t t = 0; t < static_cast<std::int64_t>(team); ++t) {
     slots[static_cast<std::size_t>(t)].assign(sites, SiteSlot{0, 0});
-    stretch(static_cast<std::size_t>(t), [](Code code, std::uint8_t, SiteSlot& slot) {
-      slot.place += packed_cell_edges_bytes(code, slot.after);
-    });
+    stretch(
+        static_cast<std::size_t>(t),
+        [](Code code, std::uint8_t, SiteSlot& slot) { slot.place += packed_cell_edges_bytes(code, slot.after); },
+        [](const SiteSlot&) {});
   }
   std::vector<std::size_t> start(sites + 1, 0);
   std::size_t at = 0;
@@ -452,9 +461,13 @@ RegionTracer::RegionTracer(const label::Outlines& whole_or_tile, RingVertices ve
   cells_.resize(at);
 #pragma omp parallel for schedule(static, 1) num_threads(static_cast<int>(team))
   for (std::int64_t t = 0; t < static_cast<std::int64_t>(team); ++t) {
-    stretch(static_cast<std::size_t>(t), [&](Code code, std::uint8_t mask, SiteSlot& slot) {
-      slot.place = static_cast<std::size_t>(put_packed_cell_edges(cells_.data() + slot.place, code, mask, slot.after) - cells_.data());
-    });
+    stretch(
+        static_cast<std::size_t>(t),
+        [&](Code code, std::uint8_t mask, SiteSlot& slot) {
+          slot.place = static_cast<std::size_t>(put_packed_cell_edges(cells_.data() + slot.place, code, mask, slot.after) -
+                                                cells_.data());
+        },
+        [&](const SiteSlot& slot) { __builtin_prefetch(cells_.data() + slot.place, 1); });
   }
   start_ = std::move(start);
   done(1.0);

@@ -256,6 +256,50 @@ Region link_rings(const Edge* edges, std::size_t count, RingVertices parallels, 
   return region;
 }
 
+/// A site's slot in one bucketing thread's table.
+struct SiteSlot {
+  std::size_t place;  // the site's bytes in the thread's stretch, then where its next entry goes
+  Code after;         // the code after the site's last cell in the stretch (0: none yet)
+};
+
+/// Where each site's bytes start, the threads' stretches of a site one after another in their
+/// order (slots[t][s].place: the bytes of site s in stretch t); each slot's place is then where its
+/// stretch's bytes of the site go, its `after` reset. Returns the sites' starts and, last, the
+/// bytes of all. On all cores (millions of sites times the team's slots): each thread sums a share
+/// of the sites, the shares' sums are added up in order, then each thread places its share.
+std::vector<std::size_t> place_sites(std::vector<std::vector<SiteSlot>>& slots, std::size_t sites) {
+  const std::size_t team = slots.size();
+  const std::size_t shares = static_cast<std::size_t>(thread_count(0));
+  std::vector<std::size_t> share_start(shares + 1, 0);
+  std::vector<std::size_t> start(sites + 1);
+#pragma omp parallel for schedule(static, 1) num_threads(static_cast<int>(shares))
+  for (std::int64_t j = 0; j < static_cast<std::int64_t>(shares); ++j) {
+    const auto share = static_cast<std::size_t>(j);
+    std::size_t bytes = 0;
+    for (std::size_t s = sites * share / shares; s < sites * (share + 1) / shares; ++s) {
+      for (std::size_t t = 0; t < team; ++t) bytes += slots[t][s].place;
+    }
+    share_start[share + 1] = bytes;
+  }
+  for (std::size_t j = 0; j < shares; ++j) share_start[j + 1] += share_start[j];
+#pragma omp parallel for schedule(static, 1) num_threads(static_cast<int>(shares))
+  for (std::int64_t j = 0; j < static_cast<std::int64_t>(shares); ++j) {
+    const auto share = static_cast<std::size_t>(j);
+    std::size_t at = share_start[share];
+    for (std::size_t s = sites * share / shares; s < sites * (share + 1) / shares; ++s) {
+      start[s] = at;
+      for (std::size_t t = 0; t < team; ++t) {
+        SiteSlot& slot = slots[t][s];
+        const std::size_t count = slot.place;
+        slot = SiteSlot{at, 0};
+        at += count;
+      }
+    }
+  }
+  start[sites] = share_start[shares];
+  return start;
+}
+
 }  // namespace
 
 int drawn_ring(const Cell& c, int level, LonLat ring[grid::kMaxPolygonCorners], int across[grid::kMaxPolygonCorners]) {
@@ -415,46 +459,45 @@ RegionTracer::RegionTracer(const label::Outlines& whole_or_tile, RingVertices ve
   // with a slot per site of its own (no atomics; each site's cells come in code order, a
   // thread's first of a site whole): as many threads as keep those tables within two bytes an
   // outline cell, or 128 MiB (the packed lists saved six: a 16-byte slot must not halve the team).
-  struct SiteSlot {
-    std::size_t place;  // the site's bytes in the stretch, then where its next entry goes
-    Code after;         // the code after the site's last cell in the stretch (0: none yet)
-  };
   const std::size_t table_bytes = std::max<std::size_t>(2 * n, std::size_t{128} << 20);
   const std::size_t team = std::clamp<std::size_t>(table_bytes / (sizeof(SiteSlot) * (sites + 1)), 1,
                                                    static_cast<std::size_t>(thread_count(0)));
   // Each zeroed by its thread (megabytes each), not all by this one.
   std::vector<std::vector<SiteSlot>> slots(team);
-  const auto stretch = [&](std::size_t t, auto&& visit) {
-    for (std::size_t k = n * t / team; k < n * (t + 1) / team; ++k) {
-      if (masks[k] != 0) visit(cells[k].code(), masks[k], slots[t][static_cast<std::size_t>(cells[k].site)]);
+  // A site's slot is a cache miss (the sites come in no spatial order), and so is where its
+  // next entry goes: the slot is fetched kAhead cells before its cell, and fetch_ahead(slot) is
+  // called kAhead / 2 cells before, so that the misses overlap.
+  constexpr std::size_t kAhead = 16;
+  const auto stretch = [&](std::size_t t, auto&& visit, auto&& fetch_ahead) {
+    const std::size_t first = n * t / team, end = n * (t + 1) / team;
+    SiteSlot* const slot = slots[t].data();
+    for (std::size_t k = first; k < end; ++k) {
+      if (k + kAhead < end) __builtin_prefetch(slot + cells[k + kAhead].site, 1);
+      if (k + kAhead / 2 < end && masks[k + kAhead / 2] != 0) fetch_ahead(slot[cells[k + kAhead / 2].site]);
+      if (masks[k] != 0) visit(cells[k].code(), masks[k], slot[static_cast<std::size_t>(cells[k].site)]);
     }
   };
 #pragma omp parallel for schedule(static, 1) num_threads(static_cast<int>(team))
   for (std::int64_t t = 0; t < static_cast<std::int64_t>(team); ++t) {
     slots[static_cast<std::size_t>(t)].assign(sites, SiteSlot{0, 0});
-    stretch(static_cast<std::size_t>(t), [](Code code, std::uint8_t, SiteSlot& slot) {
-      slot.place += packed_cell_edges_bytes(code, slot.after);
-    });
+    stretch(
+        static_cast<std::size_t>(t),
+        [](Code code, std::uint8_t, SiteSlot& slot) { slot.place += packed_cell_edges_bytes(code, slot.after); },
+        [](const SiteSlot&) {});
   }
-  std::vector<std::size_t> start(sites + 1, 0);
-  std::size_t at = 0;
-  for (std::size_t s = 0; s < sites; ++s) {
-    start[s] = at;
-    for (std::size_t t = 0; t < team; ++t) {
-      SiteSlot& slot = slots[t][s];
-      const std::size_t count = slot.place;
-      slot = SiteSlot{at, 0};
-      at += count;
-    }
-  }
-  start[sites] = at;
+  std::vector<std::size_t> start = place_sites(slots, sites);
+  const std::size_t at = start[sites];
   // Not zeroed (gigabytes at the finer levels, on one core): every byte is written below, on all cores.
   cells_.resize(at);
 #pragma omp parallel for schedule(static, 1) num_threads(static_cast<int>(team))
   for (std::int64_t t = 0; t < static_cast<std::int64_t>(team); ++t) {
-    stretch(static_cast<std::size_t>(t), [&](Code code, std::uint8_t mask, SiteSlot& slot) {
-      slot.place = static_cast<std::size_t>(put_packed_cell_edges(cells_.data() + slot.place, code, mask, slot.after) - cells_.data());
-    });
+    stretch(
+        static_cast<std::size_t>(t),
+        [&](Code code, std::uint8_t mask, SiteSlot& slot) {
+          slot.place = static_cast<std::size_t>(put_packed_cell_edges(cells_.data() + slot.place, code, mask, slot.after) -
+                                                cells_.data());
+        },
+        [&](const SiteSlot& slot) { __builtin_prefetch(cells_.data() + slot.place, 1); });
   }
   start_ = std::move(start);
   done(1.0);

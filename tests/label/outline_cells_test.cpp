@@ -1,5 +1,6 @@
-// The outline cells' packing (label::OutlineCell in 12 bytes) and the CPU pass's join of its
-// threads' lists (outline_join.hpp) against one sort of them all.
+// The outline cells' packing (label::OutlineCell in 12 bytes), the CPU pass's join of its
+// threads' lists (outline_join.hpp) against one sort of them all, and the cells per site counted
+// on any number of threads.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -7,6 +8,7 @@
 #include <random>
 #include <vector>
 
+#include "common/openmp_threads.hpp"
 #include "grid/qtm.hpp"
 #include "label/outline_cells.hpp"
 #include "label/outline_join.hpp"
@@ -79,6 +81,30 @@ TEST(OutlineJoin, EqualsOneSortOfAllListsWhateverTheThreads) {
         }
         for (const OutlineCells& p : copy) EXPECT_EQ(p.capacity(), 0u);  // freed
       }
+    }
+  }
+}
+
+TEST(OutlineCells, CellsPerSiteWhateverTheThreads) {
+  // Runs of one site (added at once by each thread) of every length, some across the threads'
+  // shares, a site's runs far apart; and a range that ends before the level does.
+  const int level = 6;
+  std::mt19937_64 random(37);
+  OutlineCells cells;
+  std::int32_t site = 0;
+  for (grid::Code code = 0; code < grid::cell_count(level); code += 1 + random() % 5) {
+    if (random() % 3 == 0) site = static_cast<std::int32_t>(random() % 50);
+    cells.push_back({code, site, 1});
+  }
+  for (const grid::Code end : {grid::Code{0}, cells.back().code() + 3}) {
+    std::vector<std::uint64_t> want(50, 0);
+    const grid::Code last = end == 0 ? grid::cell_count(level) : end;
+    for (std::size_t k = 0; k < cells.size(); ++k) {
+      want[static_cast<std::size_t>(cells[k].site)] += (k + 1 < cells.size() ? cells[k + 1].code() : last) - cells[k].code();
+    }
+    for (const int threads : {1, 2, 3, 8}) {
+      const ScopedDefaultThreads scoped(threads);
+      EXPECT_EQ(count_cells_per_site(cells, level, 50, end), want) << threads << " threads, end " << end;
     }
   }
 }

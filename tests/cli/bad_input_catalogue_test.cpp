@@ -1542,6 +1542,28 @@ TEST(CatalogueLimits, CellsLayerLargerThanTheFreeDiskSpaceNeedsTheConfigOption) 
                  dir + "/regions.gpkg");
 }
 
+TEST(CatalogueLimits, ClusteredLinesWhoseTreeCannotFitAreRefused) {
+  const std::string dir = test_dir();
+  // 300 lines of about 50 m in a box of 0.02 degrees, and 3 points far away: every node far from
+  // the box keeps the lines, four times the entries a level. On a host with 50 MB to give (fault
+  // injection) the tree stops before a level it could not hold, and says why.
+  std::vector<std::string> wkts;
+  for (int k = 0; k < 300; ++k) {
+    const double x = 10.0 + 0.02 * ((k * 37) % 300) / 300.0, y = 45.0 + 0.02 * ((k * 91) % 300) / 300.0;
+    wkts.push_back("LINESTRING (" + std::to_string(x) + " " + std::to_string(y) + ", " + std::to_string(x + 0.0005) +
+                   " " + std::to_string(y + 0.0003) + ")");
+  }
+  for (const char* far : {"POINT (-120 30)", "POINT (100 -40)", "POINT (0 -80)"}) wkts.emplace_back(far);
+  const std::string src = wkt_csv(dir + "/cluster.csv", wkts);
+  const std::vector<std::string> args{"-level", "8", "-device", "cpu", "-layers", "regions", src, dir + "/out.gpkg"};
+  expect_failure(run(concat({"--config", "QTMV_FAULT_AVAILABLE_MEMORY", "50000000"}, args)), 1,
+                 {"labelling failed: the labeller's tree would need up to", " at level 7 of 8 (",
+                  "this host has free: sites in tight clusters far from most cells", "choose a lower -level"},
+                 dir + "/out.gpkg");
+  // On this host the same run fits.
+  expect_success(run(args), dir + "/out.gpkg");
+}
+
 TEST(CatalogueLimits, SigintWhileLabellingStopsWithinASecond) {
   const std::string dir = test_dir();
   const std::string dst = dir + "/out.gpkg";

@@ -145,12 +145,13 @@ void note_kept_points(const SpatialItems& items, const PointScratch& s, Bisector
 void drop_beyond_bisector(const SpatialItems& items, const NodeBounds& node, PointScratch& s) {
   if (!node.cut.active) return;
   const Vec3* rep = items.points();
+  const std::int32_t* item = items.items();
   const std::size_t n = s.pos.size();
   std::size_t m = 0;
   for (std::size_t k = 0; k < n; ++k) {
     const std::int32_t pos = s.pos[k];
     const double d2 = s.kept_chord2[k];
-    if (d2 > node.cut.sure2 && node.drops(rep[pos], d2)) continue;
+    if (node.drops(rep[pos], d2, item[pos])) continue;
     s.pos[m] = pos;
     s.kept_chord2[m] = d2;
     ++m;

@@ -153,7 +153,9 @@ void drop_beyond_bisector(const SpatialItems& items, const NodeBounds& node, Poi
   const std::size_t n = s.pos.size();
   // beyond_bisector(c, radius, a, b) with its chord2(c, b) given (kept_chord2: the same
   // operations), the same bits, without branches: a third or so of the points go, at random. a's
-  // duplicates (and a) take the branch, seldom.
+  // duplicates (and a) take a rare branch. The points within sure2 are kept unread (their
+  // coordinates are far in memory) but for those at a's own squared chord, a's duplicates among
+  // them.
   const Vec3 a = cut.a;
   const double ca = grid::chord2(node.centre, a);
   const double k_radius = node.radius + 0.5 * node.radius * node.radius;
@@ -161,14 +163,18 @@ void drop_beyond_bisector(const SpatialItems& items, const NodeBounds& node, Poi
   for (std::size_t k = 0; k < n; ++k) {
     const std::int32_t pos = s.pos[k];
     const double d2 = s.kept_chord2[k];
+    s.pos[m] = pos;
+    s.kept_chord2[m] = d2;
+    if (d2 <= cut.sure2 && d2 != ca) {
+      ++m;
+      continue;
+    }
     const Vec3& b = rep[pos];
     const double wx = a.x - b.x, wy = a.y - b.y, wz = a.z - b.z;
     const double along = 0.5 * (d2 - ca);
     const double w = sqrt(wx * wx + wy * wy + wz * wz);
     bool dropped = (along > kBisectorMargin) & (along > w * k_radius + kBisectorMargin);
     if (wx == 0.0 && wy == 0.0 && wz == 0.0) dropped = node.drops(b, d2, item[pos]);
-    s.pos[m] = pos;
-    s.kept_chord2[m] = d2;
     m += dropped ? 0 : 1;
   }
   s.pos.resize(m);

@@ -5,8 +5,8 @@
 // internal node's four children are stored at consecutive indices in the order of
 // grid::children(). Each node kept the candidates (items: pieces, or groups of a line run,
 // piece_groups.hpp) that can be nearest to some point of it (label_math.hpp: prune_threshold, and
-// for point items beyond_bisector with the node's nearest point item, which tells apart a
-// tight cluster's points far from it);
+// for point items point_never_nearest with the node's nearest point item, which tells apart a
+// tight cluster's points far from it and drops the duplicates of sites at one point);
 // a node stops being split when
 //   - all its candidates belong to one site and no distances are asked for, or all its cells
 //     are fixed cells of one site (kUniform), or

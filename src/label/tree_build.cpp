@@ -3,7 +3,8 @@
 // device build (cuda/tree_build_cuda.cu) makes the same tree with the same node rule
 // (tree_node_rule.hpp). A node keeps its parent's items within its distance threshold
 // (prune_threshold) less the point items wholly beyond the bisector with its nearest point item
-// (BisectorCut, beyond_bisector): every path below finds that point first, then filters.
+// or its exact duplicates of sites no lower (BisectorCut, point_never_nearest): every path below
+// finds that point first, then filters.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -228,7 +229,7 @@ class TreeBuilder {
       binned_keep(*items_, node, list, p.parent.length, parent_bins, s.points);
       note_loose_points(loose, p.parent.loose, s, node);
       note_kept_points(*items_, s.points, node.cut);
-      node.cut.settle(radius);
+      node.cut.settle(radius, candidates_.data());
       drop_beyond_bisector(*items_, node, s.points);
       points = true;
     } else {
@@ -252,7 +253,7 @@ class TreeBuilder {
       } else {
         items_->note_least_point(c, blocks, p.parent.length, node.threshold, s.filter, node.cut);
       }
-      node.cut.settle(radius);
+      node.cut.settle(radius, candidates_.data());
       if (flat && s.flat.points) {
         flat_points_keep(s.flat, node, s.points);
         drop_beyond_bisector(*items_, node, s.points);
@@ -282,7 +283,7 @@ class TreeBuilder {
     }
     for (std::uint32_t k = 0; k < p.parent.loose; ++k) {
       if (!(s.lb2[k] <= node.threshold)) continue;
-      if (is_point_item(loose[k]) && node.drops(candidates_[loose[k]].a, s.lb2[k])) continue;
+      if (is_point_item(loose[k]) && node.drops(candidates_[loose[k]].a, s.lb2[k], loose[k])) continue;
       const std::size_t at = kept.loose->size();
       const std::int32_t n = refine_kept(c, loose[k], candidates_.data(), groups_, radius, node.threshold, nullptr);
       if (n == 0) continue;  // none of a loose group's pieces is near the node

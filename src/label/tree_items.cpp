@@ -355,7 +355,7 @@ void SpatialItems::keep_items(const NodeBounds& node, std::int64_t index, std::u
     kept &= mask;
     for (unsigned m = kept; m != 0; m &= m - 1) {
       const int k = __builtin_ctz(m);
-      if (node.drops(rep_[first + k], d2[k])) kept &= ~(1u << k);
+      if (node.drops(rep_[first + k], d2[k], item_[first + k])) kept &= ~(1u << k);
     }
     out.count += static_cast<std::uint64_t>(__builtin_popcount(kept));
     for (unsigned m = kept; m != 0 && !out.several_sites(); m &= m - 1) {
@@ -369,7 +369,7 @@ void SpatialItems::keep_items(const NodeBounds& node, std::int64_t index, std::u
       double lb2, ub2;
       bounds(node.centre, pos, &lb2, &ub2);
       if (!(lb2 <= node.threshold)) continue;
-      if (point_[pos] && node.drops(rep_[pos], lb2)) continue;
+      if (point_[pos] && node.drops(rep_[pos], lb2, item_[pos])) continue;
       if (spread_[pos] > kGroupSplit * node.radius) {
         keep_split(node, pos, out);
         continue;
@@ -454,7 +454,7 @@ void SpatialItems::flat_keep(const NodeBounds& node, FlatList& f, KeptList& out)
   for (std::size_t j = 0; j < m; ++j) {
     const std::int32_t k = kept[j];
     const std::int32_t pos = f.pos[k];
-    if (point_[pos] && node.drops(rep_[pos], lb2[k])) continue;
+    if (point_[pos] && node.drops(rep_[pos], lb2[k], item_[pos])) continue;
     if (spread_[pos] > kGroupSplit * node.radius) {
       keep_split(node, pos, out);
       continue;
@@ -501,6 +501,10 @@ void SpatialItems::keep_block(const NodeBounds& node, double root, int tier, std
 int SpatialItems::cap_beyond(const NodeBounds& node, const ItemBlock& b, double d2) const {
   const BisectorCut& cut = node.cut;
   if (!cut.active) return kCapNoneBeyond;
+  // A block that may hold a, and so a's duplicates (dropped or not by their sites), is tested
+  // item by item.
+  const double am = sqrt(grid::chord2(cut.a, b.centre));
+  if (am <= b.reach_rep + kCapMargin) return kCapUnsure;
   // Every point of the block lies within reach_rep of its centre m: inside the sure ball?
   const double far = sqrt(d2) + b.reach_rep + kCapMargin;
   if (far * far + kCapMargin <= cut.sure2) return kCapNoneBeyond;
@@ -509,7 +513,7 @@ int SpatialItems::cap_beyond(const NodeBounds& node, const ItemBlock& b, double 
   // rounding.
   const double rho = b.reach_rep;
   const double k = node.radius + 0.5 * node.radius * node.radius;
-  const double dm = sqrt(d2), am = sqrt(grid::chord2(cut.a, b.centre));
+  const double dm = sqrt(d2);
   const double near = dm > rho ? dm - rho : 0.0;
   const double hi = 0.5 * ((dm + rho) * (dm + rho) - cut.lb2) - k * (am > rho ? am - rho : 0.0);
   if (hi <= 0.5 * kBisectorMargin) return kCapNoneBeyond;

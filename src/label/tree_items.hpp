@@ -45,19 +45,21 @@ struct ItemBlock {
   std::int32_t points;    ///< 1: every item is a point piece
 };
 
-/// A node's bisector rule (label_math.hpp, beyond_bisector): of the point items within its
+/// A node's bisector rule (label_math.hpp, point_never_nearest): of the point items within its
 /// threshold, those wholly beyond the bisector of the nearest one, a (least squared chord, then
-/// least item), are dropped as if beyond the threshold. Inactive when no point item is within it.
+/// least item), and a's exact duplicates of sites no lower than a's are dropped as if beyond the
+/// threshold. Inactive when no point item is within it.
 struct BisectorCut {
   bool active = false;
-  std::int32_t item = -1;  ///< a's item
+  std::int32_t item = -1;  ///< a's item (a point piece's item is its piece)
   Vec3 a{0.0, 0.0, 0.0};
   double lb2 = kChord2Infinity;  ///< a's squared chord from the node's centre
   /// No point at a squared chord up to this from the node's centre is beyond a's bisector:
   /// beyond it needs (d(c, b)^2 - d(c, a)^2) / 2 > (r + r^2 / 2) |a - b| >= (r + r^2 / 2)
   /// (d(c, b) - d(c, a)), so d(c, b) + d(c, a) > 2 (r + r^2 / 2) (chords); margins far above the
-  /// rounding of the chords (-1: no such shortcut).
+  /// rounding of the chords (-1: no such shortcut). a's duplicates lie within it but are tested.
   double sure2 = -1.0;
+  const Piece* pieces = nullptr;  ///< the candidates, set by settle
 
   /// Notes a point item within the threshold (squared chord lb2 from the node's centre).
   void note(std::int32_t point_item, const Vec3& p, double point_lb2) {
@@ -68,16 +70,21 @@ struct BisectorCut {
       lb2 = point_lb2;
     }
   }
-  /// Sets sure2, once a is settled, for a node of `radius` (radians).
-  void settle(double radius) {
+  /// Sets sure2, once a is settled, for a node of `radius` (radians); the items are `candidates`'.
+  void settle(double radius, const Piece* candidates) {
+    pieces = candidates;
     if (!active) return;
     const double base = 2.0 * (radius + 0.5 * radius * radius) - sqrt(lb2) - 1e-7;
     sure2 = base > 0.0 ? base * base * (1.0 - 1e-12) : -1.0;
   }
-  /// True when the point b (squared chord chord2 from the centre c of a node of `radius`) is
-  /// dropped: beyond_bisector(c, radius, a, b), the same bits.
-  bool drops(const Vec3& c, double radius, const Vec3& b, double chord2) const {
-    return active && chord2 > sure2 && beyond_bisector(c, radius, a, b);
+  /// True when the point item b_item at b (squared chord chord2 from the centre c of a node of
+  /// `radius`) is dropped: point_never_nearest(c, radius, a's piece, b's piece), the same bits.
+  bool drops(const Vec3& c, double radius, const Vec3& b, double chord2, std::int32_t b_item) const {
+    if (!active) return false;
+    if (b.x == a.x && b.y == a.y && b.z == a.z) {
+      return b_item != item && point_never_nearest(c, radius, pieces[item], pieces[b_item]);
+    }
+    return chord2 > sure2 && beyond_bisector(c, radius, a, b);
   }
 };
 
@@ -88,7 +95,9 @@ struct NodeBounds {
   double radius;
   double threshold;
   BisectorCut cut;
-  bool drops(const Vec3& b, double chord2) const { return cut.drops(centre, radius, b, chord2); }
+  bool drops(const Vec3& b, double chord2, std::int32_t item) const {
+    return cut.drops(centre, radius, b, chord2, item);
+  }
 };
 
 /// What a node keeps (written to the given buffers): blocks and loose items, how many items in

@@ -90,12 +90,23 @@ void binned_keep(const SpatialItems& items, const NodeBounds& node, const std::i
   s.pos.resize(end);
   s.kept_chord2.resize(end);
   std::size_t m = 0;
-  // Without branches: a point's entry is written and kept only when within the threshold.
+  // Without branches: a point's entry is written and kept only when within the threshold. The
+  // least kept one (then least item) is noted on the way: after the first few, seldom replaced.
+  const std::int32_t* item = items.items();
+  double least = node.threshold;
+  std::int32_t least_pos = -1;
   for (std::uint32_t k = 0; k < end; ++k) {
+    const double d2 = s.chord2[k];
     s.pos[m] = points[k];
-    s.kept_chord2[m] = s.chord2[k];
-    m += s.chord2[k] <= node.threshold ? 1 : 0;
+    s.kept_chord2[m] = d2;
+    m += d2 <= node.threshold ? 1 : 0;
+    if (d2 <= least && (d2 < least || least_pos < 0 || item[points[k]] < item[least_pos])) {
+      least = d2;
+      least_pos = points[k];
+    }
   }
+  s.least_pos = least_pos;
+  s.least_chord2 = least;
   s.pos.resize(m);
   s.kept_chord2.resize(m);
 }
@@ -131,29 +142,40 @@ bool points_of_blocks(const SpatialItems& items, const Vec3& x, const ListBlock*
 }
 
 void note_kept_points(const SpatialItems& items, const PointScratch& s, BisectorCut& cut) {
-  const std::size_t n = s.pos.size();
-  if (n == 0) return;
-  // The least squared chord first (no branch a point), then the least item among its equals.
-  double least = s.kept_chord2[0];
-  for (std::size_t k = 1; k < n; ++k) least = s.kept_chord2[k] < least ? s.kept_chord2[k] : least;
-  const std::int32_t* item = items.items();
-  for (std::size_t k = 0; k < n; ++k) {
-    if (s.kept_chord2[k] == least) cut.note(item[s.pos[k]], items.points()[s.pos[k]], least);
-  }
+  if (s.least_pos >= 0) cut.note(items.items()[s.least_pos], items.points()[s.least_pos], s.least_chord2);
 }
 
 void drop_beyond_bisector(const SpatialItems& items, const NodeBounds& node, PointScratch& s) {
-  if (!node.cut.active) return;
+  const BisectorCut& cut = node.cut;
+  if (!cut.active) return;
   const Vec3* rep = items.points();
+  const std::int32_t* item = items.items();
   const std::size_t n = s.pos.size();
+  // beyond_bisector(c, radius, a, b) with its chord2(c, b) given (kept_chord2: the same
+  // operations), the same bits, without branches: a third or so of the points go, at random. a's
+  // duplicates (and a) take a rare branch. The points within sure2 are kept unread (their
+  // coordinates are far in memory) but for those at a's own squared chord, a's duplicates among
+  // them.
+  const Vec3 a = cut.a;
+  const double ca = grid::chord2(node.centre, a);
+  const double k_radius = node.radius + 0.5 * node.radius * node.radius;
   std::size_t m = 0;
   for (std::size_t k = 0; k < n; ++k) {
     const std::int32_t pos = s.pos[k];
     const double d2 = s.kept_chord2[k];
-    if (d2 > node.cut.sure2 && node.drops(rep[pos], d2)) continue;
     s.pos[m] = pos;
     s.kept_chord2[m] = d2;
-    ++m;
+    if (d2 <= cut.sure2 && d2 != ca) {
+      ++m;
+      continue;
+    }
+    const Vec3& b = rep[pos];
+    const double wx = a.x - b.x, wy = a.y - b.y, wz = a.z - b.z;
+    const double along = 0.5 * (d2 - ca);
+    const double w = sqrt(wx * wx + wy * wy + wz * wz);
+    bool dropped = (along > kBisectorMargin) & (along > w * k_radius + kBisectorMargin);
+    if (wx == 0.0 && wy == 0.0 && wz == 0.0) dropped = node.drops(b, d2, item[pos]);
+    m += dropped ? 0 : 1;
   }
   s.pos.resize(m);
   s.kept_chord2.resize(m);

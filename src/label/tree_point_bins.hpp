@@ -34,6 +34,8 @@ struct PointScratch {
   DefaultInitVector<std::int32_t> pos;    ///< the node's kept points, before they are binned
   DefaultInitVector<double> kept_chord2;  ///< and their squared chords from its centre
   DefaultInitVector<std::uint8_t> bin;    ///< emit_binned's: each kept point's bin
+  std::int32_t least_pos = -1;            ///< binned_keep's least kept point (then least item), or -1
+  double least_chord2 = 0.0;              ///< and its squared chord
 };
 
 /// Lists of at most this many points are kept plain (unbinned): their children test them all.
@@ -45,7 +47,7 @@ double binned_least(const SpatialItems& items, const Vec3& x, const std::int32_t
                     const PointBins* bins, double best, PointScratch& s);
 
 /// The points of the same list that the node (centre x, as binned_least's) keeps, into s.pos and
-/// s.kept_chord2.
+/// s.kept_chord2, and the least of them (then least item) into s.least_pos.
 void binned_keep(const SpatialItems& items, const NodeBounds& node, const std::int32_t* points, std::uint32_t count,
                  const PointBins* bins, PointScratch& s);
 
@@ -58,7 +60,7 @@ void flat_points_keep(const FlatList& f, const NodeBounds& node, PointScratch& s
 bool points_of_blocks(const SpatialItems& items, const Vec3& x, const ListBlock* blocks, std::uint32_t count,
                       PointScratch& s);
 
-/// Notes the points s.pos (squared chords s.kept_chord2, all within the node's threshold) in cut.
+/// Notes binned_keep's least kept point in cut.
 void note_kept_points(const SpatialItems& items, const PointScratch& s, BisectorCut& cut);
 /// Drops from s.pos (and s.kept_chord2) the points that the node's bisector rule drops.
 void drop_beyond_bisector(const SpatialItems& items, const NodeBounds& node, PointScratch& s);

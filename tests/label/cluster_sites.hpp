@@ -1,6 +1,6 @@
 // Point sites in a tight cluster (a dense city by an ocean), for the labeller's tests: far from
 // it the tree's nodes cannot tell the cluster's points apart by their distances, only by the
-// bisector rule (label_math.hpp, beyond_bisector).
+// bisector rule (label_math.hpp, point_never_nearest).
 #pragma once
 
 #include <algorithm>

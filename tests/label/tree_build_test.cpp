@@ -101,7 +101,8 @@ Tree reference_tree(const std::vector<Piece>& candidates, int level, bool with_d
         }
         const double threshold = prune_threshold(min_ub2, radius);
         // The bisector rule: the point items within the threshold that lie wholly beyond the
-        // bisector of the nearest of them (least lb2, then least item) go as if beyond it.
+        // bisector of the nearest of them (least lb2, then least item), or are its exact
+        // duplicates of sites no lower than its, go as if beyond it (point_never_nearest).
         auto is_point = [&](std::int32_t k) { return list[k] >= 0 && (candidates[list[k]].flags & kPiecePoint); };
         std::int32_t a = -1;
         for (std::int32_t k = 0; k < n && bisector; ++k) {
@@ -111,7 +112,7 @@ Tree reference_tree(const std::vector<Piece>& candidates, int level, bool with_d
         for (std::int32_t k = 0; k < n; ++k) {
           if (!(lb2[k] <= threshold)) continue;
           if (a >= 0 && k != a && is_point(k) &&
-              beyond_bisector(c, radius, candidates[list[a]].a, candidates[list[k]].a)) {
+              point_never_nearest(c, radius, candidates[list[a]], candidates[list[k]])) {
             continue;
           }
           const std::int32_t count = refine_kept(c, list[k], candidates.data(), groups, radius, threshold, nullptr);
@@ -429,29 +430,27 @@ SiteGeometry clustered_multipoint_sites(int level, int sites, double lon, double
 }
 
 // A tight cluster far from most nodes: only the bisector rule tells its points apart there. Under
-// the cell rule a cluster is a few cells' centres, each shared by many sites (exact duplicates,
-// which no rule of distances can drop): its trees are as large as before, so the finer and
-// larger clusters are built under the exact rule only, as are the multi-point sites (group
-// items, which the rule leaves alone).
+// the cell rule a cluster is a few cells' centres, each shared by many sites: exact duplicates,
+// which the rule drops but for those of sites below the nearest point's.
 TEST(TreeBuild, ClusteredPointsEqualThePlainFilter) {
   for (const int level : {6, 8, 10}) {
     expect_reference_trees({"cluster", test::clustered_points(level, 2000, 10, 45, 0.02, 3, 200 + level, 50)},
-                           {1, 2, 8}, level < 10);
+                           {1, 2, 8});
   }
   expect_reference_trees({"cluster at a pole", test::clustered_points(7, 800, 30, 89.995, 0.02, 3, 210, 40)}, {1, 2});
   expect_reference_trees({"cluster at a pole", test::clustered_points(9, 800, 30, 89.995, 0.02, 3, 211, 40)},
-                         {1, 2, 8}, false);
+                         {1, 2, 8});
   expect_reference_trees({"cluster of duplicates", test::clustered_points(6, 500, -120, -33, 0.01, 3, 212, 1)},
                          {1, 2});
   expect_reference_trees({"cluster of duplicates", test::clustered_points(8, 500, -120, -33, 0.01, 3, 212, 1)},
-                         {1, 2}, false);
+                         {1, 2});
   SiteGeometry lines = test::random_arcs(8, 40, 20, 213);
   add_cluster(lines, 1500, 10, 45, 0.02, 214);
   expect_reference_trees({"cluster and lines", lines}, {1, 2, 8});
   expect_reference_trees({"cluster of multi-point sites", clustered_multipoint_sites(7, 300, 10, 45, 0.02, 215)},
                          {1, 2}, false);
   // Long lists (over kFlatList items): filtered block by block at the coarse levels.
-  expect_reference_trees({"big cluster", test::clustered_points(10, 9000, -70, -20, 0.02, 3, 216, 97)}, {2}, false);
+  expect_reference_trees({"big cluster", test::clustered_points(10, 9000, -70, -20, 0.02, 3, 216, 97)}, {2});
   SiteGeometry city = random_points(9, 20000, 217);
   add_cluster(city, 6000, 139.7, 35.7, 0.05, 218);
   expect_reference_trees({"city in a country", city}, {1, 2});
@@ -476,6 +475,94 @@ TEST(TreeBuild, ClusteredPointsKeepShortLists) {
   std::printf("clustered points: mean candidates at level 7 %.2f before, %.2f after; %zu and %zu nodes; "
               "level 10 with distances %.2f\n", before.mean_candidates, after.mean_candidates, before.nodes.size(),
               after.nodes.size(), t10.mean_candidates);
+}
+
+// --- many sites at one point: the bisector rule's exact duplicates ------------------------------
+
+/// n sites at one spot (lon, lat), their ids ascending with their pieces, 5 more there under
+/// lower ids after them (duplicates that stay: the nearest point's site is above theirs), and
+/// `far` points spread over the globe.
+SiteGeometry sites_at_one_point(int level, int n, double lon, double lat, int far, std::uint64_t seed) {
+  SiteGeometry g;
+  g.level = level;
+  for (int k = 0; k < n; ++k) add_point(g, lon, lat, 10 + k);
+  for (int k = 0; k < 5; ++k) add_point(g, lon, lat, 9 - k);
+  add_random_points(g, far, seed, n + 10);
+  return g;
+}
+
+/// The polygon's fixed cells (kPieceFixed points under either rule), some of them also the cells
+/// of point sites at their very centres (the same bits under the cell rule, another flag).
+SiteGeometry polygon_and_points_at_its_cells(int level) {
+  SiteGeometry g = polygon(level, false, 10);
+  const std::int32_t base = g.site_count + 1;
+  for (std::size_t k = 0; k < g.fixed_cells.size(); k += 7) {
+    const grid::LonLat p = grid::cell_centre(g.fixed_cells[k].code, level);
+    for (int s = 0; s < 3; ++s) add_point(g, p.lon, p.lat, base + 3 * static_cast<std::int32_t>(k) + s);
+  }
+  return g;
+}
+
+TEST(TreeBuild, SitesAtOnePointEqualThePlainFilter) {
+  for (const int level : {7, 10}) {
+    expect_reference_trees({"sites at one point", sites_at_one_point(level, 3000, 10, 45, 3, 240)}, {1, 2, 8});
+  }
+  expect_reference_trees({"sites at one point, many others", sites_at_one_point(9, 3000, -70, -20, 20000, 241)}, {2});
+  expect_reference_trees({"sites at a pole", sites_at_one_point(8, 1000, 0, 90, 10, 242)}, {1, 2});
+  expect_reference_trees({"polygon and points at its cells", polygon_and_points_at_its_cells(8)}, {1, 2, 8});
+}
+
+// Far from the spot the nodes keep its first point and the five of lower sites, not all 3005 of
+// them, under either rule.
+TEST(TreeBuild, SitesAtOnePointKeepShortLists) {
+  const SiteGeometry g = sites_at_one_point(7, 3000, 10, 45, 3, 250);
+  const PreparedInput prepared = prepare_input(g.input(), true);
+  const CoverView view = prepared.cover.view();
+  for (const Rule rule : {Rule::exact, Rule::cell}) {
+    const std::vector<Piece> candidates = make_candidates(prepared.input, rule, 2);
+    const Tree before = reference_tree(candidates, 7, false, &view, JumpTable::outline, {}, false);
+    const Tree after = build_tree(candidates, 7, false, 2, {}, &view, JumpTable::outline);
+    EXPECT_LT(after.mean_candidates * 50, before.mean_candidates);
+    EXPECT_LT(after.mean_candidates, 20.0);
+    std::printf("sites at one point (%s rule): mean candidates at level 7 %.2f before, %.2f after; %zu and %zu "
+                "nodes\n", rule == Rule::exact ? "exact" : "cell", before.mean_candidates, after.mean_candidates,
+                before.nodes.size(), after.nodes.size());
+  }
+  const SiteGeometry g10 = sites_at_one_point(10, 3000, 10, 45, 3, 251);
+  const PreparedInput p10 = prepare_input(g10.input(), true);
+  const CoverView v10 = p10.cover.view();
+  const Tree t10 = build_tree(make_candidates(p10.input, Rule::exact, 2), 10, true, 2, {}, &v10, JumpTable::full);
+  EXPECT_LT(t10.mean_candidates, 20.0);
+  EXPECT_LT(t10.lists.size(), 500000u);
+  std::printf("sites at one point: level 10 with distances: mean candidates %.2f, %zu nodes, %zu list entries\n",
+              t10.mean_candidates, t10.nodes.size(), t10.lists.size());
+}
+
+TEST(TreeBuild, LabelsOfSitesAtOnePointAreTheBruteForces) {
+  const SiteGeometry g = sites_at_one_point(10, 3000, 10, 45, 3, 260);
+  const LabelInput in = g.input();
+  for (const Rule rule : {Rule::exact, Rule::cell}) {
+    LabelOptions options;
+    options.device = "cpu";
+    options.algorithm = Algorithm::hier;
+    options.rule = rule;
+    options.threads = 2;
+    const LabelResult got = label_all(in, options);
+    const std::vector<Piece> candidates = make_candidates(in, rule, 2);
+    std::mt19937_64 rng(261);
+    std::uniform_int_distribution<Code> pick(0, grid::cell_count(in.level) - 1);
+    std::uniform_real_distribution<double> u(-0.1, 0.1);
+    std::uint64_t wrong = 0;
+    for (int k = 0; k < 4000; ++k) {
+      const Code code = k % 2 ? pick(rng) : grid::lonlat_to_code(10 + u(rng), 45 + u(rng), 10);
+      const Best want = reference_best(candidates, code, in.level);
+      const double metres = chord2_to_metres(want.chord2);
+      if (got.site[code] != want.site || !(std::fabs(got.distance_m[code] - metres) <= 1e-3 + 1e-6 * metres)) {
+        if (++wrong <= 5) ADD_FAILURE() << "cell " << code << ": site " << got.site[code] << ", brute force " << want.site;
+      }
+    }
+    EXPECT_EQ(wrong, 0u) << (rule == Rule::exact ? "exact" : "cell") << " rule";
+  }
 }
 
 // The labels over the tree against the float64 brute force on clustered points: cells spread

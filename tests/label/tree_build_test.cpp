@@ -379,16 +379,22 @@ TEST(TreeBuild, FocusedTreesEqualThePlainFilter) {
   }
 }
 
+/// The labels of a run over the host's tree (hier, on the CPU, 2 threads) under `rule`.
+LabelResult host_tree_labels(const LabelInput& in, Rule rule = Rule::exact) {
+  LabelOptions options;
+  options.device = "cpu";
+  options.algorithm = Algorithm::hier;
+  options.rule = rule;
+  options.threads = 2;
+  return label_all(in, options);
+}
+
 // The labels of a run over the new tree against the float64 brute force, cell by cell, for many
 // points (the case the spatial order is for).
 TEST(TreeBuild, LabelsOfManyPointsAreTheBruteForces) {
   const SiteGeometry g = random_points(8, 40000, 81);
   const LabelInput in = g.input();
-  LabelOptions options;
-  options.device = "cpu";
-  options.algorithm = Algorithm::hier;
-  options.threads = 2;
-  const LabelResult got = label_all(in, options);
+  const LabelResult got = host_tree_labels(in);
   const std::vector<Piece> candidates = make_candidates(in, Rule::exact, 2);
   std::mt19937_64 rng(82);
   std::uniform_int_distribution<Code> pick(0, grid::cell_count(in.level) - 1);
@@ -542,12 +548,7 @@ TEST(TreeBuild, LabelsOfSitesAtOnePointAreTheBruteForces) {
   const SiteGeometry g = sites_at_one_point(10, 3000, 10, 45, 3, 260);
   const LabelInput in = g.input();
   for (const Rule rule : {Rule::exact, Rule::cell}) {
-    LabelOptions options;
-    options.device = "cpu";
-    options.algorithm = Algorithm::hier;
-    options.rule = rule;
-    options.threads = 2;
-    const LabelResult got = label_all(in, options);
+    const LabelResult got = host_tree_labels(in, rule);
     const std::vector<Piece> candidates = make_candidates(in, rule, 2);
     std::mt19937_64 rng(261);
     std::uniform_int_distribution<Code> pick(0, grid::cell_count(in.level) - 1);
@@ -571,11 +572,7 @@ TEST(TreeBuild, LabelsOfClusteredPointsAreTheBruteForces) {
   for (const double degrees : {0.02, 0.5}) {
     const SiteGeometry g = test::clustered_points(10, 2000, 10, 45, degrees, 3, 231, 50);
     const LabelInput in = g.input();
-    LabelOptions options;
-    options.device = "cpu";
-    options.algorithm = Algorithm::hier;
-    options.threads = 2;
-    const LabelResult got = label_all(in, options);
+    const LabelResult got = host_tree_labels(in);
     const std::vector<Piece> candidates = make_candidates(in, Rule::exact, 2);
     std::mt19937_64 rng(232);
     std::uniform_int_distribution<Code> pick(0, grid::cell_count(in.level) - 1);

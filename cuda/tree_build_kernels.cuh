@@ -145,11 +145,6 @@ __device__ inline std::int32_t visit_item_nodes(const DevPending* pending, const
   return g;
 }
 
-/// Whether a list item is a point piece (the bisector rule's candidates; never a group).
-__device__ inline bool is_point_item(std::int32_t item, const Piece* pieces) {
-  return !is_group_item(item) && (pieces[item].flags & kPiecePoint) != 0;
-}
-
 /// Pass 1: per node the least upper bound of the items' distances (squared chords), and the least
 /// of the point items' alone.
 __global__ void level_min_kernel(const DevPending* pending, const std::int32_t* owner, const unsigned long long* start,

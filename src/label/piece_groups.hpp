@@ -64,6 +64,10 @@ struct GroupSpan {
 };
 
 QTMV_HD inline bool is_group_item(std::int32_t item) { return item < 0; }
+/// Whether a list item is a point piece (the bisector rule's candidates; never a group).
+QTMV_HD inline bool is_point_item(std::int32_t item, const Piece* pieces) {
+  return !is_group_item(item) && (pieces[item].flags & kPiecePoint) != 0;
+}
 QTMV_HD inline std::int32_t group_item(std::int32_t group) { return ~group; }
 QTMV_HD inline std::int32_t item_group(std::int32_t item) { return ~item; }
 

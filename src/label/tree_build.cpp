@@ -191,14 +191,12 @@ class TreeBuilder {
     return false;
   }
 
-  bool is_point_item(std::int32_t item) const {
-    return !is_group_item(item) && (candidates_[item].flags & kPiecePoint) != 0;
-  }
-
   /// Notes in node.cut the loose point items within node.threshold (their bounds in s.lb2).
   void note_loose_points(const std::int32_t* loose, std::uint32_t count, const Scratch& s, NodeBounds& node) const {
     for (std::uint32_t k = 0; k < count; ++k) {
-      if (s.lb2[k] <= node.threshold && is_point_item(loose[k])) node.cut.note(loose[k], candidates_[loose[k]].a, s.lb2[k]);
+      if (s.lb2[k] <= node.threshold && is_point_item(loose[k], candidates_.data())) {
+        node.cut.note(loose[k], candidates_[loose[k]].a, s.lb2[k]);
+      }
     }
   }
 
@@ -283,7 +281,8 @@ class TreeBuilder {
     }
     for (std::uint32_t k = 0; k < p.parent.loose; ++k) {
       if (!(s.lb2[k] <= node.threshold)) continue;
-      if (is_point_item(loose[k]) && node.drops(candidates_[loose[k]].a, s.lb2[k], loose[k])) continue;
+      const bool point = is_point_item(loose[k], candidates_.data());
+      if (point && node.drops(candidates_[loose[k]].a, s.lb2[k], loose[k])) continue;
       const std::size_t at = kept.loose->size();
       const std::int32_t n = refine_kept(c, loose[k], candidates_.data(), groups_, radius, node.threshold, nullptr);
       if (n == 0) continue;  // none of a loose group's pieces is near the node

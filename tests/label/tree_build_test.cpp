@@ -103,7 +103,7 @@ Tree reference_tree(const std::vector<Piece>& candidates, int level, bool with_d
         // The bisector rule: the point items within the threshold that lie wholly beyond the
         // bisector of the nearest of them (least lb2, then least item), or are its exact
         // duplicates of sites no lower than its, go as if beyond it (point_never_nearest).
-        auto is_point = [&](std::int32_t k) { return list[k] >= 0 && (candidates[list[k]].flags & kPiecePoint); };
+        auto is_point = [&](std::int32_t k) { return is_point_item(list[k], candidates.data()); };
         std::int32_t a = -1;
         for (std::int32_t k = 0; k < n && bisector; ++k) {
           if (!is_point(k) || !(lb2[k] <= threshold)) continue;

@@ -62,9 +62,7 @@ void OutlineSelection::select(grid::Code first, std::uint64_t count, int level, 
     cuts.push_back(segments);
   }
   const std::size_t at = out->size();
-  const double rate = static_cast<double>(total) / static_cast<double>(count);
-  grow_outline_cells(out, at + total + static_cast<std::size_t>(rate * 1.1 * static_cast<double>(cells_left)),
-                     host_threads(0));
+  grow_outline_cells(out, at + total + outline_room_for_rest(total, count, cells_left), host_threads(0));
   out->resize(at + total);
   OutlineCell* to = out->data() + at;
   try {

@@ -147,13 +147,11 @@ struct HostTile {
   std::uint8_t* boundary;  // null: no flags
 };
 
-/// Room in *outline for the rest of a range, `cells_left` cells, at the rate of outline cells
-/// per cell seen in the `cells_done` before them (and a tenth more), so that the list grows
+/// Room in *outline for the rest of a range (outline_room_for_rest), so that the list grows
 /// once, not by doubling: each growth copies all it holds, twice its memory for the while.
 void reserve_for_rest(OutlineCells* outline, std::uint64_t cells_done, std::uint64_t cells_left) {
   if (cells_left == 0 || cells_done == 0 || outline->capacity() >= outline->size() * 2) return;
-  const double rate = static_cast<double>(outline->size()) / static_cast<double>(cells_done);
-  grow_outline_cells(outline, outline->size() + static_cast<std::size_t>(rate * 1.1 * static_cast<double>(cells_left)),
+  grow_outline_cells(outline, outline->size() + outline_room_for_rest(outline->size(), cells_done, cells_left),
                      thread_count(0));
 }
 

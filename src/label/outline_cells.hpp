@@ -78,6 +78,15 @@ inline void grow_outline_cells(OutlineCells* cells, std::size_t capacity, int th
   cells->swap(bigger);
 }
 
+/// Outline cells for the rest of a range, `cells_left` cells, at the rate of `outline` outline
+/// cells in the `cells_done` cells before them, and a tenth more: a list given that room grows
+/// once, not again by a copy of all it holds.
+inline std::size_t outline_room_for_rest(std::size_t outline, std::uint64_t cells_done, std::uint64_t cells_left) {
+  if (cells_done == 0) return 0;
+  const double rate = static_cast<double>(outline) / static_cast<double>(cells_done);
+  return static_cast<std::size_t>(rate * 1.1 * static_cast<double>(cells_left));
+}
+
 /// Outline cells listed per octant row: 2 per row but the pole row's one, 8 octants.
 inline std::uint64_t row_end_count(int level) { return 8 * (2 * grid::rows_per_octant(level) - 1); }
 

@@ -231,12 +231,9 @@ void SpatialItems::nearest_in_block(const Vec3& x, int tier, std::int64_t index,
   const double limit = root + b.reach + kCapMargin;
   if (d2 > limit * limit) return;
   if (tier > 0) {
-    const std::int64_t first = index << kFanoutBits;
-    const std::int64_t last = std::min<std::int64_t>(first + 4, static_cast<std::int64_t>(tiers_[tier - 1].size()));
-    for (std::int64_t c = first; c < last; ++c) {
-      const double c2 = grid::chord2(x, tiers_[tier - 1][c].centre);
-      nearest_in_block(x, tier - 1, c, tier == 1 ? full_mask(c) : std::uint8_t{0xff}, c2, best, root, point);
-    }
+    for_each_child(tier, index, [&](std::int64_t c, std::uint8_t m) {
+      nearest_in_block(x, tier - 1, c, m, grid::chord2(x, tiers_[tier - 1][c].centre), best, root, point);
+    });
     return;
   }
   const std::int64_t first = block_begin(0, index);
@@ -258,12 +255,9 @@ void SpatialItems::nearest_point_in_block(const Vec3& x, int tier, std::int64_t 
   const double limit = root + tiers_[tier][index].reach_rep + kCapMargin;
   if (d2 > limit * limit) return;
   if (tier > 0) {
-    const std::int64_t first = index << kFanoutBits;
-    const std::int64_t last = std::min<std::int64_t>(first + 4, static_cast<std::int64_t>(tiers_[tier - 1].size()));
-    for (std::int64_t c = first; c < last; ++c) {
-      const double c2 = grid::chord2(x, tiers_[tier - 1][c].centre);
-      nearest_point_in_block(x, tier - 1, c, tier == 1 ? full_mask(c) : std::uint8_t{0xff}, c2, limit2, root, cut);
-    }
+    for_each_child(tier, index, [&](std::int64_t c, std::uint8_t m) {
+      nearest_point_in_block(x, tier - 1, c, m, grid::chord2(x, tiers_[tier - 1][c].centre), limit2, root, cut);
+    });
     return;
   }
   const std::int64_t first = block_begin(0, index);
@@ -487,12 +481,9 @@ void SpatialItems::keep_block(const NodeBounds& node, double root, int tier, std
     return;
   }
   if (tier > 0) {
-    const std::int64_t first = index << kFanoutBits;
-    const std::int64_t last = std::min<std::int64_t>(first + 4, static_cast<std::int64_t>(tiers_[tier - 1].size()));
-    for (std::int64_t c = first; c < last; ++c) {
-      const double c2 = grid::chord2(node.centre, tiers_[tier - 1][c].centre);
-      keep_block(node, root, tier - 1, c, tier == 1 ? full_mask(c) : std::uint8_t{0xff}, c2, out);
-    }
+    for_each_child(tier, index, [&](std::int64_t c, std::uint8_t m) {
+      keep_block(node, root, tier - 1, c, m, grid::chord2(node.centre, tiers_[tier - 1][c].centre), out);
+    });
     return;
   }
   keep_items(node, index, mask, out);
@@ -548,11 +539,7 @@ void SpatialItems::best_in_block(const Vec3& x, int tier, std::int64_t index, st
     if (grid::chord2(x, b.centre) > limit * limit) return;
   }
   if (tier > 0) {
-    const std::int64_t first = index << kFanoutBits;
-    const std::int64_t last = std::min<std::int64_t>(first + 4, static_cast<std::int64_t>(tiers_[tier - 1].size()));
-    for (std::int64_t c = first; c < last; ++c) {
-      best_in_block(x, tier - 1, c, tier == 1 ? full_mask(c) : std::uint8_t{0xff}, best, s);
-    }
+    for_each_child(tier, index, [&](std::int64_t c, std::uint8_t m) { best_in_block(x, tier - 1, c, m, best, s); });
     return;
   }
   const std::int64_t first = block_begin(0, index);

@@ -12,6 +12,7 @@
 // back in the candidates' order (SpatialItems::write_in_order), are the plain filter's.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <vector>
 
@@ -246,6 +247,14 @@ class SpatialItems {
     }
     std::int32_t site;
     item_bounds(x, item_[pos], pieces_, groups_, lb2, ub2, &site);
+  }
+  /// Calls visit(child, mask) for each child block of block `index` of `tier` (> 0): its index
+  /// in tier - 1 and the mask of its positions (full: the tier-0 children's own, 0xff above).
+  template <class Visit>
+  void for_each_child(int tier, std::int64_t index, Visit visit) const {
+    const std::int64_t first = index << kFanoutBits;
+    const std::int64_t last = std::min<std::int64_t>(first + 4, static_cast<std::int64_t>(tiers_[tier - 1].size()));
+    for (std::int64_t c = first; c < last; ++c) visit(c, tier == 1 ? full_mask(c) : std::uint8_t{0xff});
   }
   void keep_split(const NodeBounds& node, std::int64_t pos, KeptList& out) const;
   void nearest_in_block(const Vec3& x, int tier, std::int64_t index, std::uint8_t mask, double d2, double& best,

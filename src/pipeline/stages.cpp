@@ -15,6 +15,7 @@
 #include "sites/fid_list.hpp"
 #include "write/output_size.hpp"
 #include "write/raster_writer.hpp"
+#include "write/sqlite_write_behind.hpp"
 #include "write/vector_writer.hpp"
 
 namespace qtmv::pipeline {
@@ -296,9 +297,12 @@ double write_stage(const std::string& path, const std::string& destination, cons
       // A temporary file, renamed into place only after a clean close, needs no durability
       // while it is written: no fsync, no rollback journal (nothing is rolled back; a failed
       // write is removed). Only where the user has not set these, and never for a direct write.
-      // A large file gets SQLite's largest pages (write/output_size.hpp says why).
+      // A large file gets SQLite's largest pages (write/output_size.hpp says why), and a SQLite
+      // file is written behind its connection (write/sqlite_write_behind.hpp).
       std::unique_ptr<CPLConfigOptionSetter> no_sync, no_journal, page_size;
+      std::unique_ptr<write::SqliteWriteBehind> write_behind;
       if (path != destination) {
+        write_behind = std::make_unique<write::SqliteWriteBehind>(path);
         no_sync = std::make_unique<CPLConfigOptionSetter>("OGR_SQLITE_SYNCHRONOUS", "OFF", true);
         no_journal = std::make_unique<CPLConfigOptionSetter>("OGR_SQLITE_JOURNAL", "OFF", true);
         const std::uint32_t page = write::sqlite_page_size(

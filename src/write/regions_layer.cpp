@@ -17,6 +17,7 @@
 #include "common/visible_devices.hpp"
 #include "sites/fid_list.hpp"
 #include "write/region_tracer.hpp"
+#include "write/sqlite_write_behind.hpp"
 #include "write/vector_layer_writers.hpp"
 #include "write/work_ahead.hpp"
 
@@ -428,13 +429,18 @@ void write_regions(VectorDatasetWriter& w, const LayerInput& in, double work, st
     write_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     w.layer_progress(0.4 + 0.6 * static_cast<double>(last) / static_cast<double>(row_count), 1.0);
   };
+  const SqliteWriteBehind::Totals behind_before = SqliteWriteBehind::totals();
   work_ahead(row_count, kRegionBlock, 1, begin, link, write);
   trace("regions traced and written");
+  const SqliteWriteBehind::Totals behind = SqliteWriteBehind::totals();
   if (left_out.count() > 0) {
     w.warn(w.driver_name() + " drops rows without a geometry: the " + std::to_string(left_out.count()) +
            " site(s) without a cell (FIDs " + left_out.text() + ") are not in it");
   }
   trace.note("of which writing rows", write_seconds);
+  if (behind.bytes > behind_before.bytes) {
+    trace.note("  of which waiting for the file written behind", behind.waited_seconds - behind_before.waited_seconds);
+  }
   if (direct) {
     w.guard([&] { direct->finish(); });
     trace("regions' R-tree filled");

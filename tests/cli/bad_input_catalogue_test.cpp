@@ -12,6 +12,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <set>
 #include <sstream>
@@ -1540,6 +1541,31 @@ TEST(CatalogueLimits, CellsLayerLargerThanTheFreeDiskSpaceNeedsTheConfigOption) 
   expect_success(run_small({"--config", "QTMV_FAULT_DISK_FREE_BYTES", "100000", "-layers", "regions", src,
                             dir + "/regions.gpkg"}),
                  dir + "/regions.gpkg");
+}
+
+TEST(CatalogueLimits, ADiskThatFillsWhileTheFileIsWrittenBehindLosesNothing) {
+  const std::string dir = test_dir();
+  const std::string src = wkt_csv(dir + "/pts.csv", {"POINT (10 10)", "POINT (-100 40)", "POINT (50 -30)"});
+  // The GeoPackage's writes fail as on a full disk once 200 kB are written (fault injection), on
+  // the file's own thread (write/sqlite_write_behind.hpp): the run fails at the commit that waits
+  // for them, names the destination, and leaves neither a file nor a temporary one.
+  const std::vector<std::string> args{"--config", "QTMV_FAULT_WRITE_BEHIND_BYTES", "200000", "-level", "12",
+                                      "-layers", "regions,boundary_cells"};
+  expect_failure(run(concat(args, {"-device", "cpu", src, dir + "/out.gpkg"})), 1,
+                 {dir + "/out.gpkg, layer ", "database or disk is full"}, dir + "/out.gpkg");
+  // With -overwrite, the old file is kept as it was.
+  write_text(dir + "/old.gpkg", "the user's file");
+  expect_failure(run(concat(args, {"-device", "cpu", "-overwrite", src, dir + "/old.gpkg"})), 1,
+                 {dir + "/old.gpkg, layer ", "database or disk is full"}, dir + "/none.gpkg");
+  std::ifstream old(dir + "/old.gpkg");
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(old), std::istreambuf_iterator<char>()), "the user's file");
+  // Without the fault, the same run writes every row.
+  expect_success(run({"-level", "12", "-layers", "regions,boundary_cells", "-device", "cpu", src, dir + "/ok.gpkg"}),
+                 dir + "/ok.gpkg");
+  const auto ds = qtmv::test::open_dataset(dir + "/ok.gpkg", GDAL_OF_VECTOR);
+  ASSERT_TRUE(ds && ds->GetLayerByName("regions") && ds->GetLayerByName("boundary_cells"));
+  EXPECT_EQ(ds->GetLayerByName("regions")->GetFeatureCount(), 3);
+  EXPECT_GT(ds->GetLayerByName("boundary_cells")->GetFeatureCount(), 1000);
 }
 
 TEST(CatalogueLimits, ClusteredLinesWhoseTreeCannotFitAreRefused) {

@@ -439,7 +439,9 @@ void write_regions(VectorDatasetWriter& w, const LayerInput& in, double work, st
   }
   trace.note("of which writing rows", write_seconds);
   if (behind.bytes > behind_before.bytes) {
-    trace.note("  of which waiting for the file written behind", behind.waited_seconds - behind_before.waited_seconds);
+    const std::string what = "  of which waiting for the file written behind (" +
+                             std::to_string(behind.drains - behind_before.drains) + " times for all of it)";
+    trace.note(what.c_str(), behind.waited_seconds - behind_before.waited_seconds);
   }
   if (direct) {
     w.guard([&] { direct->finish(); });

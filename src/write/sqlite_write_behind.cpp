@@ -29,6 +29,7 @@ constexpr std::size_t kWritePiece = 65536;
 
 std::atomic<std::uint64_t> g_bytes{0};
 std::atomic<std::uint64_t> g_waited_ns{0};
+std::atomic<std::uint64_t> g_drains{0};
 
 /// Adds the time since `start` to the connections' waiting.
 void count_wait(std::chrono::steady_clock::time_point start) {
@@ -83,6 +84,7 @@ class FileWriter {
     if (!current_.bytes.empty()) push();
     std::unique_lock<std::mutex> lock(mutex_);
     if (!queue_.empty() || busy_) {
+      ++g_drains;
       const auto start = std::chrono::steady_clock::now();
       changed_.wait(lock, [&] { return queue_.empty() && !busy_; });
       count_wait(start);
@@ -263,10 +265,12 @@ int behind_check_reserved_lock(sqlite3_file* file, int* out) {
 
 // Every file control waits for the writes (SQLITE_FCNTL_SYNC stands for the sync that
 // synchronous=OFF leaves out, and its failure fails the commit), but for those asked on every
-// statement or transaction that only tell about the file.
+// statement, transaction or spill of the cache that only tell about the file or grow it.
 int behind_file_control(sqlite3_file* file, int op, void* arg) {
   BehindFile& f = behind(file);
   switch (op) {
+    case SQLITE_FCNTL_SIZE_HINT:   // at every spill that grows the file; it may only grow it early
+    case SQLITE_FCNTL_CHUNK_SIZE:  // how it grows
     case SQLITE_FCNTL_LOCKSTATE:
     case SQLITE_FCNTL_HAS_MOVED:
     case SQLITE_FCNTL_VFSNAME:
@@ -464,7 +468,7 @@ SqliteWriteBehind::~SqliteWriteBehind() {
 }
 
 SqliteWriteBehind::Totals SqliteWriteBehind::totals() {
-  return {g_bytes.load(), static_cast<double>(g_waited_ns.load()) * 1e-9};
+  return {g_bytes.load(), static_cast<double>(g_waited_ns.load()) * 1e-9, g_drains.load()};
 }
 
 }  // namespace qtmv::write

@@ -37,6 +37,7 @@ class SqliteWriteBehind {
   struct Totals {
     std::uint64_t bytes = 0;       ///< written to the files by their threads (bytes)
     double waited_seconds = 0;     ///< the connections' time waiting for the file (seconds)
+    std::uint64_t drains = 0;      ///< the calls that waited for every write before them to land
   };
   static Totals totals();
 

@@ -162,6 +162,31 @@ TEST(SqliteWriteBehind, AFailedWriteFailsTheConnectionAsAFullDisk) {
   set_config_lookup(nullptr);
 }
 
+TEST(SqliteWriteBehind, RowsAppendedWaitForTheFileOnlyAtTheirCommit) {
+  // A GeoPackage's rows: one transaction of appends, with SQLite's default cache, which spills
+  // its pages (and hints the file's growth) all along; the connection must not wait for the file
+  // before the commit, or nothing overlaps.
+  const fs::path path = scratch("append.db");
+  const SqliteWriteBehind guard(path.string());
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, nullptr), SQLITE_OK);
+  for (const char* sql : {"PRAGMA page_size=65536", "PRAGMA journal_mode=OFF", "PRAGMA synchronous=OFF",
+                          "CREATE TABLE t(id INTEGER PRIMARY KEY AUTOINCREMENT, g BLOB)", "BEGIN"}) {
+    ASSERT_EQ(exec(db, sql), SQLITE_OK) << sql;
+  }
+  const SqliteWriteBehind::Totals before = SqliteWriteBehind::totals();
+  for (int k = 0; k < 4000; ++k) ASSERT_EQ(exec(db, "INSERT INTO t(g) VALUES (randomblob(11000))"), SQLITE_OK);
+  const SqliteWriteBehind::Totals appended = SqliteWriteBehind::totals();
+  ASSERT_EQ(exec(db, "COMMIT"), SQLITE_OK);
+  EXPECT_EQ(appended.drains, before.drains);
+  EXPECT_GT(appended.bytes - before.bytes, 0u);  // the cache spilled: the file's thread wrote
+  EXPECT_GT(SqliteWriteBehind::totals().drains, before.drains);  // the commit waited
+  EXPECT_EQ(value(db, "SELECT count(*) || ' ' || sum(length(g)) FROM t"), "4000 44000000");
+  sqlite3_close(db);
+  EXPECT_GE(fs::file_size(path), 44000000u);
+  fs::remove(path);
+}
+
 TEST(SqliteWriteBehind, OtherFilesAndTheDefaultVfsAreLeftAsTheyWere) {
   const std::string default_vfs = sqlite3_vfs_find(nullptr)->zName;
   const fs::path named = scratch("named.db"), other = scratch("other.db");

@@ -196,6 +196,7 @@ struct BehindFile {
   sqlite3_file* real;
   FileWriter* writer;
   bool at_once;  // shared memory seen (WAL): writes made at once, as the default VFS makes them
+  bool chunked;  // SQLITE_FCNTL_CHUNK_SIZE set: the file grows in chunks, at the size hints
   int sector_size, device_characteristics;  // the real file's, asked once (they are asked often)
 };
 constexpr std::size_t kRealOffset = (sizeof(BehindFile) + 15) / 16 * 16;
@@ -269,8 +270,15 @@ int behind_check_reserved_lock(sqlite3_file* file, int* out) {
 int behind_file_control(sqlite3_file* file, int op, void* arg) {
   BehindFile& f = behind(file);
   switch (op) {
-    case SQLITE_FCNTL_SIZE_HINT:   // at every spill that grows the file; it may only grow it early
-    case SQLITE_FCNTL_CHUNK_SIZE:  // how it grows
+    case SQLITE_FCNTL_SIZE_HINT:
+      // At every spill that grows the file: the default VFS grows the file early only in chunks
+      // (SQLITE_FCNTL_CHUNK_SIZE); without them nothing is asked of the file, and the file's lock,
+      // which its thread holds while it writes, is not waited for.
+      if (!f.chunked) return SQLITE_OK;
+      return forward(f, &sqlite3_io_methods::xFileControl, op, arg);
+    case SQLITE_FCNTL_CHUNK_SIZE:
+      f.chunked = *static_cast<int*>(arg) > 0;
+      return forward(f, &sqlite3_io_methods::xFileControl, op, arg);
     case SQLITE_FCNTL_LOCKSTATE:
     case SQLITE_FCNTL_HAS_MOVED:
     case SQLITE_FCNTL_VFSNAME:

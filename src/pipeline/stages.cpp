@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "common/config_option.hpp"
 #include "common/host_info.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/tile_product.hpp"
@@ -302,7 +303,10 @@ double write_stage(const std::string& path, const std::string& destination, cons
       std::unique_ptr<CPLConfigOptionSetter> no_sync, no_journal, page_size;
       std::unique_ptr<write::SqliteWriteBehind> write_behind;
       if (path != destination) {
-        write_behind = std::make_unique<write::SqliteWriteBehind>(path);
+        const char* behind = config_option("QTMV_WRITE_BEHIND");
+        if (behind == nullptr || config_flag("QTMV_WRITE_BEHIND")) {
+          write_behind = std::make_unique<write::SqliteWriteBehind>(path);
+        }
         no_sync = std::make_unique<CPLConfigOptionSetter>("OGR_SQLITE_SYNCHRONOUS", "OFF", true);
         no_journal = std::make_unique<CPLConfigOptionSetter>("OGR_SQLITE_JOURNAL", "OFF", true);
         const std::uint32_t page = write::sqlite_page_size(

@@ -66,22 +66,29 @@ class FileWriter {
   /// Queues `amount` bytes to be written at `offset` (the connection's thread).
   int write(const void* data, int amount, sqlite3_int64 offset) {
     if (const int rc = failure(); rc != SQLITE_OK) return rc;
-    const auto n = static_cast<std::size_t>(amount);
-    if (!current_.bytes.empty() &&
-        (offset != current_.end() || current_.bytes.size() + n > kBatchBytes)) {
-      push();
+    try {
+      const auto n = static_cast<std::size_t>(amount);
+      if (!current_.bytes.empty() && (offset != current_.end() || current_.bytes.size() + n > kBatchBytes)) {
+        push();
+      }
+      if (current_.bytes.empty()) current_.offset = offset;
+      const auto* bytes = static_cast<const unsigned char*>(data);
+      current_.bytes.insert(current_.bytes.end(), bytes, bytes + n);
+      if (current_.bytes.size() >= kBatchBytes) push();
+    } catch (...) {
+      fail(SQLITE_IOERR_NOMEM);  // no exception may cross SQLite: the write is lost, so all fail
     }
-    if (current_.bytes.empty()) current_.offset = offset;
-    const auto* bytes = static_cast<const unsigned char*>(data);
-    current_.bytes.insert(current_.bytes.end(), bytes, bytes + n);
-    if (current_.bytes.size() >= kBatchBytes) push();
-    return SQLITE_OK;
+    return failure();
   }
 
   /// Waits until every write queued has reached the file (the connection's thread). Returns the
   /// first failure.
   int drain() {
-    if (!current_.bytes.empty()) push();
+    try {
+      if (!current_.bytes.empty()) push();
+    } catch (...) {
+      fail(SQLITE_IOERR_NOMEM);
+    }
     std::unique_lock<std::mutex> lock(mutex_);
     if (!queue_.empty() || busy_) {
       ++g_drains;
@@ -107,6 +114,12 @@ class FileWriter {
   }
 
  private:
+  /// Records the first failure: every call after it returns it, and what is queued is dropped.
+  void fail(int rc) {
+    int none = SQLITE_OK;
+    failure_.compare_exchange_strong(none, rc);
+  }
+
   struct Batch {
     sqlite3_int64 offset = 0;
     std::vector<unsigned char> bytes;
@@ -165,11 +178,14 @@ class FileWriter {
       }
       {
         const std::lock_guard<std::mutex> lock(mutex_);
-        int none = SQLITE_OK;
-        if (rc != SQLITE_OK) failure_.compare_exchange_strong(none, rc);
+        if (rc != SQLITE_OK) fail(rc);
         busy_ = false;
         batch.bytes.clear();
-        if (spare_.size() <= kQueuedBatches) spare_.push_back(std::move(batch.bytes));
+        try {
+          if (spare_.size() <= kQueuedBatches) spare_.push_back(std::move(batch.bytes));
+        } catch (...) {
+          // No room to keep the buffer for the next batch: it goes.
+        }
       }
       changed_.notify_all();
     }
@@ -364,7 +380,7 @@ struct Registry {
 };
 
 Registry& registry() {
-  static Registry r;
+  static Registry& r = *new Registry;  // never destroyed: connections opened through it may outlive main
   return r;
 }
 

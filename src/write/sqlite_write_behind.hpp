@@ -8,8 +8,11 @@
 // call that could see the file as it is (a read of a range still queued, the size, a sync, a
 // truncation, a file control, the end of a lock, the close) first waits for the writes before it.
 // The first write that fails (a full disk: SQLITE_FULL) is returned by the next call on the file,
-// the close included, and the writes after it are dropped: the connection fails as it would have,
-// a little later, and the run removes its temporary file.
+// and the writes after it are dropped. The commit waits for every write (at SQLITE_FCNTL_SYNC,
+// which SQLite sends even with synchronous=OFF, and at the end of its lock) and fails with it, so
+// the connection fails as it would have, a little later, and the run removes its temporary file.
+// (The close waits and returns the failure too, but SQLite ignores what a close returns: safety
+// rests on the commit.)
 //
 // How: a VFS of our own (SQLite's "virtual file system", the layer under every connection) wraps
 // the default one and is made the default while a SqliteWriteBehind lives. GDAL's GeoPackage and

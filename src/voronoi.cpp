@@ -17,6 +17,7 @@
 #include "pipeline/run_plan.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/stages.hpp"
+#include "sites/feature_count.hpp"
 #include "write/raster_bands.hpp"
 #include "write/raster_writer.hpp"
 
@@ -104,6 +105,17 @@ VoronoiSummary run_voronoi(const std::string& source, const std::string& destina
   label::AutoDevice auto_choice;  // with no sites yet: the least work the plan can take
   if (automatic) auto_choice = pipeline::estimate_auto_device(plan, 0, 0);
   if (auto_choice.gpu) start_devices();
+  if (automatic && !auto_choice.gpu && options.merge.empty()) {
+    // A source that tells its size at once (a count, a CSV's bytes) may show the GPU worth its
+    // start before the read: it then starts beside the read, as for -device cuda, instead of
+    // after it. The choice itself waits for the sites read.
+    const std::uint64_t guess = sites::feature_count_guess(source, options.read);
+    if (guess > 0 && pipeline::estimate_auto_device(plan, guess, guess).gpu) {
+      trace_printf(TraceStage::label, "auto: the GPU started beside the read (%llu features guessed before it)",
+                   static_cast<unsigned long long>(guess));
+      start_devices();
+    }
+  }
   pipeline::StagedOutput output(destination, options.overwrite,
                                 pipeline::open_database_output(destination, options.overwrite, plan));
   pipeline::RunProgress progress(options.progress);

@@ -3,6 +3,7 @@
 // feature); such a layer of a file is counted beside the reading instead, on a handle of its own.
 #pragma once
 
+#include <cstdint>
 #include <future>
 #include <string>
 
@@ -36,5 +37,13 @@ class FeatureCount {
   GIntBig count_ = -1;
   std::future<GIntBig> counting_;
 };
+
+/// A quick guess of the features a read of `source` will see, made before the read (for -device
+/// auto, which starts a GPU beside the read when the guess already shows it worth starting): the
+/// driver's cheap counts of the layers read (-l, else the first; a GeoPackage's, a shapefile's),
+/// or, for a CSV file, its size over the mean length of its first rows (within a few per cent for
+/// rows alike). 0: no guess (-where or -sql, whose share is unknown; a source GDAL cannot open; a
+/// layer of neither kind). Opens the source once, quietly; never throws.
+std::uint64_t feature_count_guess(const std::string& source, const SourceOptions& options);
 
 }  // namespace qtmv::sites

@@ -17,10 +17,7 @@ namespace {
 GIntBig count_on_own_handle(const std::string& dataset_name, const std::vector<std::string>& open_options,
                             const std::string& layer_name, const std::string& where) {
   gdal::ErrorCapture quiet;  // this thread's GDAL messages: the reading reports its own
-  CPLStringList options;
-  for (const std::string& option : open_options) options.AddString(option.c_str());
-  GDALDatasetUniquePtr dataset(
-      GDALDataset::Open(dataset_name.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, nullptr, options.List()));
+  const GDALDatasetUniquePtr dataset = open_vector(dataset_name, open_options);
   OGRLayer* const layer = dataset ? dataset->GetLayerByName(layer_name.c_str()) : nullptr;
   if (!layer || (!where.empty() && layer->SetAttributeFilter(where.c_str()) != OGRERR_NONE)) return -1;
   return layer->GetFeatureCount(FALSE);
@@ -53,10 +50,7 @@ std::uint64_t feature_count_guess(const std::string& source, const SourceOptions
   if (!options.where.empty() || !options.sql.empty()) return 0;
   try {
     gdal::ErrorCapture quiet;  // a source that cannot be read is the read's to report
-    CPLStringList open_options;
-    for (const std::string& option : options.open_options) open_options.AddString(option.c_str());
-    GDALDatasetUniquePtr dataset(
-        GDALDataset::Open(source.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, nullptr, open_options.List()));
+    const GDALDatasetUniquePtr dataset = open_vector(source, options.open_options);
     if (!dataset || dataset->GetLayerCount() == 0) return 0;
     std::vector<OGRLayer*> layers;
     if (options.layers.empty()) layers.push_back(dataset->GetLayer(0));

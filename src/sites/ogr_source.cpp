@@ -24,10 +24,7 @@ GDALDatasetUniquePtr open_dataset(const std::string& dataset_name, const ReadOpt
                     special_file_kind(local.st_mode) +
                     "); for standard input use /vsistdin/");
   }
-  CPLStringList open_options;
-  for (const std::string& option : options.open_options) open_options.AddString(option.c_str());
-  GDALDatasetUniquePtr dataset(GDALDataset::Open(dataset_name.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, nullptr,
-                                                 open_options.List()));
+  GDALDatasetUniquePtr dataset = open_vector(dataset_name, options.open_options);
   if (!dataset) {
     VSIStatBufL stat;
     if (VSIStatL(dataset_name.c_str(), &stat) != 0) {
@@ -88,6 +85,14 @@ std::string OgrSource::describe() const {
   std::string where_all = "'" + name + "', layer" + (layers.size() > 1 ? "s " : " ");
   for (std::size_t k = 0; k < layers.size(); ++k) where_all += (k ? ", '" : "'") + layers[k].name + "'";
   return where_all;
+}
+
+GDALDatasetUniquePtr open_vector(const std::string& dataset_name, const std::vector<std::string>& open_options,
+                                 const char* const* drivers) {
+  CPLStringList list;
+  for (const std::string& option : open_options) list.AddString(option.c_str());
+  return GDALDatasetUniquePtr(
+      GDALDataset::Open(dataset_name.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, drivers, list.List()));
 }
 
 OgrSource open_source(const std::string& dataset_name, const ReadOptions& options, gdal::ErrorCapture& errors) {

@@ -31,6 +31,11 @@ struct OgrSource {
   std::string describe() const;
 };
 
+/// `dataset_name` opened by GDAL as a vector dataset, read-only, with the driver's open options
+/// (-oo NAME=VALUE), by one of `drivers` (null-terminated; null: any); null when it does not open.
+GDALDatasetUniquePtr open_vector(const std::string& dataset_name, const std::vector<std::string>& open_options,
+                                 const char* const* drivers = nullptr);
+
 /// Opens `dataset_name` with options.open_options and finds its layers (options.sql,
 /// options.layers). The open's warnings go to options.messages; GDAL's messages are caught by
 /// `errors`. Throws ReadError: not a file or directory, unreadable, -sql failed, no such layer

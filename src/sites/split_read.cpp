@@ -219,11 +219,8 @@ class MemoryCsv {
 
   /// Opened by GDAL's CSV driver with `open_options`; null when it does not open.
   GDALDatasetUniquePtr open(const std::vector<std::string>& open_options) const {
-    CPLStringList options;
-    for (const std::string& option : open_options) options.AddString(option.c_str());
     const char* const csv_only[] = {"CSV", nullptr};
-    return GDALDatasetUniquePtr(
-        GDALDataset::Open(files_[0].c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, csv_only, options.List()));
+    return open_vector(files_[0], open_options, csv_only);
   }
 
  private:
@@ -365,11 +362,8 @@ void SplitRead::Impl::read_features(OGRLayer& layer, Part& part) {
 /// The GeoPackage read again (its own SQLite connection) for part `r`'s FIDs, in rowid order.
 void SplitRead::Impl::read_fid_range(std::size_t r, Part& part) {
   MessageLog log(part);
-  CPLStringList options;
-  for (const std::string& option : open_options) options.AddString(option.c_str());
   const char* const gpkg_only[] = {"GPKG", nullptr};
-  const GDALDatasetUniquePtr dataset(
-      GDALDataset::Open(source_path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY, gpkg_only, options.List()));
+  const GDALDatasetUniquePtr dataset = open_vector(source_path, open_options, gpkg_only);
   OGRLayer* const layer = dataset ? dataset->GetLayerByName(layer_name.c_str()) : nullptr;
   const GIntBig from = first_fid + static_cast<GIntBig>(r) * fid_step;
   const std::string filter = sql_quoted(fid_column, '"') + " >= " + std::to_string(from) + " AND " +

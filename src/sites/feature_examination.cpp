@@ -154,18 +154,17 @@ void FeatureChunk::examine_block(std::size_t b, const Examination& examination) 
 
 FeatureParts& FeatureChunk::own_parts() { return own_parts_.emplace_back(); }
 
-void FeatureChunk::release_block(std::size_t b) {
-  for (std::size_t k = blocks_[b].first; k < blocks_[b].last; ++k) {
+void FeatureChunk::release(std::size_t first, std::size_t last) {
+  for (std::size_t k = first; k < last; ++k) {
     features_[k].feature.reset();
     features_[k].geometry.reset();
   }
 }
 
+void FeatureChunk::release_block(std::size_t b) { release(blocks_[b].first, blocks_[b].last); }
+
 void FeatureChunk::clear() {
-  for (std::size_t k = 0; k < count_; ++k) {
-    features_[k].feature.reset();
-    features_[k].geometry.reset();
-  }
+  release(0, count_);
   count_ = vertices_ = block_count_ = 0;
   own_parts_.clear();
 }

@@ -86,6 +86,9 @@ class FeatureChunk {
   void release_block(std::size_t b);
 
  private:
+  /// Destroys features [first, last) and their geometries.
+  void release(std::size_t first, std::size_t last);
+
   struct Block {
     std::size_t first = 0, last = 0;  // features
     std::size_t vertices = 0;

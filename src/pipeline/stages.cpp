@@ -11,6 +11,7 @@
 
 #include "common/config_option.hpp"
 #include "common/host_info.hpp"
+#include "common/openmp_threads.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/tile_product.hpp"
 #include "sites/fid_list.hpp"
@@ -303,8 +304,9 @@ double write_stage(const std::string& path, const std::string& destination, cons
       std::unique_ptr<CPLConfigOptionSetter> no_sync, no_journal, page_size;
       std::unique_ptr<write::SqliteWriteBehind> write_behind;
       if (path != destination) {
+        // Its own thread: not where the run has one (-threads 1).
         const char* behind = config_option("QTMV_WRITE_BEHIND");
-        if (behind == nullptr || config_flag("QTMV_WRITE_BEHIND")) {
+        if ((behind == nullptr || config_flag("QTMV_WRITE_BEHIND")) && thread_count(0) > 1) {
           write_behind = std::make_unique<write::SqliteWriteBehind>(path);
         }
         no_sync = std::make_unique<CPLConfigOptionSetter>("OGR_SQLITE_SYNCHRONOUS", "OFF", true);

@@ -101,14 +101,14 @@ class FileWriter {
 
   /// Whether bytes [offset, offset + amount) still wait, wholly or in part, to be written.
   bool waiting(sqlite3_int64 offset, int amount) {
-    const auto overlaps = [&](const Batch& b) {
-      return !b.bytes.empty() && offset < b.end() && b.offset < offset + amount;
+    const auto overlaps = [&](sqlite3_int64 first, sqlite3_int64 end) {
+      return first < end && offset < end && first < offset + amount;  // an empty range overlaps nothing
     };
-    if (overlaps(current_)) return true;
+    if (overlaps(current_.offset, current_.end())) return true;
     const std::lock_guard<std::mutex> lock(mutex_);
-    if (busy_ && offset < in_flight_end_ && in_flight_offset_ < offset + amount) return true;
+    if (busy_ && overlaps(in_flight_offset_, in_flight_end_)) return true;
     for (const Batch& b : queue_) {
-      if (overlaps(b)) return true;
+      if (overlaps(b.offset, b.end())) return true;
     }
     return false;
   }

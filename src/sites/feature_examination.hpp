@@ -68,6 +68,8 @@ class FeatureChunk {
   bool full() const;
   /// The features read, in reading order.
   std::size_t size() const { return count_; }
+  /// Their geometries' vertices (a point is one).
+  std::size_t vertex_count() const { return vertices_; }
   PendingFeature& feature(std::size_t k) { return features_[k]; }
   /// The blocks the features are examined in (each a unit of work).
   std::size_t block_count() const { return block_count_; }

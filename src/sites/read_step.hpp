@@ -2,7 +2,8 @@
 // order, on the calling thread, where GDAL's messages are caught and the caller's callbacks
 // run) beside units of work that the team's threads take first come first served, the reading
 // thread too once its share is done. A step's team has no more threads than it has units (and
-// the reading thread), so that more threads never cost more than the work is worth.
+// the reading thread), nor more than its work is worth (team_for_work), so that more threads
+// never cost more than the work is worth.
 #pragma once
 
 #include <algorithm>
@@ -13,6 +14,20 @@
 #include "common/openmp_threads.hpp"
 
 namespace qtmv::sites {
+
+/// The features and vertices a step's team is given a thread for (beyond the first): a step of
+/// points (three chunks of 65 536 at work) gets 7 threads. Measured on 32 cores (bench/RESULTS.md,
+/// session 26), 1M points read with 8 GDAL readers: teams of 4 and 8 read a GeoPackage in
+/// 0.64-0.80 s, teams of 16 and 32 in 1.0-1.2 s (the team's threads crowd the readers, and give
+/// back the features those made); a CSV in 0.72-0.83 s either way. Lines and polygons, up to
+/// 2^20 vertices a chunk, are rasterised by every thread.
+constexpr std::size_t kWorkPerThread = std::size_t{1} << 16;
+
+/// A step's threads for `work` (its chunks' features plus vertices): 1 + work / kWorkPerThread,
+/// at most `threads`.
+inline int team_for_work(int threads, std::size_t work) {
+  return static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(std::max(threads, 1)), 1 + work / kWorkPerThread));
+}
 
 /// Runs share() on the calling thread and unit(u) for u in [0, units) on up to `threads`
 /// threads (the calling thread among them), each unit once; an exception from either comes out

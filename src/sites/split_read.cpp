@@ -28,6 +28,11 @@ namespace {
 constexpr std::size_t kMinRangeBytes = std::size_t{256} << 10;  // a part's open is worth its read
 constexpr std::size_t kMaxRangeBytes = std::size_t{8} << 20;    // the parts in memory stay small
 constexpr std::size_t kRangesPerThread = 8;                      // the threads end together
+/// The most threads that read parts at once (their ranges are cut for that many). On 32 cores
+/// (bench/RESULTS.md, session 26), 1M points, teams of 4 and 8: a GeoPackage read by 4 or 8 in
+/// 0.64-0.80 s, by 16 or 32 in 0.83-1.05 s (more connections than the reading thread can take
+/// features from); a CSV by 8 or 16 in 0.72-0.83 s, by 4 in 0.92-1.06 s, by 32 in 0.83-0.89 s.
+constexpr std::size_t kMaxReaders = 8;
 constexpr std::size_t kScanBlock = std::size_t{1} << 20;
 constexpr std::size_t kMostHeaderBytes = std::size_t{1} << 20;
 constexpr std::size_t kMinPartFeatures = 8192;  // a GeoPackage part's open is worth its read
@@ -514,27 +519,29 @@ std::unique_ptr<SplitRead> SplitRead::open(const OgrSource& source, std::size_t 
                                            const ReadOptions& options, int threads, const std::string& where_from) {
   auto s = std::make_unique<Impl>();
   OGRLayer& layer = *source.layers[layer_number].layer;
-  std::string why = split_refusal(source, layer, options, threads, *s);
+  const int readers = static_cast<int>(std::min(static_cast<std::size_t>(std::max(threads, 0)), kMaxReaders));
+  std::string why = split_refusal(source, layer, options, readers, *s);
   if (why.empty() && !s->by_fid) why = header_refusal(layer, *s);
   if (!why.empty()) {
     trace_printf(TraceStage::read, "%s: read on one thread: %s", where_from.c_str(), why.c_str());
     return nullptr;
   }
-  // A part's thread for each of the run's threads: the reading thread mostly waits for them (on 2
-  // cores, 1M points: whole read 1.36 s, against 1.85 s with one part's thread fewer).
-  const std::size_t readers = std::min<std::size_t>(static_cast<std::size_t>(threads), s->ranges);
+  // A part's thread for each of the run's threads, up to kMaxReaders: the reading thread mostly
+  // waits for them (on 2 cores, 1M points: whole read 1.36 s, against 1.85 s with one part's
+  // thread fewer).
+  const std::size_t reader_threads = std::min(static_cast<std::size_t>(readers), s->ranges);
   if (s->by_fid) {
     trace_printf(TraceStage::read, "%s: split read: %zu ranges of %lld FIDs, read by %zu threads", where_from.c_str(),
-                 s->ranges, static_cast<long long>(s->fid_step), readers);
+                 s->ranges, static_cast<long long>(s->fid_step), reader_threads);
   } else {
     trace_printf(TraceStage::read, "%s: split read: %zu ranges of about %zu bytes, read by %zu threads",
-                 where_from.c_str(), s->ranges, s->range_bytes, readers);
+                 where_from.c_str(), s->ranges, s->range_bytes, reader_threads);
   }
   s->parts.resize(s->ranges);
-  s->window = 2 * readers + 2;
+  s->window = 2 * reader_threads + 2;
   Impl* const impl = s.get();
   std::unique_ptr<SplitRead> split(new SplitRead(std::move(s)));
-  for (std::size_t t = 0; t < readers; ++t) impl->threads.emplace_back([impl] { impl->work(); });
+  for (std::size_t t = 0; t < reader_threads; ++t) impl->threads.emplace_back([impl] { impl->work(); });
   return split;
 }
 

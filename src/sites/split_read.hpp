@@ -26,7 +26,8 @@ namespace qtmv::sites {
 class SplitRead {
  public:
   /// The split read of layer `layer_number` of `source` (options.where is applied to every part)
-  /// on up to `threads` threads, or null when the layer is to be read as one sequence. Either
+  /// on up to `threads` threads (at most 8: more read no faster), or null when the layer is to be
+  /// read as one sequence. Either
   /// way a QTMV_TRACE=read line says so, and why. `where_from` names the file and layer.
   static std::unique_ptr<SplitRead> open(const OgrSource& source, std::size_t layer_number,
                                          const ReadOptions& options, int threads, const std::string& where_from);

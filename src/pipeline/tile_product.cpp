@@ -5,6 +5,7 @@
 #include <cpl_vsi.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cstring>
 #include <functional>
 #include <map>
@@ -12,7 +13,9 @@
 #include <stdexcept>
 #include <utility>
 
+#include "common/first_exception.hpp"
 #include "common/host_info.hpp"
+#include "common/openmp_threads.hpp"
 #include "common/run_context.hpp"
 #include "gdal/error_capture.hpp"
 #include "grid/qtm_code_ranges.hpp"
@@ -249,11 +252,11 @@ class TileReader {
     }
   }
 
-  /// Appends the outline cells to *cells and adds the cells per site to *per_site, checking the
-  /// checksum; the tile's site s is the merge's site whole_id[s] (all the tile's sites; empty: the
-  /// same ids). The caller checks the cells (check_outlines).
-  void read_body(label::OutlineCells* out, std::vector<std::uint64_t>* per_site, std::size_t whole_sites,
-                 const std::vector<std::int32_t>& whole_id) {
+  /// Reads the outline cells into out[0, cells) and the cells per site into *counts (the tile's
+  /// sites), checking the checksum and that the cells lie in the tile's codes in order; the tile's
+  /// site s is the merge's site whole_id[s] (all the tile's sites; empty: the same ids). The
+  /// caller checks the whole level's cells (check_outlines). Any thread.
+  void read_body(label::OutlineCell* out, std::vector<std::uint64_t>* counts, const std::vector<std::int32_t>& whole_id) {
     gdal::ErrorCapture errors;
     const File file(VSIFOpenL(path_.c_str(), "rb"));
     if (!file || VSIFSeekL(file.get(), kHeaderBytes + listed_bytes_.size(), SEEK_SET) != 0) {
@@ -262,27 +265,24 @@ class TileReader {
     Hash64 checksum;
     checksum.add_bytes(header_, kHeaderBytes);
     if (!listed_bytes_.empty()) checksum.add_bytes(listed_bytes_.data(), listed_bytes_.size());
-    const std::size_t at = out->size();
-    out->resize(at + cells);
-    std::vector<std::uint64_t> counts(static_cast<std::size_t>(site_count));
+    counts->assign(static_cast<std::size_t>(site_count), 0);
     std::uint64_t stored = 0;
     const auto read = [&](void* data, std::size_t bytes) {
       if (bytes > 0 && VSIFReadL(data, 1, bytes, file.get()) != bytes) throw fail("reading failed" + said(errors));
     };
-    read(out->data() + at, cells * kCellBytes);
-    checksum.add_bytes(reinterpret_cast<const unsigned char*>(out->data() + at), cells * kCellBytes);
-    read(counts.data(), counts.size() * sizeof(std::uint64_t));
-    checksum.add_bytes(reinterpret_cast<const unsigned char*>(counts.data()), counts.size() * sizeof(std::uint64_t));
+    read(out, cells * kCellBytes);
+    checksum.add_bytes(reinterpret_cast<const unsigned char*>(out), cells * kCellBytes);
+    read(counts->data(), counts->size() * sizeof(std::uint64_t));
+    checksum.add_bytes(reinterpret_cast<const unsigned char*>(counts->data()), counts->size() * sizeof(std::uint64_t));
     read(&stored, sizeof stored);
     if (stored != checksum.value()) throw fail("corrupt tile product (its checksum does not match its contents)");
-    per_site->resize(whole_sites, 0);
-    if (whole_id.empty()) {
-      for (std::size_t s = 0; s < counts.size(); ++s) (*per_site)[s] += counts[s];
-      return;
-    }
-    for (std::size_t s = 0; s < counts.size(); ++s) (*per_site)[static_cast<std::size_t>(whole_id[s])] += counts[s];
-    for (std::size_t k = at; k < out->size(); ++k) {
-      label::OutlineCell& cell = (*out)[k];
+    for (std::size_t k = 0; k < cells; ++k) {
+      label::OutlineCell& cell = out[k];
+      const grid::Code code = cell.code();
+      if (code < range.first || code >= range.end || (k > 0 && out[k - 1].code() >= code)) {
+        throw fail("corrupt tile product (outline cell " + std::to_string(code) + " out of place)");
+      }
+      if (whole_id.empty()) continue;
       if (cell.site < 0 || cell.site >= site_count) throw fail("corrupt tile product (a cell of site " + std::to_string(cell.site) + ")");
       cell.site = whole_id[static_cast<std::size_t>(cell.site)];
     }
@@ -482,30 +482,46 @@ label::Outlines merge_tile_products(const std::vector<std::string>& files, const
     throw VoronoiError("-merge: " + std::to_string(missing.count) + " of the " + std::to_string(count) +
                        " tiles missing (" + missing.list + ")");
   }
-  // Then the bodies, in code order, straight into the level's lists: the outline cells are held
-  // once, as a whole run holds them.
+  // Then the bodies, each straight into its place in the level's list (the tiles in code order):
+  // the outline cells are held once, as a whole run holds them. A tile a thread: gigabytes at the
+  // finer levels, read and checked on one thread each (the calling thread reports the progress).
   label::Outlines joined;
   joined.level = expect.level;
   joined.site_count = expect.site_count;
   joined.range = grid::whole_level(expect.level);
-  std::uint64_t cells = 0;
-  for (const auto& [index, tile] : tiles) cells += tile->cells;
-  joined.cells.reserve(cells);
-  std::size_t done = 0;
-  for (auto& [index, tile] : tiles) {
-    const std::size_t from = joined.cells.size();
-    tile->read_body(&joined.cells, &joined.cells_per_site, static_cast<std::size_t>(expect.site_count), whole_ids[index]);
-    whole_ids.erase(index);
-    // The tile's cells must lie in its codes, in order (the whole is checked below).
-    for (std::size_t k = from; k < joined.cells.size(); ++k) {
-      const grid::Code code = joined.cells[k].code();
-      if (code < tile->range.first || code >= tile->range.end || (k > from && joined.cells[k - 1].code() >= code)) {
-        throw tile->fail("corrupt tile product (outline cell " + std::to_string(code) + " out of place)");
-      }
-    }
-    tile.reset();  // closes the file
-    if (progress && !progress(double(++done) / double(tiles.size()))) throw Interrupted();
+  std::vector<TileReader*> order;
+  std::vector<std::size_t> first;  // each tile's first cell in joined.cells
+  std::size_t cells = 0;
+  for (const auto& [index, tile] : tiles) {
+    order.push_back(tile.get());
+    first.push_back(cells);
+    cells += tile->cells;
   }
+  joined.cells.resize(cells);
+  std::vector<std::vector<std::uint64_t>> counts(order.size());
+  FirstException failure;
+  std::atomic<std::size_t> next{0}, done{0};
+  std::atomic<bool> stop{false};
+  const int team = static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(thread_count(0)), order.size()));
+#pragma omp parallel num_threads(team) if (team > 1)
+  {
+    for (std::size_t t = next.fetch_add(1); t < order.size() && !stop.load(); t = next.fetch_add(1)) {
+      failure.run([&] { order[t]->read_body(joined.cells.data() + first[t], &counts[t], whole_ids[order[t]->index]); });
+      const std::size_t now = done.fetch_add(1) + 1;
+      if (thread_index() == 0 && progress && !progress(double(now) / double(order.size()))) stop = true;
+    }
+  }
+  failure.rethrow();
+  if (stop) throw Interrupted();
+  joined.cells_per_site.assign(static_cast<std::size_t>(expect.site_count), 0);
+  for (std::size_t t = 0; t < order.size(); ++t) {
+    const std::vector<std::int32_t>& ids = whole_ids[order[t]->index];
+    for (std::size_t s = 0; s < counts[t].size(); ++s) {
+      joined.cells_per_site[ids.empty() ? s : static_cast<std::size_t>(ids[s])] += counts[t][s];
+    }
+  }
+  tiles.clear();
+  whole_ids.clear();
   try {
     label::check_outlines(joined);
   } catch (const std::exception& e) {

@@ -9,7 +9,9 @@
 #
 #   partitioned_tiles.sh QTMVORONOI LEVEL TILES GPUS SOURCE [READING OPTIONS...]
 #
-# Environment: PER_GPU (tile jobs at once per GPU, default 2), LAYERS (default regions), WORK
+# Environment: PER_GPU (tile jobs at once per GPU, default 2), THREADS (each tile job's -threads,
+# default the host's cores over the jobs at once: a job's default, every core, would put that many
+# threads on each core), LAYERS (default regions), WORK
 # (a directory for the outputs, default a temporary one, removed at the end), CPU_ONLY=1 (every
 # run on the CPU: to try the script on a host without a GPU).
 # Example (1M points at level 16, 8 tiles over 4 GPUs):
@@ -21,6 +23,7 @@ tool=$1 level=$2 tiles=$3 gpus=$4 source=$5
 shift 5
 reading=("$@")
 per_gpu=${PER_GPU:-2} layers=${LAYERS:-regions}
+threads=${THREADS:-$(( $(nproc) / (per_gpu * gpus) > 0 ? $(nproc) / (per_gpu * gpus) : 1 ))}
 if [ -n "${WORK:-}" ]; then
   work=$WORK
   mkdir -p "$work"
@@ -28,7 +31,7 @@ else
   work=$(mktemp -d)
   trap 'rm -rf "$work"' EXIT
 fi
-export tool level tiles gpus source work layers CPU_ONLY
+export tool level tiles gpus source work layers threads CPU_ONLY
 now() { date +%s.%N; }
 # Arithmetic and the sums by awk and Python's sqlite3 (a GeoPackage is SQLite): the GPU machine has
 # neither bc nor GDAL's tools.
@@ -38,7 +41,7 @@ tile_jobs() {
   local extra=$1 suffix=$2
   seq "$tiles" | xargs -P $((per_gpu * gpus)) -I{} bash -c '
     k={}; device=cuda:$(( (k - 1) % gpus )); [ -n "${CPU_ONLY:-}" ] && device=cpu
-    "$tool" -q -overwrite -level "$level" -device "$device" -tile "$k/$tiles" '"$extra"' "$@" "$source" \
+    "$tool" -q -overwrite -level "$level" -device "$device" -threads "$threads" -tile "$k/$tiles" '"$extra"' "$@" "$source" \
       "$work/tiles/$k'"$suffix"'"' _ "${reading[@]}"
 }
 
@@ -63,7 +66,7 @@ t1=$(now)
 t2=$(now)
 part_tiles=$(calc "$t1 - $t0") part_index=$(calc "$t2 - $t1")
 
-printf 'level %s, %s tiles over %s GPUs (%s at a time each)\n' "$level" "$tiles" "$gpus" "$per_gpu"
+printf 'level %s, %s tiles over %s GPUs (%s at a time each, %s threads each)\n' "$level" "$tiles" "$gpus" "$per_gpu" "$threads"
 printf '  whole run (cuda:0)        %8.2f s\n' "$whole"
 printf '  one-file: tiles %6.2f + merge %6.2f = %8.2f s (%.2fx faster than the whole run)\n' "$one_tiles" "$one_merge" \
   "$(calc "$one_tiles + $one_merge")" "$(calc "$whole / ($one_tiles + $one_merge)")"

@@ -218,6 +218,17 @@ TEST(TileMerge, TileJobsRefuseBadTilesAndStopCleanly) {
   EXPECT_THROW(run_voronoi(kCentres, dir + "/t.qtmt", options), Interrupted);
   EXPECT_FALSE(fs::exists(dir + "/t.qtmt"));
   EXPECT_TRUE(test::hidden_entries(dir).empty());
+
+  // A merge stopped while its tile products are read (on several threads) writes nothing.
+  VoronoiOptions merge = case_options(kCentres, 6);
+  run_tiles(kCentres, merge, 8, dir + "/eight");
+  merge.merge = {dir + "/eight"};
+  int reports = 0;
+  merge.progress = [&reports](double, const char* what) { return std::string(what) != "merge" || ++reports < 2; };
+  EXPECT_THROW(run_voronoi(kCentres, dir + "/out", merge), Interrupted);
+  EXPECT_EQ(reports, 2);
+  EXPECT_FALSE(fs::exists(dir + "/out"));
+  EXPECT_TRUE(test::hidden_entries(dir).empty());
 }
 
 // The command line: -tile takes K/N and no output options; -merge and -tile exclude each other.

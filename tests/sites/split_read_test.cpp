@@ -42,9 +42,10 @@ void write_file(const std::string& path, const std::string& text) {
   std::fclose(f);
 }
 
-/// Reads `path` on one thread, then with 2 and 8 threads in ranges of `range_bytes`, and expects
-/// the same of each; `split`: the read trace says the reads of several threads were split (else
-/// that they were read on one thread, saying `why`). Returns the one thread's read.
+/// Reads `path` on one thread, then with 2, 8 and 16 threads in ranges of `range_bytes`, and
+/// expects the same of each; `split`: the read trace says the reads of several threads were split,
+/// by no more than 8 of them (else that they were read on one thread, saying `why`). Returns the
+/// one thread's read.
 Read same_as_sequential(const std::string& path, const ReadOptions& options, std::size_t range_bytes, bool split,
                         const std::string& why = "") {
   const ScopedEnv trace("QTMV_TRACE", "read");
@@ -53,11 +54,17 @@ Read same_as_sequential(const std::string& path, const ReadOptions& options, std
   const ScopedTraceSink sink([&traced](Severity, const std::string& line) { traced.push_back(line); });
   Read one = test::read_with(path, options, 1);
   EXPECT_TRUE(test::any_contains(traced, "read on one thread: the run has one thread"));
-  for (const int threads : {2, 8}) {
+  for (const int threads : {2, 8, 16}) {
     SCOPED_TRACE(std::to_string(threads) + " threads");
     traced.clear();
     test::expect_same(one, test::read_with(path, options, threads));
     EXPECT_EQ(test::any_contains(traced, ": split read: "), split) << (traced.empty() ? "" : traced.front());
+    for (const std::string& line : traced) {
+      const std::size_t by = line.find(", read by ");
+      if (by != std::string::npos) {
+        EXPECT_LE(std::stoi(line.substr(by + 10)), std::min(threads, 8)) << line;
+      }
+    }
     if (!split) {
       EXPECT_TRUE(test::any_contains(traced, why)) << (traced.empty() ? "" : traced.front());
     }

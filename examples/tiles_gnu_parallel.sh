@@ -14,9 +14,10 @@
 # and to the merge; OUTPUT OPTIONS (-of, -layers, -lco, -overwrite, ...) to the merge alone (parts:
 # to every tile job; -overwrite to the index too).
 # Environment: QTMVORONOI (the tool; default: qtmvoronoi on the PATH), JOBS (tile jobs at once;
-# default: parallel's, one per core), TILE_DIR (where the tile products go; default: a temporary
-# directory, removed at the end; parts: where the parts go, default DESTINATION less .vrt, plus
-# _parts), FORM (one-file or parts).
+# default: parallel's, one per core; each job gets -threads cores/JOBS unless the READING OPTIONS
+# give -threads: a job's default, every core, would put JOBS threads on each core), TILE_DIR
+# (where the tile products go; default: a temporary directory, removed at the end; parts: where
+# the parts go, default DESTINATION less .vrt, plus _parts), FORM (one-file or parts).
 #
 # Example: 8 tiles of level 12, 2 at a time, regions as a GeoPackage
 #   JOBS=2 examples/tiles_gnu_parallel.sh 12 8 sites.gpkg voronoi.gpkg -l sites -- -layers regions
@@ -27,7 +28,7 @@
 set -euo pipefail
 
 if [ $# -lt 4 ]; then
-  sed -n '11,19p' "$0" >&2
+  sed -n '11,20p' "$0" >&2
   exit 2
 fi
 level=$1 tiles=$2 source=$3 destination=$4
@@ -39,6 +40,10 @@ output=("$@")
 
 tool=${QTMVORONOI:-qtmvoronoi}
 command -v parallel > /dev/null || { echo "$0: GNU parallel is missing (Debian: apt install parallel)" >&2; exit 1; }
+cores=$(nproc)
+per_job=$((cores / ${JOBS:-$cores}))
+threads=(-threads $((per_job > 0 ? per_job : 1)))
+for o in ${reading[@]+"${reading[@]}"}; do [ "$o" = -threads ] && threads=(); done
 
 if [ "${FORM:-one-file}" = parts ]; then
   part_dir=${TILE_DIR:-${destination%.vrt}_parts}
@@ -51,7 +56,7 @@ if [ "${FORM:-one-file}" = parts ]; then
     esac
   done
   parallel --will-cite --quote --halt now,fail=1 ${JOBS:+-j "$JOBS"} \
-    "$tool" -q -overwrite -level "$level" -tile {}/"$tiles" -part "${reading[@]}" ${output[@]+"${output[@]}"} \
+    "$tool" -q -overwrite -level "$level" -tile {}/"$tiles" -part ${threads[@]+"${threads[@]}"} "${reading[@]}" ${output[@]+"${output[@]}"} \
     "$source" "$part_dir"/{}."$part" ::: $(seq "$tiles")
   exec "$tool" ${index[@]+"${index[@]}"} -merge "$part_dir" -of VRT "$destination"
 fi
@@ -67,6 +72,6 @@ fi
 # One tile job per tile; --quote passes the options as they are (a -where with spaces), and
 # --halt now,fail=1 stops the others at the first failure, whose message parallel passes on.
 parallel --will-cite --quote --halt now,fail=1 ${JOBS:+-j "$JOBS"} \
-  "$tool" -q -overwrite -level "$level" -tile {}/"$tiles" "${reading[@]}" "$source" "$tile_dir"/{}.qtmt \
+  "$tool" -q -overwrite -level "$level" -tile {}/"$tiles" ${threads[@]+"${threads[@]}"} "${reading[@]}" "$source" "$tile_dir"/{}.qtmt \
   ::: $(seq "$tiles")
 "$tool" -level "$level" -merge "$tile_dir" "${reading[@]}" "${output[@]}" "$source" "$destination"

@@ -19,7 +19,7 @@ namespace qtmv::sites {
 /// points (three chunks of 65 536 at work) gets 7 threads. Measured on 32 cores (bench/RESULTS.md,
 /// session 26), 1M points read with 8 GDAL readers: teams of 4 and 8 read a GeoPackage in
 /// 0.64-0.80 s, teams of 16 and 32 in 1.0-1.2 s (the team's threads crowd the readers, and give
-/// back the features those made); a CSV in 0.72-0.83 s either way. Lines and polygons, up to
+/// back the features those made); a CSV in 0.76-0.83 s either way. Lines and polygons, up to
 /// 2^20 vertices a chunk, are rasterised by every thread.
 constexpr std::size_t kWorkPerThread = std::size_t{1} << 16;
 

@@ -31,7 +31,7 @@ constexpr std::size_t kRangesPerThread = 8;                      // the threads 
 /// The most threads that read parts at once (their ranges are cut for that many). On 32 cores
 /// (bench/RESULTS.md, session 26), 1M points, teams of 4 and 8: a GeoPackage read by 4 or 8 in
 /// 0.64-0.80 s, by 16 or 32 in 0.83-1.05 s (more connections than the reading thread can take
-/// features from); a CSV by 8 or 16 in 0.72-0.83 s, by 4 in 0.92-1.06 s, by 32 in 0.83-0.89 s.
+/// features from); a CSV by 8 or 16 in 0.76-0.88 s, by 4 in 0.92-1.06 s, by 32 in 0.88-1.10 s.
 constexpr std::size_t kMaxReaders = 8;
 constexpr std::size_t kScanBlock = std::size_t{1} << 20;
 constexpr std::size_t kMostHeaderBytes = std::size_t{1} << 20;

@@ -203,16 +203,16 @@ bool LayerReader::step(std::size_t r, std::size_t& chunks) {
   const std::size_t copies = appended ? appended->append.unit_count() : 0;
   // A split read's features were made on other threads: their memory goes back on all threads.
   const std::size_t releases = appended && split_ ? appended->chunk.block_count() : 0;
-  std::size_t work = 0;
+  std::size_t features = 0, vertices = 0;
   for (const Slot* slot : {examined, built, appended}) {
-    if (slot) work += slot->chunk.size() + slot->chunk.vertex_count();
+    if (slot) features += slot->chunk.size(), vertices += slot->chunk.vertex_count();
   }
   const int threads = totals_.builders.threads();
   ReadTimes& times = totals_.times;
   const Examination examination{crs_.range, validity_, transforms_};
   auto share_end = std::chrono::steady_clock::now();
   run_step(
-      team_for_work(threads, work), builds + examines + copies + releases,
+      team_for_work(threads, features, vertices), builds + examines + copies + releases,
       [&] {
         const auto start = share_end;
         if (reading) read_chunk(reading->chunk);

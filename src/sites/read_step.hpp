@@ -15,18 +15,20 @@
 
 namespace qtmv::sites {
 
-/// The features and vertices a step's team is given a thread for (beyond the first): a step of
-/// points (three chunks of 65 536 at work) gets 7 threads. Measured on 32 cores (bench/RESULTS.md,
-/// session 26), 1M points read with 8 GDAL readers: teams of 4 and 8 read a GeoPackage in
-/// 0.64-0.80 s, teams of 16 and 32 in 1.0-1.2 s (the team's threads crowd the readers, and give
-/// back the features those made); a CSV in 0.76-0.83 s either way. Lines and polygons, up to
-/// 2^20 vertices a chunk, are rasterised by every thread.
-constexpr std::size_t kWorkPerThread = std::size_t{1} << 16;
+/// The points a step's team is given a thread for (beyond the first): a step of points (three
+/// chunks of 65 536 at work) gets 7 threads. Measured on 32 cores (bench/RESULTS.md, session 26),
+/// 1M points read with 8 GDAL readers: teams of 4 and 8 read a GeoPackage in 0.64-0.80 s, teams
+/// of 16 and 32 in 1.0-1.2 s (the team's threads crowd the readers, and give back the features
+/// those made); a CSV in 0.76-0.83 s either way.
+constexpr std::size_t kPointsPerThread = std::size_t{1} << 15;
 
-/// A step's threads for `work` (its chunks' features plus vertices): 1 + work / kWorkPerThread,
-/// at most `threads`.
-inline int team_for_work(int threads, std::size_t work) {
-  return static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(std::max(threads, 1)), 1 + work / kWorkPerThread));
+/// A step's threads for its chunks' `features` with `vertices` in all: for points (a vertex a
+/// feature at most) 1 + features / kPointsPerThread; every thread once there is more (lines,
+/// polygons, multipoints: their covers' work follows their extent at the level, not their
+/// vertices). At most `threads`, at least 1.
+inline int team_for_work(int threads, std::size_t features, std::size_t vertices) {
+  const std::size_t all = static_cast<std::size_t>(std::max(threads, 1));
+  return static_cast<int>(vertices > features ? all : std::min(all, 1 + features / kPointsPerThread));
 }
 
 /// Runs share() on the calling thread and unit(u) for u in [0, units) on up to `threads`

@@ -35,19 +35,21 @@ TEST(ReadStep, TheShareRunsOnTheCallingThreadAndEachUnitOnce) {
   }
 }
 
-// A step of points (three chunks of 65 536 at work, a vertex each) gets a few threads, one of
-// polygons (2^20 vertices a chunk) every thread; never more than the threads, never none.
-TEST(ReadStep, TheTeamGrowsWithTheWorkUpToTheThreads) {
-  const std::size_t points = 3 * (65536 + 65536), polygons = 3 * (4096 + (std::size_t{1} << 20));
-  EXPECT_EQ(team_for_work(64, points), 7);
-  EXPECT_EQ(team_for_work(4, points), 4);
-  EXPECT_EQ(team_for_work(64, polygons), 49);
-  EXPECT_EQ(team_for_work(32, polygons), 32);
-  EXPECT_EQ(team_for_work(32, 0), 1);
-  EXPECT_EQ(team_for_work(0, polygons), 1);
+// A step of points (three chunks of 65 536 at work, a vertex each, some empty) gets a few
+// threads; one with lines, polygons or multipoints (more vertices than features) every thread;
+// never more than the threads, never none.
+TEST(ReadStep, PointsGetAThreadPerTheirNumberOthersEveryThread) {
+  const std::size_t points = 3 * 65536;
+  EXPECT_EQ(team_for_work(64, points, points), 7);
+  EXPECT_EQ(team_for_work(64, points, points - 1000), 7);
+  EXPECT_EQ(team_for_work(4, points, points), 4);
+  EXPECT_EQ(team_for_work(64, points, points + 1), 64);
+  EXPECT_EQ(team_for_work(64, 30, 4000), 64);
+  EXPECT_EQ(team_for_work(32, 0, 0), 1);
+  EXPECT_EQ(team_for_work(0, 30, 4000), 1);
   int last = 0;
-  for (std::size_t work = 0; work < (std::size_t{1} << 22); work += 4099) {
-    const int team = team_for_work(16, work);
+  for (std::size_t features = 0; features < (std::size_t{1} << 20); features += 4099) {
+    const int team = team_for_work(16, features, features);
     EXPECT_GE(team, last);
     EXPECT_LE(team, 16);
     last = team;

@@ -490,10 +490,12 @@ label::Outlines merge_tile_products(const std::vector<std::string>& files, const
   joined.site_count = expect.site_count;
   joined.range = grid::whole_level(expect.level);
   std::vector<TileReader*> order;
+  std::vector<const std::vector<std::int32_t>*> ids;  // each tile's whole_ids (no map lookups on the threads)
   std::vector<std::size_t> first;  // each tile's first cell in joined.cells
   std::size_t cells = 0;
   for (const auto& [index, tile] : tiles) {
     order.push_back(tile.get());
+    ids.push_back(&whole_ids.at(index));
     first.push_back(cells);
     cells += tile->cells;
   }
@@ -506,7 +508,7 @@ label::Outlines merge_tile_products(const std::vector<std::string>& files, const
 #pragma omp parallel num_threads(team) if (team > 1)
   {
     for (std::size_t t = next.fetch_add(1); t < order.size() && !stop.load(); t = next.fetch_add(1)) {
-      failure.run([&] { order[t]->read_body(joined.cells.data() + first[t], &counts[t], whole_ids[order[t]->index]); });
+      failure.run([&] { order[t]->read_body(joined.cells.data() + first[t], &counts[t], *ids[t]); });
       const std::size_t now = done.fetch_add(1) + 1;
       if (thread_index() == 0 && progress && !progress(double(now) / double(order.size()))) stop = true;
     }
@@ -515,9 +517,9 @@ label::Outlines merge_tile_products(const std::vector<std::string>& files, const
   if (stop) throw Interrupted();
   joined.cells_per_site.assign(static_cast<std::size_t>(expect.site_count), 0);
   for (std::size_t t = 0; t < order.size(); ++t) {
-    const std::vector<std::int32_t>& ids = whole_ids[order[t]->index];
+    const std::vector<std::int32_t>& id = *ids[t];
     for (std::size_t s = 0; s < counts[t].size(); ++s) {
-      joined.cells_per_site[ids.empty() ? s : static_cast<std::size_t>(ids[s])] += counts[t][s];
+      joined.cells_per_site[id.empty() ? s : static_cast<std::size_t>(id[s])] += counts[t][s];
     }
   }
   tiles.clear();

@@ -14,8 +14,9 @@
 # and to the merge; OUTPUT OPTIONS (-of, -layers, -lco, -overwrite, ...) to the merge alone (parts:
 # to every tile job; -overwrite to the index too).
 # Environment: QTMVORONOI (the tool; default: qtmvoronoi on the PATH), JOBS (tile jobs at once;
-# default: parallel's, one per core; each job gets -threads cores/JOBS unless the READING OPTIONS
-# give -threads: a job's default, every core, would put JOBS threads on each core), TILE_DIR
+# default: parallel's, one per core; each job gets -threads cores/JOBS, or cores/TILES if there
+# are fewer tiles, unless the READING OPTIONS give -threads: a job's default, every core, would
+# put JOBS threads on each core), TILE_DIR
 # (where the tile products go; default: a temporary directory, removed at the end; parts: where
 # the parts go, default DESTINATION less .vrt, plus _parts), FORM (one-file or parts).
 #
@@ -28,7 +29,7 @@
 set -euo pipefail
 
 if [ $# -lt 4 ]; then
-  sed -n '11,20p' "$0" >&2
+  sed -n '11,21p' "$0" >&2
   exit 2
 fi
 level=$1 tiles=$2 source=$3 destination=$4
@@ -40,9 +41,17 @@ output=("$@")
 
 tool=${QTMVORONOI:-qtmvoronoi}
 command -v parallel > /dev/null || { echo "$0: GNU parallel is missing (Debian: apt install parallel)" >&2; exit 1; }
-cores=$(nproc)
-per_job=$((cores / ${JOBS:-$cores}))
-threads=(-threads $((per_job > 0 ? per_job : 1)))
+# Each tile job's share of the cores: the jobs at once are JOBS (parallel's default: one per core)
+# or the tiles, if fewer; parallel's other forms of -j (50%, +2, 0) are left to a -threads of the
+# user's.
+cores=$(nproc) at_once=
+case ${JOBS:-} in
+  '') at_once=$((tiles < cores ? tiles : cores)) ;;
+  *[!0-9]* | 0) ;;
+  *) at_once=$((JOBS < tiles ? JOBS : tiles)) ;;
+esac
+threads=()
+[ -n "$at_once" ] && [ "$at_once" -gt 0 ] && threads=(-threads $((cores / at_once > 0 ? cores / at_once : 1)))
 for o in ${reading[@]+"${reading[@]}"}; do [ "$o" = -threads ] && threads=(); done
 
 if [ "${FORM:-one-file}" = parts ]; then

@@ -6,14 +6,17 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
+#include <exception>
 #include <cstring>
 #include <functional>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <stdexcept>
+#include <thread>
 #include <utility>
 
-#include "common/first_exception.hpp"
 #include "common/host_info.hpp"
 #include "common/openmp_threads.hpp"
 #include "common/run_context.hpp"
@@ -483,12 +486,14 @@ label::Outlines merge_tile_products(const std::vector<std::string>& files, const
                        " tiles missing (" + missing.list + ")");
   }
   // Then the bodies, each straight into its place in the level's list (the tiles in code order):
-  // the outline cells are held once, as a whole run holds them. A tile a thread: gigabytes at the
-  // finer levels, read and checked on one thread each (the calling thread reports the progress).
+  // the outline cells are held once, as a whole run holds them. A tile a thread (gigabytes at the
+  // finer levels), while the calling thread reports the progress. A failed tile stops the tiles
+  // after it, not those before: the error is the first bad tile's, as reading them in order gives.
   label::Outlines joined;
   joined.level = expect.level;
   joined.site_count = expect.site_count;
   joined.range = grid::whole_level(expect.level);
+  joined.cells_per_site.assign(static_cast<std::size_t>(expect.site_count), 0);
   std::vector<TileReader*> order;
   std::vector<const std::vector<std::int32_t>*> ids;  // each tile's whole_ids (no map lookups on the threads)
   std::vector<std::size_t> first;  // each tile's first cell in joined.cells
@@ -499,29 +504,69 @@ label::Outlines merge_tile_products(const std::vector<std::string>& files, const
     first.push_back(cells);
     cells += tile->cells;
   }
-  joined.cells.resize(cells);
-  std::vector<std::vector<std::uint64_t>> counts(order.size());
-  FirstException failure;
-  std::atomic<std::size_t> next{0}, done{0};
+  joined.cells.resize(cells);  // not zeroed (default-initialised), filled by the tiles' threads
+  const std::size_t n = order.size();
+  std::vector<std::exception_ptr> failed(n);
+  std::atomic<std::size_t> next{0}, done{0}, first_failed{n};
+  std::atomic<int> readers_left{0};
   std::atomic<bool> stop{false};
-  const int team = static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(thread_count(0)), order.size()));
-#pragma omp parallel num_threads(team) if (team > 1)
-  {
-    for (std::size_t t = next.fetch_add(1); t < order.size() && !stop.load(); t = next.fetch_add(1)) {
-      failure.run([&] { order[t]->read_body(joined.cells.data() + first[t], &counts[t], *ids[t]); });
-      const std::size_t now = done.fetch_add(1) + 1;
-      if (thread_index() == 0 && progress && !progress(double(now) / double(order.size()))) stop = true;
+  std::exception_ptr progress_failed;
+  std::mutex counts_lock;
+  const auto read_tile = [&](std::size_t t) {
+    try {
+      std::vector<std::uint64_t> counts;
+      order[t]->read_body(joined.cells.data() + first[t], &counts, *ids[t]);
+      const std::vector<std::int32_t>& id = *ids[t];
+      const std::lock_guard<std::mutex> hold(counts_lock);  // integer sums: the same in any order
+      for (std::size_t s = 0; s < counts.size(); ++s) joined.cells_per_site[id.empty() ? s : static_cast<std::size_t>(id[s])] += counts[s];
+    } catch (...) {
+      failed[t] = std::current_exception();
+      for (std::size_t at = first_failed.load(); t < at && !first_failed.compare_exchange_weak(at, t);) {
+      }
+    }
+    done.fetch_add(1);
+  };
+  const auto report = [&] {
+    if (!progress || stop.load()) return;
+    try {
+      if (!progress(double(done.load()) / double(n))) stop = true;
+    } catch (...) {
+      progress_failed = std::current_exception();
+      stop = true;
+    }
+  };
+  const auto read_tiles = [&] {
+    for (std::size_t t = next.fetch_add(1); t < n && !stop.load() && t < first_failed.load(); t = next.fetch_add(1)) read_tile(t);
+  };
+  const int readers = static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(thread_count(0)), n));
+  if (readers <= 1) {
+    for (std::size_t t = 0; t < n && !stop.load() && first_failed.load() == n; ++t) {
+      read_tile(t);
+      report();
+    }
+  } else {
+    readers_left = readers;
+#pragma omp parallel num_threads(readers + 1)
+    {
+      if (thread_index() == 0) {
+        for (std::size_t reported = n + 1;;) {
+          const bool last = readers_left.load() == 0;
+          if (done.load() != reported) {
+            reported = done.load();
+            report();
+          }
+          if (last) break;
+          std::this_thread::sleep_for(std::chrono::milliseconds(10));
+        }
+      } else {
+        read_tiles();
+        readers_left.fetch_sub(1);
+      }
     }
   }
-  failure.rethrow();
+  if (first_failed.load() < n) std::rethrow_exception(failed[first_failed.load()]);
+  if (progress_failed) std::rethrow_exception(progress_failed);
   if (stop) throw Interrupted();
-  joined.cells_per_site.assign(static_cast<std::size_t>(expect.site_count), 0);
-  for (std::size_t t = 0; t < order.size(); ++t) {
-    const std::vector<std::int32_t>& id = *ids[t];
-    for (std::size_t s = 0; s < counts[t].size(); ++s) {
-      joined.cells_per_site[id.empty() ? s : static_cast<std::size_t>(id[s])] += counts[t][s];
-    }
-  }
   tiles.clear();
   whole_ids.clear();
   try {

@@ -446,17 +446,18 @@ std::string fid_range_refusal(const OgrSource& source, OGRLayer& layer, const Re
 }
 
 /// Why `layer` of `source` is read as one sequence; empty when it may be split. Sets `s`'s file,
-/// header, sidecars and ranges (or FID ranges) on the way.
+/// header, sidecars and ranges (or FID ranges, cut for `readers` threads) on the way; the file
+/// is scanned on `threads`.
 std::string split_refusal(const OgrSource& source, OGRLayer& layer, const ReadOptions& options, int threads,
-                          SplitRead::Impl& s) {
-  if (threads < 2) return "the run has one thread";
+                          int readers, SplitRead::Impl& s) {
+  if (readers < 2) return "the run has one thread";
   if (const char* split = config_option("QTMV_READ_SPLIT"); split && !CPLTestBool(split)) return "QTMV_READ_SPLIT=NO";
   if (!options.sql.empty()) return "-sql";
   struct stat local;
   if (source.name.rfind("/vsi", 0) == 0 || ::stat(source.name.c_str(), &local) != 0 || !S_ISREG(local.st_mode)) {
     return "not a plain file";
   }
-  if (EQUAL(source.dataset->GetDriverName(), "GPKG")) return fid_range_refusal(source, layer, options, threads, s);
+  if (EQUAL(source.dataset->GetDriverName(), "GPKG")) return fid_range_refusal(source, layer, options, readers, s);
   if (!EQUAL(source.dataset->GetDriverName(), "CSV")) {
     return std::string("the ") + source.dataset->GetDriverName() + " driver's reads are not split";
   }
@@ -481,7 +482,7 @@ std::string split_refusal(const OgrSource& source, OGRLayer& layer, const ReadOp
   const unsigned long long range_bytes = asked ? std::strtoull(asked, &asked_end, 10) : 0;
   s.range_bytes = range_bytes > 0 && *asked_end == '\0'
                       ? static_cast<std::size_t>(range_bytes)
-                      : std::clamp(data / (static_cast<std::size_t>(threads) * kRangesPerThread), kMinRangeBytes,
+                      : std::clamp(data / (static_cast<std::size_t>(readers) * kRangesPerThread), kMinRangeBytes,
                                    kMaxRangeBytes);
   s.ranges = (data + s.range_bytes - 1) / s.range_bytes;
   if (s.ranges < 2) return "one range of " + std::to_string(data) + " bytes";
@@ -520,7 +521,7 @@ std::unique_ptr<SplitRead> SplitRead::open(const OgrSource& source, std::size_t 
   auto s = std::make_unique<Impl>();
   OGRLayer& layer = *source.layers[layer_number].layer;
   const int readers = static_cast<int>(std::min(static_cast<std::size_t>(std::max(threads, 0)), kMaxReaders));
-  std::string why = split_refusal(source, layer, options, readers, *s);
+  std::string why = split_refusal(source, layer, options, threads, readers, *s);
   if (why.empty() && !s->by_fid) why = header_refusal(layer, *s);
   if (!why.empty()) {
     trace_printf(TraceStage::read, "%s: read on one thread: %s", where_from.c_str(), why.c_str());

@@ -7,8 +7,8 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
-#include <exception>
 #include <cstring>
+#include <exception>
 #include <functional>
 #include <map>
 #include <memory>
@@ -535,15 +535,16 @@ label::Outlines merge_tile_products(const std::vector<std::string>& files, const
       stop = true;
     }
   };
-  const auto read_tiles = [&] {
-    for (std::size_t t = next.fetch_add(1); t < n && !stop.load() && t < first_failed.load(); t = next.fetch_add(1)) read_tile(t);
+  // Reads the next tile not taken yet, unless stopped or a tile before it failed; false once none is left.
+  const auto read_next = [&] {
+    const std::size_t t = next.fetch_add(1);
+    if (t >= n || stop.load() || t >= first_failed.load()) return false;
+    read_tile(t);
+    return true;
   };
   const int readers = static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(thread_count(0)), n));
   if (readers <= 1) {
-    for (std::size_t t = 0; t < n && !stop.load() && first_failed.load() == n; ++t) {
-      read_tile(t);
-      report();
-    }
+    while (read_next()) report();
   } else {
     readers_left = readers;
 #pragma omp parallel num_threads(readers + 1)
@@ -559,7 +560,8 @@ label::Outlines merge_tile_products(const std::vector<std::string>& files, const
           std::this_thread::sleep_for(std::chrono::milliseconds(10));
         }
       } else {
-        read_tiles();
+        while (read_next()) {
+        }
         readers_left.fetch_sub(1);
       }
     }

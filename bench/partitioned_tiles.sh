@@ -23,7 +23,8 @@ tool=$1 level=$2 tiles=$3 gpus=$4 source=$5
 shift 5
 reading=("$@")
 per_gpu=${PER_GPU:-2} layers=${LAYERS:-regions}
-threads=${THREADS:-$(( $(nproc) / (per_gpu * gpus) > 0 ? $(nproc) / (per_gpu * gpus) : 1 ))}
+cores=$(nproc)
+threads=${THREADS:-$((cores / (per_gpu * gpus) > 0 ? cores / (per_gpu * gpus) : 1))}
 if [ -n "${WORK:-}" ]; then
   work=$WORK
   mkdir -p "$work"

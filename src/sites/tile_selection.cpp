@@ -3,13 +3,16 @@
 #include <ogr_geometry.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <thread>
 #include <utility>
 
 #include "common/config_option.hpp"
+#include "common/openmp_threads.hpp"
 #include "sites/feature_examination.hpp"
 #include "sites/lonlat_transform.hpp"
 #include "sites/read_times.hpp"
@@ -30,6 +33,13 @@ constexpr double kDatumMarginDegrees = 0.1;
 constexpr double kFewFeatures = 10000;
 /// Most vertices of a feature that the check uses (any of its points will do).
 constexpr std::size_t kMostPointsPerFeature = 256;
+/// Most connections a round's filtered reads are spread over (the split read's readers).
+constexpr std::size_t kMostReaders = 8;
+/// Spread over connections, a round's envelopes are cut into about this many pieces a connection
+/// (a tile's surroundings are mostly one box: 98% of its sites in one read of 18, 1M points)...
+constexpr double kPiecesPerReader = 4;
+/// ...and an envelope into at most this many.
+constexpr double kMostPieces = 64;
 
 /// One layer of the source as the selection reads it: the CRS its coordinates are read in and the
 /// transformations between it and WGS84 lon/lat (none when it is that), and what it gave so far.
@@ -220,6 +230,118 @@ bool read_envelope(LayerFilter& f, const OGREnvelope& env, bool polygons, std::v
   return !errors.failed();
 }
 
+/// One filtered read of a round: an envelope of a layer (its index in the selection's layers).
+struct EnvelopeRead {
+  std::size_t layer;
+  OGREnvelope envelope;
+};
+
+/// The round's envelopes cut across their longer side into pieces of about an equal share of
+/// the round's area, kPiecesPerReader for each of `readers`: the same features in all (a feature
+/// meets a closed rectangle where it meets one of its pieces; one read twice is read once), in
+/// reads of about even size.
+std::vector<EnvelopeRead> cut_for_readers(const std::vector<EnvelopeRead>& reads, std::size_t readers) {
+  const auto area = [](const OGREnvelope& e) { return (e.MaxX - e.MinX) * (e.MaxY - e.MinY); };
+  double total = 0;
+  for (const EnvelopeRead& r : reads) total += area(r.envelope);
+  const double share = total / (kPiecesPerReader * static_cast<double>(readers));
+  std::vector<EnvelopeRead> out;
+  for (const EnvelopeRead& r : reads) {
+    const OGREnvelope& e = r.envelope;
+    const double pieces = share > 0 ? std::clamp(std::ceil(area(e) / share), 1.0, kMostPieces) : 1.0;
+    const bool across_x = e.MaxX - e.MinX >= e.MaxY - e.MinY;
+    const double from = across_x ? e.MinX : e.MinY, to = across_x ? e.MaxX : e.MaxY;
+    for (double k = 0; k < pieces; ++k) {
+      OGREnvelope piece = e;
+      const double lo = k == 0 ? from : from + (to - from) * (k / pieces);
+      const double hi = k + 1 == pieces ? to : from + (to - from) * ((k + 1) / pieces);
+      (across_x ? piece.MinX : piece.MinY) = lo;
+      (across_x ? piece.MaxX : piece.MaxY) = hi;
+      out.push_back({r.layer, piece});
+    }
+  }
+  return out;
+}
+
+/// Why `read` failed (read_envelope's false), for the read trace.
+std::string read_failure(const LayerFilter& f, const gdal::ErrorCapture& errors) {
+  return "layer '" + f.name + "': " + (errors.failed() ? "GDAL failed reading it" : "features without FIDs");
+}
+
+/// One connection of a round's spread reads: the source opened again, its layers as the
+/// selection's (the same definition and -where; a copy of the transformation to WGS84), and what
+/// its reads gave.
+struct Reader {
+  std::vector<LayerFilter> layers;
+  std::vector<grid::LonLat> points;
+  std::uint64_t returned = 0;
+  bool opened = false;
+  std::string failure;  // a read that failed (the selection then gives up)
+};
+
+/// Reads `reads` on up to `readers` connections of their own at once, each taking the next read
+/// (a GeoPackage's filtered reads are SQLite's R-tree queries and the features' decoding, one
+/// thread each). Returns false, having read nothing, when a connection cannot be made as the
+/// source's (the caller then reads on the source's own); else fills `failure` as read_envelope
+/// would fail. The features and points are the same as read one after another (their order is
+/// not: the caller sorts the features by FID, and the checks do not depend on it).
+bool read_spread(const OgrSource& source, const ReadOptions& options, std::vector<LayerFilter>& layers,
+                 const std::vector<EnvelopeRead>& reads, std::size_t readers, bool polygons,
+                 std::vector<grid::LonLat>& points, std::uint64_t& returned, std::string& failure) {
+  std::vector<Reader> team(readers);
+  // The transformations copied here, one at a time: OGR's are not for several threads at once.
+  for (Reader& r : team) {
+    r.layers.resize(layers.size());
+    for (std::size_t k = 0; k < layers.size(); ++k) {
+      r.layers[k].name = layers[k].name;
+      r.layers[k].range = layers[k].range;
+      if (layers[k].to_wgs84) {
+        r.layers[k].to_wgs84.reset(layers[k].to_wgs84->Clone());
+        if (!r.layers[k].to_wgs84) return false;
+      }
+    }
+  }
+  const char* const same_driver[] = {source.dataset->GetDriverName(), nullptr};
+  std::atomic<std::size_t> next{0};
+  const auto work = [&](Reader& r) {
+    gdal::ErrorCapture errors;
+    const GDALDatasetUniquePtr dataset = open_vector(source.name, options.open_options, same_driver);
+    if (!dataset) return;
+    for (std::size_t k = 0; k < layers.size(); ++k) {
+      OGRLayer* layer = dataset->GetLayerByName(layers[k].layer->GetName());
+      if (!layer || !layer->GetLayerDefn()->IsSame(layers[k].layer->GetLayerDefn())) return;
+      if (!options.where.empty() && layer->SetAttributeFilter(options.where.c_str()) != OGRERR_NONE) return;
+      r.layers[k].layer = layer;
+    }
+    r.opened = true;
+    for (std::size_t at; r.failure.empty() && (at = next.fetch_add(1)) < reads.size();) {
+      LayerFilter& f = r.layers[reads[at].layer];
+      if (!read_envelope(f, reads[at].envelope, polygons, r.points, r.returned, errors)) r.failure = read_failure(f, errors);
+    }
+    for (LayerFilter& f : r.layers) {
+      if (f.layer) f.layer->SetSpatialFilter(nullptr);
+    }
+  };  // the connection closed: its features keep their definition
+  {
+    std::vector<std::thread> threads;
+    for (std::size_t t = 1; t < readers; ++t) threads.emplace_back(work, std::ref(team[t]));
+    work(team[0]);
+    for (std::thread& t : threads) t.join();
+  }
+  if (!std::all_of(team.begin(), team.end(), [](const Reader& r) { return r.opened; })) return false;
+  for (Reader& r : team) {
+    if (failure.empty()) failure = r.failure;
+    points.insert(points.end(), r.points.begin(), r.points.end());
+    returned += r.returned;
+    for (std::size_t k = 0; k < layers.size(); ++k) {
+      auto& from = r.layers[k].features;
+      layers[k].features.insert(layers[k].features.end(), std::make_move_iterator(from.begin()),
+                                std::make_move_iterator(from.end()));
+    }
+  }
+  return true;
+}
+
 /// The features of `f` by FID, each once.
 std::vector<OGRFeatureUniquePtr> by_fid(LayerFilter& f) {
   std::sort(f.features.begin(), f.features.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
@@ -280,6 +402,9 @@ TileSelection select_tile_features(const OgrSource& source, const ReadOptions& o
   std::vector<grid::LonLat> points;
   std::uint64_t returned = 0, reads = 0;
   int rounds = 0;
+  bool spread = EQUAL(source.dataset->GetDriverName(), "GPKG");
+  const auto team = static_cast<std::size_t>(thread_count(options.threads));
+  std::size_t most_readers = 1;
   for (std::size_t left = caps.size(); left > 0; ++rounds) {
     report_progress(options.progress, 0.0, "selecting sites");
     auto t0 = std::chrono::steady_clock::now();
@@ -292,18 +417,33 @@ TileSelection select_tile_features(const OgrSource& source, const ReadOptions& o
         return read_all("a cap of the tile reaches round the sphere (too few sites near it)");
       }
     }
-    for (LayerFilter& f : layers) {
+    std::vector<EnvelopeRead> round;
+    for (std::size_t k = 0; k < layers.size(); ++k) {
       for (const LonLatBox& box : boxes) {
         std::vector<OGREnvelope> envelopes;
-        if (!layer_envelopes(f, box, envelopes)) return read_all("layer '" + f.name + "': its CRS does not hold the tile's surroundings");
-        for (const OGREnvelope& env : envelopes) {
-          ++reads;
-          if (!read_envelope(f, env, !options.make_valid, points, returned, errors)) {
-            return read_all("layer '" + f.name + "': " + (errors.failed() ? "GDAL failed reading it" : "features without FIDs"));
-          }
+        if (!layer_envelopes(layers[k], box, envelopes)) {
+          return read_all("layer '" + layers[k].name + "': its CRS does not hold the tile's surroundings");
         }
+        for (const OGREnvelope& env : envelopes) round.push_back({k, env});
       }
     }
+    reads += round.size();
+    // A GeoPackage's reads spread over connections of their own, as its split read is.
+    const std::size_t readers = spread ? std::min({kMostReaders, round.size(), team}) : 1;
+    std::string failure;
+    if (readers < 2 ||
+        !read_spread(source, options, layers, cut_for_readers(round, readers), readers, !options.make_valid, points, returned, failure)) {
+      if (readers >= 2) spread = false;  // a connection that could not be made is not tried again
+      for (const EnvelopeRead& r : round) {
+        if (!read_envelope(layers[r.layer], r.envelope, !options.make_valid, points, returned, errors)) {
+          failure = read_failure(layers[r.layer], errors);
+          break;
+        }
+      }
+    } else {
+      most_readers = std::max(most_readers, readers);
+    }
+    if (!failure.empty()) return read_all(failure);
     // Reading most of the source again and again costs more than reading it once.
     if (static_cast<double>(returned) > 2.0 * total + 1000.0) return read_all("the tile's surroundings hold most sites");
     read_s += seconds_since(t0);
@@ -322,10 +462,10 @@ TileSelection select_tile_features(const OgrSource& source, const ReadOptions& o
   out.source_features = static_cast<std::uint64_t>(total);
   char text[256];
   std::snprintf(text, sizeof text,
-                "%zu of %.0f features (%llu given by %llu filtered reads in %d rounds; %zu caps of level %d), "
-                "%.3f s (caps %.3f, boxes %.3f, reads %.3f, checks %.3f)",
+                "%zu of %.0f features (%llu given by %llu filtered reads in %d rounds on %zu connection%s; %zu caps of "
+                "level %d), %.3f s (caps %.3f, boxes %.3f, reads %.3f, checks %.3f)",
                 kept, total, static_cast<unsigned long long>(returned), static_cast<unsigned long long>(reads), rounds,
-                caps.size(), coarse, seconds_since(start), caps_s, boxes_s, read_s, verify_s);
+                most_readers, most_readers == 1 ? "" : "s", caps.size(), coarse, seconds_since(start), caps_s, boxes_s, read_s, verify_s);
   out.why = text;
   return out;
 }

@@ -340,6 +340,65 @@ TEST(TileSites, FarSitesWidenTheReachAndOthersAreReadWhole) {
   EXPECT_EQ(all.tile_sites, 2 * all.whole_sites);
 }
 
+TEST(TileSites, AGeoPackagesReadsSpreadOverConnectionsSelectTheSameFeatures) {
+  const std::string dir = test::test_dir();
+  // Points (mostly in one box of a tile's surroundings: cut into pieces), lines, two layers with
+  // -where, and points in a projected CRS: a tile job with 8 threads reads its boxes on several
+  // connections, with 1 on the source's own, and both select the same features.
+  LayerSpec points{"points"};
+  for (const auto& [lon, lat] : even_points(20000, 5)) points.wkt.push_back(point_wkt(lon, lat));
+  LayerSpec lines{"lines", "EPSG:4326", random_lines(300, 17), wkbLineString};
+  OGRSpatialReference wgs84, mercator;
+  wgs84.importFromEPSG(4326);
+  wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  mercator.importFromEPSG(3857);
+  std::unique_ptr<OGRCoordinateTransformation> to(OGRCreateCoordinateTransformation(&wgs84, &mercator));
+  LayerSpec projected{"projected", "EPSG:3857"};
+  for (const auto& [lon, lat] : even_points(12000, 23)) {
+    if (std::fabs(lat) < 60) projected.wkt.push_back(point_wkt(lon, lat, to.get()));
+  }
+  const std::string source = write_gpkg(dir + "/spread.gpkg", {points, lines, projected});
+  VoronoiOptions base = csv_options(9);
+  base.read.wrap = sites::WrapMode::none;
+  VoronoiOptions composite = base;
+  composite.read.layers = {"points", "lines"};
+  composite.read.where = "id % 5 <> 2";
+  VoronoiOptions mercator_points = base;
+  mercator_points.read.layers = {"projected"};
+  VoronoiOptions only_points = base;
+  only_points.read.layers = {"points"};
+  CPLSetConfigOption("QTMV_TRACE", "read");
+  for (const auto& [name, options] : {std::pair{"points", only_points}, {"composite", composite}, {"mercator", mercator_points}}) {
+    for (const int k : {1, 4, 7}) {
+      SCOPED_TRACE(std::string(name) + ", tile " + std::to_string(k) + "/8");
+      std::string product[2];
+      std::uint64_t sites[2] = {0, 0};
+      for (const int threads : {1, 8}) {
+        VoronoiOptions t = options;
+        t.tile_index = k;
+        t.tile_count = 8;
+        t.threads = threads;
+        std::string trace;
+        t.messages = [&](Severity, const std::string& m) { trace += m + "\n"; };
+        const std::string out = dir + "/" + name + std::to_string(k) + "_" + std::to_string(threads) + ".qtmt";
+        sites[threads > 1] = run_voronoi(source, out, t).sites;
+        product[threads > 1] = contents_of(out);
+        std::smatch m;
+        ASSERT_TRUE(std::regex_search(trace, m, std::regex("filtered reads in [0-9]+ rounds on ([0-9]+) connection"))) << trace;
+        if (threads == 1) {
+          EXPECT_EQ(m[1], "1") << trace;
+        } else {
+          EXPECT_GT(std::stoi(m[1]), 1) << trace;
+        }
+      }
+      EXPECT_EQ(sites[0], sites[1]);
+      EXPECT_GT(sites[0], 0u);
+      EXPECT_TRUE(!product[0].empty() && product[0] == product[1]) << "the tile products differ";
+    }
+  }
+  CPLSetConfigOption("QTMV_TRACE", nullptr);
+}
+
 TEST(TileSites, MergeRefusesTilesOfOtherSitesOrOldVersions) {
   const std::string dir = test::test_dir();
   LayerSpec spec{"points"};

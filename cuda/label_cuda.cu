@@ -230,7 +230,11 @@ Labeller::Labeller(int device, const LabelInput& input, bool with_distance, int 
   m.build_tree(plan, with_distance, cover.view(), trace);
 }
 
-Labeller::~Labeller() = default;
+// Its arrays are freed on their device, whichever thread destroys it (labeller.cpp gives a GPU's
+// memory back on a thread of its own).
+Labeller::~Labeller() {
+  if (impl_) (void)cudaSetDevice(impl_->device);
+}
 
 TreeInfo Labeller::tree_info() const { return impl_->tree_info; }
 

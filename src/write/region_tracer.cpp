@@ -357,50 +357,84 @@ OctantSteps::OctantSteps(const label::Outlines& outlines) {
 label::Outlines with_range_edges(const label::Outlines& outlines) {
   const int level = outlines.level;
   grid::require_level(level);
-  if (holds_part(outlines)) {
-    // The cells with a neighbour outside the range: the row ends (their neighbours in the next
-    // octants), and the cells of a row whose row above or below may be outside (the range's
-    // first and last rows, each octant's first and last: the equator's row faces another octant).
-    const label::OutlineCells& cells = outlines.cells;
-    label::OutlineCells cut;
-    cut.reserve(cells.size() + 4 * grid::rows_per_octant(level));
-    std::size_t k = 0;  // the next of `cells` to copy
-    const std::uint64_t last_row = grid::rows_per_octant(level) - 1;
-    const auto add = [&](grid::Code code) {
-      grid::Code nb[3];
-      grid::neighbours(code, level, nb);
-      if (holds_code(outlines, nb[0]) && holds_code(outlines, nb[1]) && holds_code(outlines, nb[2])) return;
-      while (k < cells.size() && cells[k].code() < code) cut.push_back(cells[k++]);
-      if (k < cells.size() && cells[k].code() == code) {
-        cut.push_back(cells[k++]);
-        cut.back().mark_boundary();
-      } else {
-        cut.push_back(label::OutlineCell(code, label::site_of(cells, code), 1));
-      }
-    };
-    for (grid::Code row = outlines.range.first; row < outlines.range.end;) {
-      const grid::Cell c = grid::cell_of(row, level);
-      const grid::Code end = row + 2 * std::uint64_t{c.row} + 1;
-      if (row == outlines.range.first || end == outlines.range.end || c.row == 0 || c.row == last_row) {
-        for (grid::Code code = row; code < end; ++code) add(code);
-      } else {
-        add(row);
-        add(end - 1);
-      }
-      row = end;
+  if (!holds_part(outlines)) return outlines;
+  // The cells with a neighbour outside the range: the row ends (their neighbours in the next
+  // octants), and the cells of a row whose row above or below may be outside (the range's first
+  // and last rows, each octant's first and last: the equator's row faces another octant). Few (a
+  // few rows' worth), found here in code order with where they go among the outline cells.
+  const label::OutlineCells& cells = outlines.cells;
+  const std::size_t n = cells.size();
+  struct EdgeCell {
+    std::size_t at;  // the first outline cell not below it: itself, or where it goes in
+    grid::Code code;
+  };
+  std::vector<EdgeCell> edge_cells;
+  const auto code_less = [](const label::OutlineCell& c, grid::Code v) { return c.code() < v; };
+  const auto add = [&](grid::Code code) {
+    grid::Code nb[3];
+    grid::neighbours(code, level, nb);
+    if (holds_code(outlines, nb[0]) && holds_code(outlines, nb[1]) && holds_code(outlines, nb[2])) return;
+    const std::size_t from = edge_cells.empty() ? 0 : edge_cells.back().at;
+    edge_cells.push_back({static_cast<std::size_t>(std::lower_bound(cells.begin() + static_cast<std::ptrdiff_t>(from),
+                                                                    cells.end(), code, code_less) -
+                                                   cells.begin()),
+                          code});
+  };
+  const std::uint64_t last_row = grid::rows_per_octant(level) - 1;
+  for (grid::Code row = outlines.range.first; row < outlines.range.end;) {
+    const grid::Cell c = grid::cell_of(row, level);
+    const grid::Code end = row + 2 * std::uint64_t{c.row} + 1;
+    if (row == outlines.range.first || end == outlines.range.end || c.row == 0 || c.row == last_row) {
+      for (grid::Code code = row; code < end; ++code) add(code);
+    } else {
+      add(row);
+      add(end - 1);
     }
-    if (!cut.empty()) {
-      while (k < cells.size()) cut.push_back(cells[k++]);
-      label::Outlines out;
-      out.level = level;
-      out.site_count = outlines.site_count;
-      out.range = outlines.range;
-      out.cells = std::move(cut);
-      out.cells_per_site = outlines.cells_per_site;
-      return out;
+    row = end;
+  }
+  if (edge_cells.empty()) return outlines;
+  const auto present = [&](const EdgeCell& e) { return e.at < n && cells[e.at].code() == e.code; };
+  // inserted_before[j]: the edge cells before the j-th that are not outline cells yet (added).
+  std::vector<std::size_t> inserted_before(edge_cells.size() + 1, 0);
+  for (std::size_t j = 0; j < edge_cells.size(); ++j) inserted_before[j + 1] = inserted_before[j] + (present(edge_cells[j]) ? 0 : 1);
+
+  // The outline cells copied on all cores (gigabytes at the finer levels), each thread a stretch
+  // of them with the edge cells that go in before them (the last the ones after every cell),
+  // flagging those already there: the one merge, in code order, whatever the threads.
+  label::Outlines out;
+  out.level = level;
+  out.site_count = outlines.site_count;
+  out.range = outlines.range;
+  out.cells_per_site = outlines.cells_per_site;
+  out.cells.resize(n + inserted_before.back());
+  const auto team = static_cast<std::size_t>(thread_count(0));
+  const auto first_edge_cell = [&](std::size_t k) {
+    return static_cast<std::size_t>(
+        std::lower_bound(edge_cells.begin(), edge_cells.end(), k, [](const EdgeCell& e, std::size_t v) { return e.at < v; }) -
+        edge_cells.begin());
+  };
+#pragma omp parallel for schedule(static, 1) num_threads(static_cast<int>(team))
+  for (std::int64_t t = 0; t < static_cast<std::int64_t>(team); ++t) {
+    const auto stretch = static_cast<std::size_t>(t);
+    const std::size_t first = n * stretch / team, end = n * (stretch + 1) / team;
+    std::size_t j = first_edge_cell(first);
+    const std::size_t j_end = stretch + 1 == team ? edge_cells.size() : first_edge_cell(end);
+    label::OutlineCell* to = out.cells.data() + first + inserted_before[j];
+    for (std::size_t k = first; k <= end; ++k) {
+      // The edge cells that go in before cell k (after the last cell, for the last stretch).
+      for (; j < j_end && edge_cells[j].at == k && (k == n || edge_cells[j].code < cells[k].code()); ++j) {
+        *to++ = label::OutlineCell(edge_cells[j].code, label::site_of(cells, edge_cells[j].code), 1);
+      }
+      if (k == end) break;
+      *to = cells[k];
+      if (j < j_end && edge_cells[j].at == k) {  // an outline cell already: flagged
+        to->mark_boundary();
+        ++j;
+      }
+      ++to;
     }
   }
-  return outlines;
+  return out;
 }
 
 RegionTracer::RegionTracer(const label::Outlines& whole_or_tile, RingVertices vertices,

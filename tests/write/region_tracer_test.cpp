@@ -14,6 +14,7 @@
 #include <omp.h>
 #endif
 
+#include "common/openmp_threads.hpp"
 #include "grid/qtm.hpp"
 #include "grid/qtm_code_ranges.hpp"
 #include "write/region_measures.hpp"
@@ -186,6 +187,51 @@ bool same_region(const Region& a, const Region& b) {
     }
   }
   return true;
+}
+
+TEST(RegionTracer, RangeEdgesFlagEveryCellWithANeighbourOutsideWhateverTheThreads) {
+  // Every cell of a tile with a neighbour outside it becomes an outline cell flagged as a boundary
+  // cell (its site the cell's), and the others stay as they were: checked cell by cell against
+  // every code of the range, for tiles of several levels, at 1 to 8 threads.
+  for (const auto& [level, sites] : {std::pair{3, 9}, {5, 30}, {6, 4}}) {
+    const std::vector<std::int32_t> labels = nearest_point_labels(level, sites, 11);
+    const label::Outlines whole = label::outlines_of_dense(level, labels.data(), nullptr, sites);
+    for (const int tiles : {2, 3, 8, 16}) {
+      for (const grid::CodeRange& range : grid::split_in_rows(grid::whole_level(level), tiles, level)) {
+        SCOPED_TRACE("level " + std::to_string(level) + ", tile [" + std::to_string(range.first) + ", " +
+                     std::to_string(range.end) + ")");
+        const label::Outlines tile = tile_outlines(whole, range);
+        // The reference: each code of the range, in order.
+        std::vector<label::OutlineCell> want;
+        std::size_t k = 0;
+        for (Code code = range.first; code < range.end; ++code) {
+          Code nb[3];
+          grid::neighbours(code, level, nb);
+          const bool outside = !holds_code(tile, nb[0]) || !holds_code(tile, nb[1]) || !holds_code(tile, nb[2]);
+          const bool listed = k < tile.cells.size() && tile.cells[k].code() == code;
+          if (listed) {
+            want.push_back(tile.cells[k++]);
+            if (outside) want.back().mark_boundary();
+          } else if (outside) {
+            want.push_back(label::OutlineCell(code, labels[code], 1));
+          }
+        }
+        for (const int threads : {1, 2, 3, 8}) {
+          const ScopedDefaultThreads use(threads);
+          const label::Outlines got = with_range_edges(tile);
+          ASSERT_EQ(got.cells.size(), want.size()) << threads << " threads";
+          std::size_t wrong = 0;
+          for (std::size_t c = 0; c < want.size(); ++c) {
+            wrong += got.cells[c].code() != want[c].code() || got.cells[c].site != want[c].site ||
+                     got.cells[c].boundary() != want[c].boundary();
+          }
+          EXPECT_EQ(wrong, 0u) << threads << " threads";
+          EXPECT_EQ(got.cells_per_site, tile.cells_per_site);
+          EXPECT_EQ(got.range.first, range.first);
+        }
+      }
+    }
+  }
 }
 
 TEST(RegionTracer, SameRegionsWhateverTheThreads) {

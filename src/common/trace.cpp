@@ -3,6 +3,7 @@
 #include <cstdarg>
 #include <cstdio>
 #include <cstring>
+#include <ctime>
 #include <mutex>
 #include <utility>
 
@@ -85,7 +86,7 @@ ScopedTraceSink::~ScopedTraceSink() {
 }
 
 StepTrace::StepTrace(TraceStage stage)
-    : stage_(stage), on_(trace_enabled(stage)), last_(std::chrono::steady_clock::now()) {}
+    : stage_(stage), on_(trace_enabled(stage)), last_(std::chrono::steady_clock::now()), last_cpu_(std::clock()) {}
 
 void StepTrace::operator()(const char* step, const std::string& detail) {
   if (!on_) return;
@@ -94,13 +95,18 @@ void StepTrace::operator()(const char* step, const std::string& detail) {
   std::snprintf(text, sizeof text, "%-28s %9.3f ms", step, std::chrono::duration<double, std::milli>(now - last_).count());
   // The process's memory at the step's end, and its peak so far: where a step's buffers meet.
   // (Nothing where the system does not say: no /proc.)
+  // And the CPU time of all the process's threads in the step: what a step costs a host shared
+  // with other jobs (tile jobs at once), where its wall time says how long it took.
   const ProcessMemory memory = process_memory();
-  char rss[96] = "";
+  const std::clock_t cpu = std::clock();
+  char rss[128] = "";
   if (memory.resident > 0) {
-    std::snprintf(rss, sizeof rss, "  [rss %.1f MB, peak %.1f MB]", memory.resident / 1e6, memory.peak_resident / 1e6);
+    std::snprintf(rss, sizeof rss, "  [rss %.1f MB, peak %.1f MB, cpu %.3f s]", memory.resident / 1e6,
+                  memory.peak_resident / 1e6, static_cast<double>(cpu - last_cpu_) / CLOCKS_PER_SEC);
   }
   trace_line(stage_, (detail.empty() ? std::string(text) : std::string(text) + "  " + detail) + rss);
   last_ = now;
+  last_cpu_ = cpu;
 }
 
 void StepTrace::note(const char* what, double seconds) const {

@@ -8,6 +8,7 @@
 #pragma once
 
 #include <chrono>
+#include <ctime>
 #include <string>
 
 #include "common/run_context.hpp"
@@ -48,9 +49,10 @@ class ScopedTraceSink {
 };
 
 /// The steps of one stage, each traced with its time since the step before:
-/// "trace: <stage> <step> <milliseconds> ms <detail>  [rss <MB> MB, peak <MB> MB]" (the process's
-/// resident memory at the step's end and its peak so far, 10^6 bytes: common/host_info.hpp's
-/// process_memory). Off (and free) unless the stage is enabled.
+/// "trace: <stage> <step> <milliseconds> ms <detail>  [rss <MB> MB, peak <MB> MB, cpu <s> s]" (the
+/// process's resident memory at the step's end and its peak so far, 10^6 bytes: common/host_info.hpp's
+/// process_memory; the CPU time of all its threads in the step, seconds). Off (and free) unless
+/// the stage is enabled.
 class StepTrace {
  public:
   explicit StepTrace(TraceStage stage);
@@ -59,7 +61,10 @@ class StepTrace {
   /// Traces the time since the last step (or construction, or restart) as `step`.
   void operator()(const char* step, const std::string& detail = {});
   /// Starts the next step's clock now (what ran since the last step is not traced).
-  void restart() { last_ = std::chrono::steady_clock::now(); }
+  void restart() {
+    last_ = std::chrono::steady_clock::now();
+    last_cpu_ = std::clock();
+  }
   /// Traces a figure of the step just traced: `what`, `seconds` (seconds), indented below it.
   void note(const char* what, double seconds) const;
 
@@ -67,6 +72,7 @@ class StepTrace {
   TraceStage stage_;
   bool on_;
   std::chrono::steady_clock::time_point last_;
+  std::clock_t last_cpu_;
 };
 
 }  // namespace qtmv

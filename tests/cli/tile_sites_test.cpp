@@ -134,6 +134,21 @@ std::vector<std::string> random_lines(int count, unsigned seed) {
   return out;
 }
 
+/// A layer "projected" of `count` even points (seed `seed`) within `latitude` degrees of the equator,
+/// in Web Mercator (EPSG:3857).
+LayerSpec mercator_points(int count, unsigned seed, double latitude) {
+  OGRSpatialReference wgs84, mercator;
+  wgs84.importFromEPSG(4326);
+  wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  mercator.importFromEPSG(3857);
+  std::unique_ptr<OGRCoordinateTransformation> to(OGRCreateCoordinateTransformation(&wgs84, &mercator));
+  LayerSpec projected{"projected", "EPSG:3857"};
+  for (const auto& [lon, lat] : even_points(count, seed)) {
+    if (std::fabs(lat) < latitude) projected.wkt.push_back(point_wkt(lon, lat, to.get()));
+  }
+  return projected;
+}
+
 VoronoiOptions csv_options(int level) {
   VoronoiOptions o;
   o.level = level;
@@ -287,15 +302,7 @@ TEST(TileSites, CompositeLayersAndProjectedSourcesMergeIntoTheWholeRun) {
 
   // Points in Web Mercator (EPSG:3857, to +-85 degrees): the boxes are transformed to it; tiles
   // whose surroundings reach a pole, where it has no coordinates, read every point.
-  OGRSpatialReference wgs84, mercator;
-  wgs84.importFromEPSG(4326);
-  wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  mercator.importFromEPSG(3857);
-  std::unique_ptr<OGRCoordinateTransformation> to(OGRCreateCoordinateTransformation(&wgs84, &mercator));
-  LayerSpec projected{"projected", "EPSG:3857"};
-  for (const auto& [lon, lat] : even_points(5000, 11)) {
-    if (std::fabs(lat) < 85) projected.wkt.push_back(point_wkt(lon, lat, to.get()));
-  }
+  const LayerSpec projected = mercator_points(5000, 11, 85);
   const std::string path = write_gpkg(dir + "/projected.gpkg", {projected});
   read = expect_tiles_merge_into_whole(path, csv_options(9), 16);
   EXPECT_GE(read.subset_tiles, 8);
@@ -348,15 +355,7 @@ TEST(TileSites, AGeoPackagesReadsSpreadOverConnectionsSelectTheSameFeatures) {
   LayerSpec points{"points"};
   for (const auto& [lon, lat] : even_points(20000, 5)) points.wkt.push_back(point_wkt(lon, lat));
   LayerSpec lines{"lines", "EPSG:4326", random_lines(300, 17), wkbLineString};
-  OGRSpatialReference wgs84, mercator;
-  wgs84.importFromEPSG(4326);
-  wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
-  mercator.importFromEPSG(3857);
-  std::unique_ptr<OGRCoordinateTransformation> to(OGRCreateCoordinateTransformation(&wgs84, &mercator));
-  LayerSpec projected{"projected", "EPSG:3857"};
-  for (const auto& [lon, lat] : even_points(12000, 23)) {
-    if (std::fabs(lat) < 60) projected.wkt.push_back(point_wkt(lon, lat, to.get()));
-  }
+  const LayerSpec projected = mercator_points(12000, 23, 60);
   const std::string source = write_gpkg(dir + "/spread.gpkg", {points, lines, projected});
   VoronoiOptions base = csv_options(9);
   base.read.wrap = sites::WrapMode::none;

@@ -8,6 +8,7 @@
 
 #include <cstring>
 #include <memory>
+#include <regex>
 #include <string>
 #include <utility>
 #include <vector>
@@ -75,6 +76,7 @@ TEST(Trace, LinesGoToTheSinkAtDebugSeverityOnlyWhenOn) {
   if (process_memory().resident > 0) {
     EXPECT_NE(lines[0].second.find("42 rows  [rss "), std::string::npos) << lines[0].second;
     EXPECT_NE(lines[0].second.find(" MB, peak "), std::string::npos) << lines[0].second;
+    EXPECT_TRUE(std::regex_search(lines[0].second, std::regex(" MB, cpu [0-9]+\\.[0-9]{3} s\\]$"))) << lines[0].second;
   } else {
     EXPECT_EQ(lines[0].second.find("[rss "), std::string::npos) << lines[0].second;
   }

@@ -35,9 +35,10 @@ std::vector<LonLat> drop_straight_runs(const LonLat* ring, std::size_t n, RingVe
   std::vector<LonLat> out;
   out.reserve(n);
   for (std::size_t k = 0; k < n; ++k) {
-    const LonLat& prev = ring[(k + n - 1) % n];
+    // Not %: two integer divisions a vertex, hundreds of vertices a region.
+    const LonLat& prev = ring[k == 0 ? n - 1 : k - 1];
     const LonLat& here = ring[k];
-    const LonLat& next = ring[(k + 1) % n];
+    const LonLat& next = ring[k + 1 == n ? 0 : k + 1];
     const bool along_parallel =
         parallels == RingVertices::corners && prev.lat == here.lat && here.lat == next.lat;
     const bool along_meridian = prev.lon == here.lon && here.lon == next.lon;
@@ -115,9 +116,17 @@ struct Box {
 
 /// A tracing thread's buffers, kept from one region to the next (a region allocates only its own
 /// rings).
+/// A point of EdgesFrom's table and the first edge leaving it (kNone: an empty slot). The point
+/// is kept here, where the probes compare it, not looked up through the edge.
+struct PointSlot {
+  LonLat point;
+  std::size_t first;
+};
+
 struct TraceScratch {
   std::vector<Edge> edges;
-  std::vector<std::size_t> table, next, position;
+  std::vector<PointSlot> table;
+  std::vector<std::size_t> next, position;
   std::vector<char> used;
   std::vector<WalkStep> walk, stack;
   std::vector<LonLat> points;
@@ -129,22 +138,22 @@ struct TraceScratch {
 class EdgesFrom {
  public:
   /// `table` and `next`: the caller's buffers, reused.
-  EdgesFrom(const Edge* edges, std::size_t count, std::vector<std::size_t>& table, std::vector<std::size_t>& next)
-      : edges_(edges), table_(table), next_(next) {
+  EdgesFrom(const Edge* edges, std::size_t count, std::vector<PointSlot>& table, std::vector<std::size_t>& next)
+      : table_(table), next_(next) {
     std::size_t size = 16;
     while (size < 2 * count) size <<= 1;
     mask_ = size - 1;
-    table_.assign(size, kNone);
+    table_.assign(size, PointSlot{{0, 0}, kNone});
     next_.assign(count, kNone);
     for (std::size_t k = 0; k < count; ++k) {
       std::size_t h = hash(edges[k].from) & mask_;
-      while (table_[h] != kNone && !same_point(edges[table_[h]].from, edges[k].from)) h = (h + 1) & mask_;
-      if (table_[h] == kNone) {
-        table_[h] = k;
+      while (table_[h].first != kNone && !same_point(table_[h].point, edges[k].from)) h = (h + 1) & mask_;
+      if (table_[h].first == kNone) {
+        table_[h] = {edges[k].from, k};
         continue;
       }
       // Appended to the point's chain: a few edges at most (a region's edges leaving one vertex).
-      std::size_t tail = table_[h];
+      std::size_t tail = table_[h].first;
       while (next_[tail] != kNone) tail = next_[tail];
       next_[tail] = k;
     }
@@ -152,8 +161,8 @@ class EdgesFrom {
   /// The first edge leaving p, or kNone.
   std::size_t first(const LonLat& p) const {
     for (std::size_t h = hash(p) & mask_;; h = (h + 1) & mask_) {
-      const std::size_t k = table_[h];
-      if (k == kNone || same_point(edges_[k].from, p)) return k;
+      const PointSlot& slot = table_[h];
+      if (slot.first == kNone || same_point(slot.point, p)) return slot.first;
     }
   }
   /// The edge after k leaving the same point, or kNone.
@@ -172,9 +181,8 @@ class EdgesFrom {
     h ^= h >> 29;
     return static_cast<std::size_t>(h * 0xBF58476D1CE4E5B9ull >> 16);
   }
-  const Edge* edges_;
   std::size_t mask_ = 0;
-  std::vector<std::size_t>& table_;
+  std::vector<PointSlot>& table_;
   std::vector<std::size_t>& next_;
 };
 
@@ -547,11 +555,12 @@ Region RegionTracer::trace(std::int32_t site) const {
   PackedCellEdgesReader list(cells_.data() + start_[s], cells_.data() + start_[s + 1]);
   Code code = 0;
   unsigned mask = 0;
+  RowWalk rows;  // a site's cells come in code order, many in a row
   while (list.next(code, mask)) {
     LonLat ring[grid::kMaxPolygonCorners];
-    const int corners = grid::cell_polygon(grid::cell_of(code, level_), level_, ring);
+    const int corners = grid::cell_polygon(rows.cell(code, level_), level_, ring);
     for (int e = 0; e < corners; ++e) {
-      if (mask >> e & 1) edges.push_back({ring[e], ring[(e + 1) % corners]});
+      if (mask >> e & 1) edges.push_back({ring[e], ring[e + 1 < corners ? e + 1 : 0]});
     }
   }
   return link_rings(edges.data(), edges.size(), vertices_, scratch);

@@ -162,12 +162,10 @@ inline bool holds_part(const label::Outlines& outlines) {
   return !holds_code(outlines, 0) || !holds_code(outlines, grid::cell_count(outlines.level) - 1);
 }
 
-/// One thread's walk over outline cells in code order (of one octant): the sites of the cells
-/// near them (label::NearSearch), and each cell's row found once for the row's cells (its
-/// columns then follow from the codes, without grid::cell_of's square root).
-class OutlineWalk {
+/// The cells of codes met mostly in increasing order, each row found once for the row's cells
+/// (their columns then follow from the codes, without grid::cell_of's square root).
+class RowWalk {
  public:
-  label::NearSearch search;
   /// The cell of `code` (any code; codes in increasing order are the fast case).
   grid::Cell cell(grid::Code code, int level) {
     if (code < row_first_ || code >= row_end_) {
@@ -181,6 +179,13 @@ class OutlineWalk {
  private:
   grid::Cell row_{0, 0, 0};
   grid::Code row_first_ = 1, row_end_ = 0;  // the codes of row_'s row: none yet
+};
+
+/// One thread's walk over outline cells in code order (of one octant): their cells (RowWalk) and
+/// the sites of the cells near them (label::NearSearch).
+class OutlineWalk : public RowWalk {
+ public:
+  label::NearSearch search;
 };
 
 /// Visits the edges of the k-th outline cell, as drawn, that bound its site's region (the region

@@ -233,7 +233,7 @@ Labeller::Labeller(int device, const LabelInput& input, bool with_distance, int 
 // Its arrays are freed on their device, whichever thread destroys it (labeller.cpp gives a GPU's
 // memory back on a thread of its own).
 Labeller::~Labeller() {
-  if (impl_) (void)cudaSetDevice(impl_->device);
+  if (impl_ && cudaSetDevice(impl_->device) != cudaSuccess) (void)cudaGetLastError();  // not left for the next check
 }
 
 TreeInfo Labeller::tree_info() const { return impl_->tree_info; }

@@ -25,6 +25,9 @@ class FirstException {
     }
   }
 
+  /// Whether some work has thrown (for long work to stop early).
+  bool failed() const { return failed_.load(std::memory_order_relaxed); }
+
   /// Throws the exception kept, if any (after the parallel region).
   void rethrow() const {
     if (first_) std::rethrow_exception(first_);

@@ -99,10 +99,13 @@ void StepTrace::operator()(const char* step, const std::string& detail) {
   // with other jobs (tile jobs at once), where its wall time says how long it took.
   const ProcessMemory memory = process_memory();
   const std::clock_t cpu = std::clock();
-  char rss[128] = "";
+  const double cpu_seconds = static_cast<double>(cpu - last_cpu_) / CLOCKS_PER_SEC;
+  char rss[128];
   if (memory.resident > 0) {
     std::snprintf(rss, sizeof rss, "  [rss %.1f MB, peak %.1f MB, cpu %.3f s]", memory.resident / 1e6,
-                  memory.peak_resident / 1e6, static_cast<double>(cpu - last_cpu_) / CLOCKS_PER_SEC);
+                  memory.peak_resident / 1e6, cpu_seconds);
+  } else {
+    std::snprintf(rss, sizeof rss, "  [cpu %.3f s]", cpu_seconds);
   }
   trace_line(stage_, (detail.empty() ? std::string(text) : std::string(text) + "  " + detail) + rss);
   last_ = now;

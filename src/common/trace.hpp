@@ -51,8 +51,8 @@ class ScopedTraceSink {
 /// The steps of one stage, each traced with its time since the step before:
 /// "trace: <stage> <step> <milliseconds> ms <detail>  [rss <MB> MB, peak <MB> MB, cpu <s> s]" (the
 /// process's resident memory at the step's end and its peak so far, 10^6 bytes: common/host_info.hpp's
-/// process_memory; the CPU time of all its threads in the step, seconds). Off (and free) unless
-/// the stage is enabled.
+/// process_memory, where the system says; the CPU time of all its threads in the step, seconds).
+/// Off (and free) unless the stage is enabled.
 class StepTrace {
  public:
   explicit StepTrace(TraceStage stage);

@@ -1,6 +1,7 @@
 #include "sites/tile_selection.hpp"
 
 #include <ogr_geometry.h>
+#include <sys/stat.h>
 
 #include <algorithm>
 #include <atomic>
@@ -12,6 +13,7 @@
 #include <utility>
 
 #include "common/config_option.hpp"
+#include "common/first_exception.hpp"
 #include "common/openmp_threads.hpp"
 #include "sites/feature_examination.hpp"
 #include "sites/lonlat_transform.hpp"
@@ -236,11 +238,13 @@ struct EnvelopeRead {
   OGREnvelope envelope;
 };
 
-/// The round's envelopes cut across their longer side into pieces of about an equal share of
-/// the round's area, kPiecesPerReader for each of `readers`: the same features in all (a feature
-/// meets a closed rectangle where it meets one of its pieces; one read twice is read once), in
-/// reads of about even size.
-std::vector<EnvelopeRead> cut_for_readers(const std::vector<EnvelopeRead>& reads, std::size_t readers) {
+/// The round's envelopes of point layers cut across their longer side into pieces of about an
+/// equal share of the round's area, kPiecesPerReader for each of `readers`: the same features in
+/// all (a point in a closed rectangle is in one of its pieces; one on a cut, read twice, is kept
+/// once), in reads of about even size. Lines and polygons are not cut: one across a cut would be
+/// read once a piece, and the reads' count decides when the whole source is cheaper.
+std::vector<EnvelopeRead> cut_for_readers(const std::vector<EnvelopeRead>& reads, const std::vector<LayerFilter>& layers,
+                                          std::size_t readers) {
   const auto area = [](const OGREnvelope& e) { return (e.MaxX - e.MinX) * (e.MaxY - e.MinY); };
   double total = 0;
   for (const EnvelopeRead& r : reads) total += area(r.envelope);
@@ -248,7 +252,8 @@ std::vector<EnvelopeRead> cut_for_readers(const std::vector<EnvelopeRead>& reads
   std::vector<EnvelopeRead> out;
   for (const EnvelopeRead& r : reads) {
     const OGREnvelope& e = r.envelope;
-    const double pieces = share > 0 ? std::clamp(std::ceil(area(e) / share), 1.0, kMostPieces) : 1.0;
+    const bool points = is_points(layers[r.layer].layer->GetGeomType());
+    const double pieces = points && share > 0 ? std::clamp(std::ceil(area(e) / share), 1.0, kMostPieces) : 1.0;
     const bool across_x = e.MaxX - e.MinX >= e.MaxY - e.MinY;
     const double from = across_x ? e.MinX : e.MinY, to = across_x ? e.MaxX : e.MaxY;
     for (double k = 0; k < pieces; ++k) {
@@ -268,79 +273,105 @@ std::string read_failure(const LayerFilter& f, const gdal::ErrorCapture& errors)
   return "layer '" + f.name + "': " + (errors.failed() ? "GDAL failed reading it" : "features without FIDs");
 }
 
-/// One connection of a round's spread reads: the source opened again, its layers as the
-/// selection's (the same definition and -where; a copy of the transformation to WGS84), and what
-/// its reads gave.
-struct Reader {
-  std::vector<LayerFilter> layers;
-  std::vector<grid::LonLat> points;
-  std::uint64_t returned = 0;
-  bool opened = false;
-  std::string failure;  // a read that failed (the selection then gives up)
-};
-
-/// Reads `reads` on up to `readers` connections of their own at once, each taking the next read
-/// (a GeoPackage's filtered reads are SQLite's R-tree queries and the features' decoding, one
-/// thread each). Returns false, having read nothing, when a connection cannot be made as the
-/// source's (the caller then reads on the source's own); else fills `failure` as read_envelope
-/// would fail. The features and points are the same as read one after another (their order is
-/// not: the caller sorts the features by FID, and the checks do not depend on it).
-bool read_spread(const OgrSource& source, const ReadOptions& options, std::vector<LayerFilter>& layers,
-                 const std::vector<EnvelopeRead>& reads, std::size_t readers, bool polygons,
-                 std::vector<grid::LonLat>& points, std::uint64_t& returned, std::string& failure) {
-  std::vector<Reader> team(readers);
-  // The transformations copied here, one at a time: OGR's are not for several threads at once.
-  for (Reader& r : team) {
-    r.layers.resize(layers.size());
-    for (std::size_t k = 0; k < layers.size(); ++k) {
-      r.layers[k].name = layers[k].name;
-      r.layers[k].range = layers[k].range;
-      if (layers[k].to_wgs84) {
-        r.layers[k].to_wgs84.reset(layers[k].to_wgs84->Clone());
-        if (!r.layers[k].to_wgs84) return false;
+/// A GeoPackage opened again on connections of its own for a selection's rounds (as its split
+/// read is), each with the selection's layers (the same definition and -where; a copy of the
+/// transformation to WGS84): the rounds' filtered reads (SQLite's R-tree queries and the
+/// features' decoding, one thread a connection) go on all of them at once.
+class SpreadReaders {
+ public:
+  /// Up to `count` connections, opened and checked on this thread; none (size() 0) where the
+  /// source is not a plain GeoPackage file or a connection cannot be made as the source's.
+  SpreadReaders(const OgrSource& source, const ReadOptions& options, const std::vector<LayerFilter>& layers,
+                std::size_t count) {
+    struct stat local {};
+    if (count < 2 || !EQUAL(source.dataset->GetDriverName(), "GPKG") || source.name.rfind("/vsi", 0) == 0 ||
+        ::stat(source.name.c_str(), &local) != 0 || !S_ISREG(local.st_mode)) {
+      return;
+    }
+    const gdal::ErrorCapture quiet;  // a connection that cannot be made is none: the reads go on one
+    const char* const gpkg_only[] = {"GPKG", nullptr};
+    connections_.resize(count);
+    for (Connection& c : connections_) {
+      c.dataset = open_vector(source.name, options.open_options, gpkg_only);
+      c.layers.resize(layers.size());
+      for (std::size_t k = 0; c.dataset && k < layers.size(); ++k) {
+        OGRLayer* layer = c.dataset->GetLayerByName(layers[k].layer->GetName());
+        LayerFilter& f = c.layers[k];
+        f.name = layers[k].name;
+        f.range = layers[k].range;
+        if (layers[k].to_wgs84) f.to_wgs84.reset(layers[k].to_wgs84->Clone());
+        if (!layer || !layer->GetLayerDefn()->IsSame(layers[k].layer->GetLayerDefn()) ||
+            (layers[k].to_wgs84 && !f.to_wgs84) ||
+            (!options.where.empty() && layer->SetAttributeFilter(options.where.c_str()) != OGRERR_NONE)) {
+          c.dataset.reset();
+        }
+        f.layer = layer;
+      }
+      if (!c.dataset || quiet.failed()) {
+        connections_.clear();
+        return;
       }
     }
   }
-  const char* const same_driver[] = {source.dataset->GetDriverName(), nullptr};
-  std::atomic<std::size_t> next{0};
-  const auto work = [&](Reader& r) {
-    gdal::ErrorCapture errors;
-    const GDALDatasetUniquePtr dataset = open_vector(source.name, options.open_options, same_driver);
-    if (!dataset) return;
-    for (std::size_t k = 0; k < layers.size(); ++k) {
-      OGRLayer* layer = dataset->GetLayerByName(layers[k].layer->GetName());
-      if (!layer || !layer->GetLayerDefn()->IsSame(layers[k].layer->GetLayerDefn())) return;
-      if (!options.where.empty() && layer->SetAttributeFilter(options.where.c_str()) != OGRERR_NONE) return;
-      r.layers[k].layer = layer;
+  std::size_t size() const { return connections_.size(); }
+
+  /// Reads `reads` on every connection at once, each taking the next read; the features go to
+  /// `layers`' lists, their points to `points` (their order is not a sequential read's: the
+  /// caller sorts the features by FID, and the checks do not depend on it). Returns why a read
+  /// failed (read_envelope's false), or "".
+  std::string read(const std::vector<EnvelopeRead>& reads, bool polygons, std::vector<LayerFilter>& layers,
+                   std::vector<grid::LonLat>& points, std::uint64_t& returned) {
+    struct Haul {
+      std::vector<grid::LonLat> points;
+      std::uint64_t returned = 0;
+      std::string failure;
+    };
+    std::vector<Haul> hauls(connections_.size());
+    std::atomic<std::size_t> next{0};
+    FirstException thrown;
+    const auto work = [&](std::size_t c) {
+      thrown.run([&] {
+        gdal::ErrorCapture errors;
+        Haul& haul = hauls[c];
+        for (std::size_t at; haul.failure.empty() && !thrown.failed() && (at = next.fetch_add(1)) < reads.size();) {
+          LayerFilter& f = connections_[c].layers[reads[at].layer];
+          if (!read_envelope(f, reads[at].envelope, polygons, haul.points, haul.returned, errors)) {
+            haul.failure = read_failure(f, errors);
+          }
+        }
+      });
+    };
+    {
+      std::vector<std::thread> threads;
+      thrown.run([&] {
+        for (std::size_t c = 1; c < connections_.size(); ++c) threads.emplace_back(work, c);
+      });
+      work(0);
+      for (std::thread& t : threads) t.join();
     }
-    r.opened = true;
-    for (std::size_t at; r.failure.empty() && (at = next.fetch_add(1)) < reads.size();) {
-      LayerFilter& f = r.layers[reads[at].layer];
-      if (!read_envelope(f, reads[at].envelope, polygons, r.points, r.returned, errors)) r.failure = read_failure(f, errors);
+    thrown.rethrow();
+    std::string failure;
+    for (std::size_t c = 0; c < connections_.size(); ++c) {
+      if (failure.empty()) failure = hauls[c].failure;
+      points.insert(points.end(), hauls[c].points.begin(), hauls[c].points.end());
+      returned += hauls[c].returned;
+      for (std::size_t k = 0; k < layers.size(); ++k) {
+        auto& from = connections_[c].layers[k].features;
+        layers[k].features.insert(layers[k].features.end(), std::make_move_iterator(from.begin()),
+                                  std::make_move_iterator(from.end()));
+        from.clear();
+      }
     }
-    for (LayerFilter& f : r.layers) {
-      if (f.layer) f.layer->SetSpatialFilter(nullptr);
-    }
-  };  // the connection closed: its features keep their definition
-  {
-    std::vector<std::thread> threads;
-    for (std::size_t t = 1; t < readers; ++t) threads.emplace_back(work, std::ref(team[t]));
-    work(team[0]);
-    for (std::thread& t : threads) t.join();
+    return failure;
   }
-  if (!std::all_of(team.begin(), team.end(), [](const Reader& r) { return r.opened; })) return false;
-  for (Reader& r : team) {
-    if (failure.empty()) failure = r.failure;
-    points.insert(points.end(), r.points.begin(), r.points.end());
-    returned += r.returned;
-    for (std::size_t k = 0; k < layers.size(); ++k) {
-      auto& from = r.layers[k].features;
-      layers[k].features.insert(layers[k].features.end(), std::make_move_iterator(from.begin()),
-                                std::make_move_iterator(from.end()));
-    }
-  }
-  return true;
-}
+
+ private:
+  struct Connection {
+    GDALDatasetUniquePtr dataset;
+    std::vector<LayerFilter> layers;
+  };
+  std::vector<Connection> connections_;
+};
 
 /// The features of `f` by FID, each once.
 std::vector<OGRFeatureUniquePtr> by_fid(LayerFilter& f) {
@@ -402,7 +433,7 @@ TileSelection select_tile_features(const OgrSource& source, const ReadOptions& o
   std::vector<grid::LonLat> points;
   std::uint64_t returned = 0, reads = 0;
   int rounds = 0;
-  bool spread = EQUAL(source.dataset->GetDriverName(), "GPKG");
+  std::unique_ptr<SpreadReaders> spread;  // made at the first round
   const auto team = static_cast<std::size_t>(thread_count(options.threads));
   std::size_t most_readers = 1;
   for (std::size_t left = caps.size(); left > 0; ++rounds) {
@@ -429,19 +460,18 @@ TileSelection select_tile_features(const OgrSource& source, const ReadOptions& o
     }
     reads += round.size();
     // A GeoPackage's reads spread over connections of their own, as its split read is.
-    const std::size_t readers = spread ? std::min({kMostReaders, round.size(), team}) : 1;
+    if (!spread && team > 1) spread = std::make_unique<SpreadReaders>(source, options, layers, std::min(kMostReaders, team));
     std::string failure;
-    if (readers < 2 ||
-        !read_spread(source, options, layers, cut_for_readers(round, readers), readers, !options.make_valid, points, returned, failure)) {
-      if (readers >= 2) spread = false;  // a connection that could not be made is not tried again
+    if (spread && spread->size() > 1) {
+      failure = spread->read(cut_for_readers(round, layers, spread->size()), !options.make_valid, layers, points, returned);
+      most_readers = spread->size();
+    } else {
       for (const EnvelopeRead& r : round) {
         if (!read_envelope(layers[r.layer], r.envelope, !options.make_valid, points, returned, errors)) {
           failure = read_failure(layers[r.layer], errors);
           break;
         }
       }
-    } else {
-      most_readers = std::max(most_readers, readers);
     }
     if (!failure.empty()) return read_all(failure);
     // Reading most of the source again and again costs more than reading it once.

@@ -375,6 +375,7 @@ label::Outlines with_range_edges(const label::Outlines& outlines) {
   struct EdgeCell {
     std::size_t at;  // the first outline cell not below it: itself, or where it goes in
     grid::Code code;
+    std::int32_t site;  // its site (label::site_of: here, where its exceptions may be thrown)
   };
   std::vector<EdgeCell> edge_cells;
   const auto code_less = [](const label::OutlineCell& c, grid::Code v) { return c.code() < v; };
@@ -383,10 +384,10 @@ label::Outlines with_range_edges(const label::Outlines& outlines) {
     grid::neighbours(code, level, nb);
     if (holds_code(outlines, nb[0]) && holds_code(outlines, nb[1]) && holds_code(outlines, nb[2])) return;
     const std::size_t from = edge_cells.empty() ? 0 : edge_cells.back().at;
-    edge_cells.push_back({static_cast<std::size_t>(std::lower_bound(cells.begin() + static_cast<std::ptrdiff_t>(from),
-                                                                    cells.end(), code, code_less) -
-                                                   cells.begin()),
-                          code});
+    const auto at = static_cast<std::size_t>(
+        std::lower_bound(cells.begin() + static_cast<std::ptrdiff_t>(from), cells.end(), code, code_less) - cells.begin());
+    const bool listed = at < n && cells[at].code() == code;
+    edge_cells.push_back({at, code, listed ? cells[at].site : label::site_of(cells, code)});
   };
   const std::uint64_t last_row = grid::rows_per_octant(level) - 1;
   for (grid::Code row = outlines.range.first; row < outlines.range.end;) {
@@ -431,7 +432,7 @@ label::Outlines with_range_edges(const label::Outlines& outlines) {
     for (std::size_t k = first; k <= end; ++k) {
       // The edge cells that go in before cell k (after the last cell, for the last stretch).
       for (; j < j_end && edge_cells[j].at == k && (k == n || edge_cells[j].code < cells[k].code()); ++j) {
-        *to++ = label::OutlineCell(edge_cells[j].code, label::site_of(cells, edge_cells[j].code), 1);
+        *to++ = label::OutlineCell(edge_cells[j].code, edge_cells[j].site, 1);
       }
       if (k == end) break;
       *to = cells[k];

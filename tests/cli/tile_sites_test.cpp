@@ -23,6 +23,7 @@
 #include <tuple>
 #include <vector>
 
+#include "common/openmp_threads.hpp"
 #include "qtmvoronoi_test_support.hpp"
 #include "voronoi.hpp"
 
@@ -366,7 +367,12 @@ TEST(TileSites, AGeoPackagesReadsSpreadOverConnectionsSelectTheSameFeatures) {
   mercator_points.read.layers = {"projected"};
   VoronoiOptions only_points = base;
   only_points.read.layers = {"points"};
-  CPLSetConfigOption("QTMV_TRACE", "read");
+  struct TraceRead {  // set for the test, unset however it ends
+    TraceRead() { CPLSetConfigOption("QTMV_TRACE", "read"); }
+    ~TraceRead() { CPLSetConfigOption("QTMV_TRACE", nullptr); }
+  } trace_read;
+  // Several connections where several threads are (a build without OpenMP has one).
+  const bool spread = thread_count(8) > 1;
   for (const auto& [name, options] : {std::pair{"points", only_points}, {"composite", composite}, {"mercator", mercator_points}}) {
     for (const int k : {1, 4, 7}) {
       SCOPED_TRACE(std::string(name) + ", tile " + std::to_string(k) + "/8");
@@ -384,7 +390,7 @@ TEST(TileSites, AGeoPackagesReadsSpreadOverConnectionsSelectTheSameFeatures) {
         product[threads > 1] = contents_of(out);
         std::smatch m;
         ASSERT_TRUE(std::regex_search(trace, m, std::regex("filtered reads in [0-9]+ rounds on ([0-9]+) connection"))) << trace;
-        if (threads == 1) {
+        if (threads == 1 || !spread) {
           EXPECT_EQ(m[1], "1") << trace;
         } else {
           EXPECT_GT(std::stoi(m[1]), 1) << trace;
@@ -395,7 +401,6 @@ TEST(TileSites, AGeoPackagesReadsSpreadOverConnectionsSelectTheSameFeatures) {
       EXPECT_TRUE(!product[0].empty() && product[0] == product[1]) << "the tile products differ";
     }
   }
-  CPLSetConfigOption("QTMV_TRACE", nullptr);
 }
 
 TEST(TileSites, MergeRefusesTilesOfOtherSitesOrOldVersions) {

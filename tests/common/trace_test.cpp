@@ -6,10 +6,12 @@
 #include <gtest/gtest.h>
 #include <stdlib.h>
 
+#include <chrono>
 #include <cstring>
 #include <memory>
 #include <regex>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -79,7 +81,34 @@ TEST(Trace, LinesGoToTheSinkAtDebugSeverityOnlyWhenOn) {
     EXPECT_TRUE(std::regex_search(lines[0].second, std::regex(" MB, cpu [0-9]+\\.[0-9]{3} s\\]$"))) << lines[0].second;
   } else {
     EXPECT_EQ(lines[0].second.find("[rss "), std::string::npos) << lines[0].second;
+    EXPECT_TRUE(std::regex_search(lines[0].second, std::regex("  \\[cpu [0-9]+\\.[0-9]{3} s\\]$"))) << lines[0].second;
   }
+}
+
+TEST(Trace, AStepsCpuTimeIsTheProcessesWorkNotItsWaiting) {
+  // 80 ms of work on this thread, then 80 ms asleep: the first step's CPU time about the work,
+  // the second's about none.
+  std::vector<std::pair<Severity, std::string>> lines;
+  {
+    const TraceSwitch on("write");
+    const ScopedTraceSink sink([&](Severity s, const std::string& m) { lines.emplace_back(s, m); });
+    StepTrace write(TraceStage::write);
+    volatile double sum = 0;
+    for (const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(80); std::chrono::steady_clock::now() < end;) {
+      sum = sum + 1.0;
+    }
+    write("busy");
+    std::this_thread::sleep_for(std::chrono::milliseconds(80));
+    write("asleep");
+  }
+  ASSERT_EQ(lines.size(), 2u);
+  const auto cpu_of = [](const std::string& line) {
+    std::smatch m;
+    EXPECT_TRUE(std::regex_search(line, m, std::regex("cpu ([0-9.]+) s\\]$"))) << line;
+    return m.empty() ? -1.0 : std::stod(m[1]);
+  };
+  EXPECT_GT(cpu_of(lines[0].second), 0.05) << lines[0].second;
+  EXPECT_LT(cpu_of(lines[1].second), 0.03) << lines[1].second;
 }
 
 TEST(ProcessMemory, IsPlausibleAndGrowsWithTouchedMemory) {

@@ -87,6 +87,13 @@ std::string OgrSource::describe() const {
   return where_all;
 }
 
+bool OgrSource::plain_file(std::uint64_t* bytes) const {
+  struct stat local {};
+  if (name.rfind("/vsi", 0) == 0 || ::stat(name.c_str(), &local) != 0 || !S_ISREG(local.st_mode)) return false;
+  if (bytes) *bytes = static_cast<std::uint64_t>(local.st_size);
+  return true;
+}
+
 GDALDatasetUniquePtr open_vector(const std::string& dataset_name, const std::vector<std::string>& open_options,
                                  const char* const* drivers) {
   CPLStringList list;

@@ -2,6 +2,7 @@
 // read from it: the -sql result, the -l layers (several: composite sites), or the first.
 #pragma once
 
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -29,6 +30,10 @@ struct OgrSource {
 
   /// "'F', layer 'L'" or "'F', layers 'L1', 'L2'": where the read's summary says it read.
   std::string describe() const;
+  /// Whether `name` is a regular file on disk (not /vsi*, a directory or a connection string):
+  /// one that other GDAL datasets may open again and read beside this one. `bytes` (may be null)
+  /// gets its size.
+  bool plain_file(std::uint64_t* bytes = nullptr) const;
 };
 
 /// `dataset_name` opened by GDAL as a vector dataset, read-only, with the driver's open options

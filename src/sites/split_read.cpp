@@ -28,11 +28,6 @@ namespace {
 constexpr std::size_t kMinRangeBytes = std::size_t{256} << 10;  // a part's open is worth its read
 constexpr std::size_t kMaxRangeBytes = std::size_t{8} << 20;    // the parts in memory stay small
 constexpr std::size_t kRangesPerThread = 8;                      // the threads end together
-/// The most threads that read parts at once (their ranges are cut for that many). On 32 cores
-/// (bench/RESULTS.md, session 26), 1M points, teams of 4 and 8: a GeoPackage read by 4 or 8 in
-/// 0.64-0.80 s, by 16 or 32 in 0.83-1.05 s (more connections than the reading thread can take
-/// features from); a CSV by 8 or 16 in 0.76-0.88 s, by 4 in 0.92-1.06 s, by 32 in 0.88-1.10 s.
-constexpr std::size_t kMaxReaders = 8;
 constexpr std::size_t kScanBlock = std::size_t{1} << 20;
 constexpr std::size_t kMostHeaderBytes = std::size_t{1} << 20;
 constexpr std::size_t kMinPartFeatures = 8192;  // a GeoPackage part's open is worth its read
@@ -453,10 +448,8 @@ std::string split_refusal(const OgrSource& source, OGRLayer& layer, const ReadOp
   if (readers < 2) return "the run has one thread";
   if (const char* split = config_option("QTMV_READ_SPLIT"); split && !CPLTestBool(split)) return "QTMV_READ_SPLIT=NO";
   if (!options.sql.empty()) return "-sql";
-  struct stat local;
-  if (source.name.rfind("/vsi", 0) == 0 || ::stat(source.name.c_str(), &local) != 0 || !S_ISREG(local.st_mode)) {
-    return "not a plain file";
-  }
+  std::uint64_t bytes = 0;
+  if (!source.plain_file(&bytes)) return "not a plain file";
   if (EQUAL(source.dataset->GetDriverName(), "GPKG")) return fid_range_refusal(source, layer, options, readers, s);
   if (!EQUAL(source.dataset->GetDriverName(), "CSV")) {
     return std::string("the ") + source.dataset->GetDriverName() + " driver's reads are not split";
@@ -465,7 +458,7 @@ std::string split_refusal(const OgrSource& source, OGRLayer& layer, const ReadOp
   if (CPLString(options.where).ifind("fid") != std::string::npos) return "-where names an FID (each part numbers its own)";
   s.source_path = source.name;
   s.file_name = CPLGetFilename(source.name.c_str());
-  s.size = static_cast<std::size_t>(local.st_size);
+  s.size = static_cast<std::size_t>(bytes);
   s.file = std::make_unique<PlainFile>(source.name);
   // The header line: GDAL's layer definition comes from it (and the separator it guesses).
   std::string head;
@@ -520,14 +513,14 @@ std::unique_ptr<SplitRead> SplitRead::open(const OgrSource& source, std::size_t 
                                            const ReadOptions& options, int threads, const std::string& where_from) {
   auto s = std::make_unique<Impl>();
   OGRLayer& layer = *source.layers[layer_number].layer;
-  const int readers = static_cast<int>(std::min(static_cast<std::size_t>(std::max(threads, 0)), kMaxReaders));
+  const int readers = static_cast<int>(std::min(static_cast<std::size_t>(std::max(threads, 0)), kMostReaders));
   std::string why = split_refusal(source, layer, options, threads, readers, *s);
   if (why.empty() && !s->by_fid) why = header_refusal(layer, *s);
   if (!why.empty()) {
     trace_printf(TraceStage::read, "%s: read on one thread: %s", where_from.c_str(), why.c_str());
     return nullptr;
   }
-  // A part's thread for each of the run's threads, up to kMaxReaders: the reading thread mostly
+  // A part's thread for each of the run's threads, up to kMostReaders: the reading thread mostly
   // waits for them (on 2 cores, 1M points: whole read 1.36 s, against 1.85 s with one part's
   // thread fewer).
   const std::size_t reader_threads = std::min(static_cast<std::size_t>(readers), s->ranges);

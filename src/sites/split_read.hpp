@@ -23,6 +23,13 @@
 
 namespace qtmv::sites {
 
+/// The most GDAL datasets that read one layer at once (a split read's parts, a tile selection's
+/// connections). On 32 cores (bench/RESULTS.md, session 26), 1M points, teams of 4 and 8: a
+/// GeoPackage read by 4 or 8 in 0.64-0.80 s, by 16 or 32 in 0.83-1.05 s (more connections than the
+/// reading thread can take features from); a CSV by 8 or 16 in 0.76-0.88 s, by 4 in 0.92-1.06 s,
+/// by 32 in 0.88-1.10 s.
+constexpr std::size_t kMostReaders = 8;
+
 class SplitRead {
  public:
   /// The split read of layer `layer_number` of `source` (options.where is applied to every part)

@@ -1,7 +1,6 @@
 #include "sites/tile_selection.hpp"
 
 #include <ogr_geometry.h>
-#include <sys/stat.h>
 
 #include <algorithm>
 #include <atomic>
@@ -18,6 +17,7 @@
 #include "sites/feature_examination.hpp"
 #include "sites/lonlat_transform.hpp"
 #include "sites/read_times.hpp"
+#include "sites/split_read.hpp"
 #include "sites/tile_region.hpp"
 
 namespace qtmv::sites {
@@ -35,8 +35,6 @@ constexpr double kDatumMarginDegrees = 0.1;
 constexpr double kFewFeatures = 10000;
 /// Most vertices of a feature that the check uses (any of its points will do).
 constexpr std::size_t kMostPointsPerFeature = 256;
-/// Most connections a round's filtered reads are spread over (the split read's readers).
-constexpr std::size_t kMostReaders = 8;
 /// Spread over connections, a round's envelopes are cut into about this many pieces a connection
 /// (a tile's surroundings are mostly one box: 98% of its sites in one read of 18, 1M points)...
 constexpr double kPiecesPerReader = 4;
@@ -283,11 +281,7 @@ class SpreadReaders {
   /// source is not a plain GeoPackage file or a connection cannot be made as the source's.
   SpreadReaders(const OgrSource& source, const ReadOptions& options, const std::vector<LayerFilter>& layers,
                 std::size_t count) {
-    struct stat local {};
-    if (count < 2 || !EQUAL(source.dataset->GetDriverName(), "GPKG") || source.name.rfind("/vsi", 0) == 0 ||
-        ::stat(source.name.c_str(), &local) != 0 || !S_ISREG(local.st_mode)) {
-      return;
-    }
+    if (count < 2 || !EQUAL(source.dataset->GetDriverName(), "GPKG") || !source.plain_file()) return;
     const gdal::ErrorCapture quiet;  // a connection that cannot be made is none: the reads go on one
     const char* const gpkg_only[] = {"GPKG", nullptr};
     connections_.resize(count);
@@ -433,8 +427,8 @@ TileSelection select_tile_features(const OgrSource& source, const ReadOptions& o
   std::vector<grid::LonLat> points;
   std::uint64_t returned = 0, reads = 0;
   int rounds = 0;
-  std::unique_ptr<SpreadReaders> spread;  // made at the first round
-  const auto team = static_cast<std::size_t>(thread_count(options.threads));
+  // A GeoPackage's reads spread over connections of their own, as its split read is.
+  SpreadReaders spread(source, options, layers, std::min(kMostReaders, static_cast<std::size_t>(thread_count(options.threads))));
   std::size_t most_readers = 1;
   for (std::size_t left = caps.size(); left > 0; ++rounds) {
     report_progress(options.progress, 0.0, "selecting sites");
@@ -459,12 +453,10 @@ TileSelection select_tile_features(const OgrSource& source, const ReadOptions& o
       }
     }
     reads += round.size();
-    // A GeoPackage's reads spread over connections of their own, as its split read is.
-    if (!spread && team > 1) spread = std::make_unique<SpreadReaders>(source, options, layers, std::min(kMostReaders, team));
     std::string failure;
-    if (spread && spread->size() > 1) {
-      failure = spread->read(cut_for_readers(round, layers, spread->size()), !options.make_valid, layers, points, returned);
-      most_readers = spread->size();
+    if (spread.size() > 1) {
+      failure = spread.read(cut_for_readers(round, layers, spread.size()), !options.make_valid, layers, points, returned);
+      most_readers = spread.size();
     } else {
       for (const EnvelopeRead& r : round) {
         if (!read_envelope(layers[r.layer], r.envelope, !options.make_valid, points, returned, errors)) {

@@ -114,8 +114,6 @@ struct Box {
   }
 };
 
-/// A tracing thread's buffers, kept from one region to the next (a region allocates only its own
-/// rings).
 /// A point of EdgesFrom's table and the first edge leaving it (kNone: an empty slot). The point
 /// is kept here, where the probes compare it, not looked up through the edge.
 struct PointSlot {
@@ -123,6 +121,8 @@ struct PointSlot {
   std::size_t first;
 };
 
+/// A tracing thread's buffers, kept from one region to the next (a region allocates only its own
+/// rings).
 struct TraceScratch {
   std::vector<Edge> edges;
   std::vector<PointSlot> table;
@@ -376,6 +376,7 @@ label::Outlines with_range_edges(const label::Outlines& outlines) {
     std::size_t at;  // the first outline cell not below it: itself, or where it goes in
     grid::Code code;
     std::int32_t site;  // its site (label::site_of: here, where its exceptions may be thrown)
+    bool listed;        // an outline cell already (flagged), else one to add
   };
   std::vector<EdgeCell> edge_cells;
   const auto code_less = [](const label::OutlineCell& c, grid::Code v) { return c.code() < v; };
@@ -387,7 +388,7 @@ label::Outlines with_range_edges(const label::Outlines& outlines) {
     const auto at = static_cast<std::size_t>(
         std::lower_bound(cells.begin() + static_cast<std::ptrdiff_t>(from), cells.end(), code, code_less) - cells.begin());
     const bool listed = at < n && cells[at].code() == code;
-    edge_cells.push_back({at, code, listed ? cells[at].site : label::site_of(cells, code)});
+    edge_cells.push_back({at, code, listed ? cells[at].site : label::site_of(cells, code), listed});
   };
   const std::uint64_t last_row = grid::rows_per_octant(level) - 1;
   for (grid::Code row = outlines.range.first; row < outlines.range.end;) {
@@ -402,10 +403,9 @@ label::Outlines with_range_edges(const label::Outlines& outlines) {
     row = end;
   }
   if (edge_cells.empty()) return outlines;
-  const auto present = [&](const EdgeCell& e) { return e.at < n && cells[e.at].code() == e.code; };
   // inserted_before[j]: the edge cells before the j-th that are not outline cells yet (added).
   std::vector<std::size_t> inserted_before(edge_cells.size() + 1, 0);
-  for (std::size_t j = 0; j < edge_cells.size(); ++j) inserted_before[j + 1] = inserted_before[j] + (present(edge_cells[j]) ? 0 : 1);
+  for (std::size_t j = 0; j < edge_cells.size(); ++j) inserted_before[j + 1] = inserted_before[j] + (edge_cells[j].listed ? 0 : 1);
 
   // The outline cells copied on all cores (gigabytes at the finer levels), each thread a stretch
   // of them with the edge cells that go in before them (the last the ones after every cell),
@@ -431,12 +431,12 @@ label::Outlines with_range_edges(const label::Outlines& outlines) {
     label::OutlineCell* to = out.cells.data() + first + inserted_before[j];
     for (std::size_t k = first; k <= end; ++k) {
       // The edge cells that go in before cell k (after the last cell, for the last stretch).
-      for (; j < j_end && edge_cells[j].at == k && (k == n || edge_cells[j].code < cells[k].code()); ++j) {
+      for (; j < j_end && edge_cells[j].at == k && !edge_cells[j].listed; ++j) {
         *to++ = label::OutlineCell(edge_cells[j].code, edge_cells[j].site, 1);
       }
       if (k == end) break;
       *to = cells[k];
-      if (j < j_end && edge_cells[j].at == k) {  // an outline cell already: flagged
+      if (j < j_end && edge_cells[j].at == k) {  // listed: an outline cell already, flagged
         to->mark_boundary();
         ++j;
       }

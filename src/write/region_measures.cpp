@@ -66,7 +66,7 @@ class LatitudeSines {
   }
 
  private:
-  static constexpr int kSlotBits = 4;
+  static constexpr int kSlotBits = 8;
   struct Slot {
     std::uint64_t bits = ~std::uint64_t{0};  // a NaN: no latitude
     double sine = 0;
@@ -136,8 +136,8 @@ class SumCache : public RegionEdgeObserver::Local {
   }
   void edge(std::int32_t site, const LonLat& from, const LonLat& to, std::int32_t other) override {
     // A border edge counts for its site; an edge between two sites is solved by the lower
-    // site's cell, for both.
-    if (other != kBorderEdge && other < site) return;
+    // site's cell, for both (the gathering passes only those: measured_edge).
+    if (!measured_edge(site, other)) return;
     pending_.push_back({site, other});
     ends_.push_back({from, to});
     if (pending_.size() == batch_) solve_pending();
@@ -200,7 +200,7 @@ class SumCache : public RegionEdgeObserver::Local {
   }
   // Slots for the sites of the last few rows of cells of every octant (the thread's 8 octants'
   // rows in turn: OctantSteps), 128 KiB, and for the pairs.
-  static constexpr std::size_t kSiteSlots = 4096, kSlots = 512;
+  static constexpr std::size_t kSiteSlots = 16384, kSlots = 512;
   struct Slot {
     std::int32_t site = -1;
     EdgeTerms sums;
@@ -311,8 +311,9 @@ std::vector<double> region_areas(const label::Outlines& whole_or_tile, int cuda_
       failure.run([&] {
         steps.visit(static_cast<std::size_t>(step), walk, [&](std::size_t k, OutlineWalk& octant_walk) {
           const std::int32_t site = cells[k].site;
-          visit_region_edges(outlines, k, octant_walk,
-                             [&](int, const LonLat& from, const LonLat& to, std::int32_t other) { cache->edge(site, from, to, other); });
+          visit_region_edges(outlines, k, octant_walk, [&](int e, std::int32_t other, DrawnCorners& corners) {
+            if (measured_edge(site, other)) cache->edge(site, corners.from(e), corners.to(e), other);
+          });
         });
       });
     }

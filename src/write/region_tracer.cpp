@@ -339,7 +339,7 @@ double planar_ring_area(const std::vector<LonLat>& ring) {
   const std::size_t n = ring.size();
   for (std::size_t k = 0; k < n; ++k) {
     const LonLat& p = ring[k];
-    const LonLat& q = ring[(k + 1) % n];
+    const LonLat& q = ring[k + 1 == n ? 0 : k + 1];  // not %: a division per vertex
     twice += (p.lon - q.lon) * (p.lat + q.lat);
   }
   return 0.5 * twice;
@@ -482,9 +482,9 @@ RegionTracer::RegionTracer(const label::Outlines& whole_or_tile, RingVertices ve
         steps.visit(static_cast<std::size_t>(step), walk, [&](std::size_t k, OutlineWalk& octant_walk) {
           const std::int32_t site = cells[k].site;
           std::uint8_t mask = 0;
-          const auto add = [&](int e, const LonLat& from, const LonLat& to, std::int32_t other) {
+          const auto add = [&](int e, std::int32_t other, DrawnCorners& corners) {
             mask = static_cast<std::uint8_t>(mask | 1u << e);
-            if (seen) seen->edge(site, from, to, other);
+            if (seen && measured_edge(site, other)) seen->edge(site, corners.from(e), corners.to(e), other);
           };
           visit_region_edges(outlines, k, octant_walk, add);
           masks[k] = mask;

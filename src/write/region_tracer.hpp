@@ -46,7 +46,8 @@ enum class RingVertices {
             ///< geodesics or great circles (PostGIS geography, BigQuery GEOGRAPHY, S2)
 };
 
-/// Sees every region edge as RegionTracer gathers it, for measures made in the same pass over the
+/// Sees the region edges that are measured (measured_edge: each edge between two sites once, and
+/// every border edge) as RegionTracer gathers them, for measures made in the same pass over the
 /// outline cells (the regions' areas: region_measures.hpp).
 class RegionEdgeObserver {
  public:
@@ -56,7 +57,7 @@ class RegionEdgeObserver {
    public:
     virtual ~Local() = default;
     /// The edge from -> to (degrees) of the region of `site`, on its left; `other` is the site
-    /// across it, or kBorderEdge (visit_region_edges' arguments).
+    /// across it (above `site`), or kBorderEdge.
     virtual void edge(std::int32_t site, const LonLat& from, const LonLat& to, std::int32_t other) = 0;
     /// After the thread's last edge: what the view still holds is handed over (may throw).
     virtual void finish() {}
@@ -81,7 +82,7 @@ class RegionTracer {
   /// after each step (gather, bucket) with the fraction done; it may throw to stop.
   /// `vertices`: what the rings keep along parallels (runs along meridians, which are geodesics,
   /// keep their ends only).
-  /// `observer` (may be null) sees each edge as it is gathered.
+  /// `observer` (may be null) sees each measured edge (measured_edge) as it is gathered.
   explicit RegionTracer(const label::Outlines& outlines, RingVertices vertices = RingVertices::corners,
                         const std::function<void(double)>& step_done = {}, RegionEdgeObserver* observer = nullptr);
 
@@ -188,40 +189,66 @@ class OutlineWalk : public RowWalk {
   label::NearSearch search;
 };
 
+/// An outline cell's corners as drawn (drawn_ring's), computed when first asked for: an edge
+/// between two sites is measured from one side only (measured_edge), so half the cells need none.
+class DrawnCorners {
+ public:
+  DrawnCorners(const grid::Cell& cell, int level) : cell_(cell), level_(level) {}
+  /// The ends (degrees) of drawn edge e: from(e) -> to(e).
+  const LonLat& from(int e) { return corners()[e]; }
+  const LonLat& to(int e) { return corners()[e + 1 < count_ ? e + 1 : 0]; }  // not %: a division per edge
+
+ private:
+  const LonLat* corners() {
+    if (count_ == 0) count_ = grid::cell_polygon(cell_, level_, ring_);
+    return ring_;
+  }
+  grid::Cell cell_;
+  int level_;
+  int count_ = 0;  // 0: not computed yet
+  LonLat ring_[grid::kMaxPolygonCorners];
+};
+
+/// Whether a measure of the regions' edges (their areas, the Voronoi edges' lengths) takes the
+/// edge of `site`'s region with `other` across it: every border edge, and an edge between two
+/// sites once, from the lower site's side (its measures count for both).
+inline bool measured_edge(std::int32_t site, std::int32_t other) { return other == kBorderEdge || other > site; }
+
 /// Visits the edges of the k-th outline cell, as drawn, that bound its site's region (the region
-/// on their left): visit(edge, from, to, other), `edge` the edge's index in drawn_ring's ring,
-/// `other` the site across the edge or kBorderEdge. Only
-/// a boundary cell has a neighbour of another site; any cell may have border edges. The regions'
-/// tracing and their areas both walk the outlines by this one rule. `walk`: the calling
-/// thread's, which then visits its cells in code order. Outlines of a part of the level (a tile:
-/// outlines.range) cut the regions at its edges: an edge to a cell outside the range is a border
-/// edge, seen only where the cell is flagged as a boundary cell (with_range_edges does that).
+/// on their left): visit(edge, other, corners), `edge` the edge's index in drawn_ring's ring,
+/// `other` the site across the edge or kBorderEdge, `corners` the cell's DrawnCorners (its ends:
+/// corners.from(edge), corners.to(edge)). Only a boundary cell has a neighbour of another site;
+/// only a row end (the octant's sides, the pole cell) has border edges: the poles' lines and
+/// the cut at +-180 run along octant sides. The regions' tracing and their areas both walk the
+/// outlines by this one rule. `walk`: the calling thread's, which then visits its cells in code
+/// order. Outlines of a part of the level (a tile: outlines.range) cut the regions at its edges:
+/// an edge to a cell outside the range is a border edge, seen only where the cell is flagged as
+/// a boundary cell (with_range_edges does that).
 template <class Visit>
 void visit_region_edges(const label::Outlines& outlines, std::size_t k, OutlineWalk& walk, const Visit& visit) {
   const label::OutlineCell& outline = outlines.cells[k];
   const int level = outlines.level;
-  label::NearSearch& search = walk.search;
   const grid::Cell cell = walk.cell(outline.code(), level);
-  LonLat ring[grid::kMaxPolygonCorners];
+  const bool row_end = label::is_row_end(cell);  // the pole cell (row 0, column 0) is one
+  if (!row_end && !outline.boundary()) return;
+  DrawnCorners corners(cell, level);
   int across[grid::kMaxPolygonCorners];
-  const int corners = drawn_ring(cell, level, ring, across);
+  const int count = drawn_edges(cell, across);
   grid::Code nb[3];
   if (outline.boundary()) grid::neighbours(cell, outline.code(), level, nb);
-  for (int e = 0; e < corners; ++e) {
-    const LonLat& from = ring[e];
-    const LonLat& to = ring[e + 1 < corners ? e + 1 : 0];  // not %: an integer division per edge
-    if (across[e] == kAcrossPoleLine || on_cut(from, to)) {
-      visit(e, from, to, kBorderEdge);
+  for (int e = 0; e < count; ++e) {
+    if (row_end && (across[e] == kAcrossPoleLine || on_cut(corners.from(e), corners.to(e)))) {
+      visit(e, kBorderEdge, corners);
     } else if (outline.boundary()) {
       // The cell across a row line lies a row away in the list; those beside it, next to k.
       const grid::Code code = nb[across[e]];
       if (!holds_code(outlines, code)) {
-        visit(e, from, to, kBorderEdge);
+        visit(e, kBorderEdge, corners);
         continue;
       }
-      const std::int32_t other = across[e] == grid::kNeighbourVertical ? search.site(outlines.cells, k, code)
+      const std::int32_t other = across[e] == grid::kNeighbourVertical ? walk.search.site(outlines.cells, k, code)
                                                                        : label::site_of_near(outlines.cells, k, code);
-      if (other != outline.site) visit(e, from, to, other);
+      if (other != outline.site) visit(e, other, corners);
     }
   }
 }

@@ -199,7 +199,7 @@ class SumCache : public RegionEdgeObserver::Local {
     ends_.clear();
   }
   // Slots for the sites of the last few rows of cells of every octant (the thread's 8 octants'
-  // rows in turn: OctantSteps), 128 KiB, and for the pairs.
+  // rows in turn: OctantSteps), 512 KiB, and for the pairs.
   static constexpr std::size_t kSiteSlots = 16384, kSlots = 512;
   struct Slot {
     std::int32_t site = -1;

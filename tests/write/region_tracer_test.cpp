@@ -234,6 +234,65 @@ TEST(RegionTracer, RangeEdgesFlagEveryCellWithANeighbourOutsideWhateverTheThread
   }
 }
 
+TEST(RegionTracer, RegionEdgesAreEveryDrawnEdgeToAnotherSiteOrOnTheBorder) {
+  // visit_region_edges draws a cell's corners only when asked and looks for border edges on row
+  // ends only: checked against every drawn edge of every cell of levels 0 to 6 (whole levels, and
+  // tiles cut at their edges), each edge's site across it from the dense labels, its corners from
+  // drawn_ring.
+  struct Seen {
+    Code code;
+    int edge;
+    std::int32_t other;
+    LonLat from, to;
+    bool operator==(const Seen& o) const {
+      return code == o.code && edge == o.edge && other == o.other && same_point(from, o.from) && same_point(to, o.to);
+    }
+  };
+  std::mt19937_64 rng(31);
+  for (int level = 0; level <= 6; ++level) {
+    std::vector<std::int32_t> scattered(grid::cell_count(level));
+    std::uniform_int_distribution<std::int32_t> site(0, 2);
+    for (auto& l : scattered) l = site(rng);
+    for (const auto& [sites, labels] : {std::make_pair(3, scattered), std::make_pair(12, nearest_point_labels(level, 12, 7))}) {
+      const label::Outlines whole = label::outlines_of_dense(level, labels.data(), nullptr, sites);
+      for (const int tiles : {1, 3}) {
+        for (const grid::CodeRange& range : grid::split_in_rows(grid::whole_level(level), tiles, level)) {
+          SCOPED_TRACE("level " + std::to_string(level) + ", " + std::to_string(sites) + " sites, tile [" +
+                       std::to_string(range.first) + ", " + std::to_string(range.end) + ")");
+          const label::Outlines tile = with_range_edges(tiles == 1 ? whole : tile_outlines(whole, range));
+          std::vector<Seen> want, got;
+          for (Code code = range.first; code < range.end; ++code) {
+            const grid::Cell cell = grid::cell_of(code, level);
+            LonLat ring[grid::kMaxPolygonCorners];
+            int across[grid::kMaxPolygonCorners];
+            const int corners = drawn_ring(cell, level, ring, across);
+            Code nb[3];
+            grid::neighbours(code, level, nb);
+            for (int e = 0; e < corners; ++e) {
+              const LonLat& from = ring[e];
+              const LonLat& to = ring[(e + 1) % corners];
+              std::int32_t other = kBorderEdge;
+              if (across[e] != kAcrossPoleLine && !on_cut(from, to) && holds_code(tile, nb[across[e]])) {
+                other = labels[nb[across[e]]];
+                if (other == labels[code]) continue;
+              }
+              want.push_back({code, e, other, from, to});
+            }
+          }
+          OutlineWalk walk;
+          for (std::size_t k = 0; k < tile.cells.size(); ++k) {
+            visit_region_edges(tile, k, walk, [&](int e, std::int32_t other, DrawnCorners& corners) {
+              got.push_back({tile.cells[k].code(), e, other, corners.from(e), corners.to(e)});
+            });
+          }
+          ASSERT_EQ(got.size(), want.size());
+          EXPECT_TRUE(got == want);
+        }
+      }
+    }
+  }
+}
+
 TEST(RegionTracer, SameRegionsWhateverTheThreads) {
 #if defined(_OPENMP)
   // The bucketing's threads each take a stretch of the outline cells and pack their part of a

@@ -232,4 +232,50 @@ QTMV_HD inline int cell_polygon(const Cell& c, int level, LonLat out[kMaxPolygon
   return 3;
 }
 
+/// Keys of grid vertices and of cell_polygon's corners: two corners of any cells of a level have
+/// the same key exactly when they are the same point (shared across octants' sides, the equator
+/// and the poles' lines; +-180 are two points, as the drawn cells are), so that edges are linked
+/// by integers rather than by their coordinates' bits. Layout: bits 62-63 a tag (kVertexKey*),
+/// bits 30-61 the row line r (on a pole's line: 0 north, 1 south), bits 0-29 the column g along
+/// the row line from -180, lon = 90 g / r - 180 (on a pole's line: g = 0 to 4, the sides from
+/// -180 to 180). Fits every level: r <= 2^kMaxLevel, g <= 4 r.
+constexpr int kVertexKeyTagShift = 62;
+constexpr int kVertexKeyRowShift = 30;
+constexpr std::uint64_t kVertexKeyNorth = 0, kVertexKeySouth = 1, kVertexKeyEquator = 2, kVertexKeyPoleLine = 3;
+static_assert(kMaxLevel + 3 <= kVertexKeyRowShift, "a vertex key's column fits below its row");
+
+/// The key of grid vertex (r, k) of an octant (grid_vertex's), 0 < r <= 2^L, 0 <= k <= r.
+QTMV_HD inline std::uint64_t vertex_key(int octant, std::uint64_t r, std::uint64_t k, int level) {
+  const auto quarter = static_cast<std::uint64_t>((octant + 2) & 3);  // the octant's quarter of longitude from -180
+  const bool north = octant < 4;  // south octants run their columns from east to west
+  const std::uint64_t g = quarter * r + (north ? k : r - k);
+  const std::uint64_t tag = r == rows_per_octant(level) ? kVertexKeyEquator : north ? kVertexKeyNorth : kVertexKeySouth;
+  return tag << kVertexKeyTagShift | r << kVertexKeyRowShift | g;
+}
+
+/// The key of a pole cell's corner on its pole's line (cell_polygon's), on the octant's side
+/// `side` (0: lon' = 0, 1: lon' = 90).
+QTMV_HD inline std::uint64_t pole_line_key(int octant, std::uint64_t side) {
+  const auto quarter = static_cast<std::uint64_t>((octant + 2) & 3);
+  const bool north = octant < 4;
+  return kVertexKeyPoleLine << kVertexKeyTagShift | std::uint64_t{north ? 0u : 1u} << kVertexKeyRowShift |
+         (quarter + (north ? side : 1 - side));
+}
+
+/// The keys of cell_polygon's corners, in its order; returns their number.
+QTMV_HD inline int cell_polygon_keys(const Cell& c, int level, std::uint64_t out[kMaxPolygonCorners]) {
+  if (c.row == 0) {
+    out[0] = pole_line_key(c.octant, 0);
+    out[1] = vertex_key(c.octant, 1, 0, level);
+    out[2] = vertex_key(c.octant, 1, 1, level);
+    out[3] = pole_line_key(c.octant, 1);
+    return 4;
+  }
+  const std::uint64_t i = c.row, a = c.col / 2;
+  out[0] = vertex_key(c.octant, i, a, level);
+  out[1] = vertex_key(c.octant, i + 1, is_up(c) ? a : a + 1, level);
+  out[2] = is_up(c) ? vertex_key(c.octant, i + 1, a + 1, level) : vertex_key(c.octant, i, a + 1, level);
+  return 3;
+}
+
 }  // namespace qtmv::grid

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <stdexcept>
 #include <string>
 
@@ -114,10 +113,9 @@ struct Box {
   }
 };
 
-/// A point of EdgesFrom's table and the first edge leaving it (kNone: an empty slot). The point
-/// is kept here, where the probes compare it, not looked up through the edge.
+/// A point of EdgesFrom's table, by its key, and the first edge leaving it (kNone: an empty slot).
 struct PointSlot {
-  LonLat point;
+  std::uint64_t key;
   std::size_t first;
 };
 
@@ -132,9 +130,10 @@ struct TraceScratch {
   std::vector<LonLat> points;
 };
 
-/// The edges leaving each point of a site's edges: a hash of the points (exact bits; a shared
-/// vertex is computed to the same bits from every cell around it), each point's edges chained
-/// in the order given. A point's first edge is its vertex's id.
+/// The edges leaving each point of a site's edges: a hash of the points' keys (grid vertices'
+/// keys, the same for a point from every cell around it: one integer compared where the
+/// coordinates were two doubles), each point's edges chained in the order given. A point's first
+/// edge is its vertex's id.
 class EdgesFrom {
  public:
   /// `table` and `next`: the caller's buffers, reused.
@@ -143,13 +142,14 @@ class EdgesFrom {
     std::size_t size = 16;
     while (size < 2 * count) size <<= 1;
     mask_ = size - 1;
-    table_.assign(size, PointSlot{{0, 0}, kNone});
+    table_.assign(size, PointSlot{0, kNone});
     next_.assign(count, kNone);
     for (std::size_t k = 0; k < count; ++k) {
-      std::size_t h = hash(edges[k].from) & mask_;
-      while (table_[h].first != kNone && !same_point(table_[h].point, edges[k].from)) h = (h + 1) & mask_;
+      const std::uint64_t key = edges[k].from_key;
+      std::size_t h = hash(key);
+      while (table_[h].first != kNone && table_[h].key != key) h = (h + 1) & mask_;
       if (table_[h].first == kNone) {
-        table_[h] = {edges[k].from, k};
+        table_[h] = {key, k};
         continue;
       }
       // Appended to the point's chain: a few edges at most (a region's edges leaving one vertex).
@@ -158,28 +158,21 @@ class EdgesFrom {
       next_[tail] = k;
     }
   }
-  /// The first edge leaving p, or kNone.
-  std::size_t first(const LonLat& p) const {
-    for (std::size_t h = hash(p) & mask_;; h = (h + 1) & mask_) {
+  /// The first edge leaving the point of `key`, or kNone.
+  std::size_t first(std::uint64_t key) const {
+    for (std::size_t h = hash(key);; h = (h + 1) & mask_) {
       const PointSlot& slot = table_[h];
-      if (slot.first == kNone || same_point(slot.point, p)) return slot.first;
+      if (slot.first == kNone || slot.key == key) return slot.first;
     }
   }
   /// The edge after k leaving the same point, or kNone.
   std::size_t next(std::size_t k) const { return next_[k]; }
 
  private:
-  static std::uint64_t bits(double x) {
-    x += 0.0;  // -0 and +0 are the same point
-    std::uint64_t b;
-    std::memcpy(&b, &x, sizeof b);
-    return b;
-  }
-  static std::size_t hash(const LonLat& p) {
-    std::uint64_t h = bits(p.lon) * 0x9E3779B97F4A7C15ull;
-    h ^= bits(p.lat) + 0x632BE59BD9B4E019ull + (h << 6) + (h >> 2);
-    h ^= h >> 29;
-    return static_cast<std::size_t>(h * 0xBF58476D1CE4E5B9ull >> 16);
+  std::size_t hash(std::uint64_t key) const {
+    // The column (low bits) and the row differ between a region's points: multiplied, the high
+    // bits mix both.
+    return static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ull) >> 24) & mask_;
   }
   std::size_t mask_ = 0;
   std::vector<PointSlot>& table_;
@@ -229,11 +222,11 @@ Region link_rings(const Edge* edges, std::size_t count, RingVertices parallels, 
     if (used[start]) continue;
     walk.clear();
     std::size_t e = start;
-    std::size_t vertex = from.first(edges[start].from);
+    std::size_t vertex = from.first(edges[start].from_key);
     while (e != kNone && !used[e]) {
       used[e] = 1;
       walk.push_back({edges[e].from, vertex});
-      vertex = from.first(edges[e].to);
+      vertex = from.first(edges[e].to_key);
       e = next_edge(e, vertex);
     }
     split_at_repeated_vertices(walk, position, scratch.stack, scratch.points, keep);
@@ -559,9 +552,13 @@ Region RegionTracer::trace(std::int32_t site) const {
   RowWalk rows;  // a site's cells come in code order, many in a row
   while (list.next(code, mask)) {
     LonLat ring[grid::kMaxPolygonCorners];
-    const int corners = grid::cell_polygon(rows.cell(code, level_), level_, ring);
+    std::uint64_t keys[grid::kMaxPolygonCorners];
+    const grid::Cell cell = rows.cell(code, level_);
+    const int corners = grid::cell_polygon(cell, level_, ring);
+    grid::cell_polygon_keys(cell, level_, keys);
     for (int e = 0; e < corners; ++e) {
-      if (mask >> e & 1) edges.push_back({ring[e], ring[e + 1 < corners ? e + 1 : 0]});
+      const int end = e + 1 < corners ? e + 1 : 0;
+      if (mask >> e & 1) edges.push_back({ring[e], ring[end], keys[e], keys[end]});
     }
   }
   return link_rings(edges.data(), edges.size(), vertices_, scratch);

@@ -97,9 +97,11 @@ class RegionTracer {
   /// polygons. Const: callable from several threads at once.
   Region trace(std::int32_t site) const;
 
-  /// One directed boundary edge, with the region on its left.
+  /// One directed boundary edge, with the region on its left: its ends (degrees) and their keys
+  /// (grid::cell_polygon_keys: equal exactly where the points are).
   struct Edge {
     LonLat from, to;
+    std::uint64_t from_key, to_key;
   };
 
  private:

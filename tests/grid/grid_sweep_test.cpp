@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <limits>
+#include <map>
 #include <random>
 #include <stdexcept>
 
@@ -236,6 +237,59 @@ TEST(GridSweep, PolygonsAreCounterClockwiseAndPoleCellsAreQuadrilaterals) {
         EXPECT_LE(std::fabs(ring[k].lon - ring[(k + 1) % n].lon), 90.0);
       }
     }
+  }
+}
+
+TEST(GridSweep, PolygonCornersHaveTheSameKeyExactlyWhereTheyAreTheSamePoint) {
+  // Every corner of every cell of levels 0 to 8 (random cells at 12 and 24): a key names one point
+  // (its bits; -0 is 0), and a point one key, across octants' sides, the equator and the poles'
+  // lines; +-180 are two points. The corners' key layout holds: the column is the longitude's.
+  std::mt19937_64 rng(5);
+  for (int level : {0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 24}) {
+    std::map<std::uint64_t, std::pair<double, double>> point_of_key;
+    std::map<std::pair<double, double>, std::uint64_t> key_of_point;
+    std::uint64_t wrong = 0;
+    const auto visit = [&](Code code) {
+      const Cell cell = cell_of(code, level);
+      LonLat ring[kMaxPolygonCorners];
+      std::uint64_t keys[kMaxPolygonCorners];
+      const int n = cell_polygon(cell, level, ring);
+      ASSERT_EQ(cell_polygon_keys(cell, level, keys), n);
+      for (int k = 0; k < n; ++k) {
+        const std::pair<double, double> point{ring[k].lon + 0.0, ring[k].lat + 0.0};
+        const auto [at_key, new_key] = point_of_key.emplace(keys[k], point);
+        const auto [at_point, new_point] = key_of_point.emplace(point, keys[k]);
+        wrong += at_key->second != point || at_point->second != keys[k];
+        const std::uint64_t tag = keys[k] >> kVertexKeyTagShift;
+        const std::uint64_t r = keys[k] >> kVertexKeyRowShift & ((std::uint64_t{1} << (kVertexKeyTagShift - kVertexKeyRowShift)) - 1);
+        const std::uint64_t g = keys[k] & ((std::uint64_t{1} << kVertexKeyRowShift) - 1);
+        if (tag == kVertexKeyPoleLine) {
+          wrong += std::fabs(point.second) != 90.0 || point.first != 90.0 * static_cast<double>(g) - 180.0;
+        } else {
+          wrong += std::fabs(90.0 * static_cast<double>(g) / static_cast<double>(r) - 180.0 - point.first) > 1e-9;
+        }
+      }
+    };
+    if (level <= kExhaustiveMaxLevel) {
+      for (Code code = 0; code < cell_count(level); ++code) visit(code);
+      // Each vertex once: (r + 1) per row line of each octant, shared sides, equator and poles'
+      // lines counted once, the two points at +-180 on each row line kept apart.
+      const std::uint64_t rows = rows_per_octant(level);
+      std::uint64_t expected = 2 * 5;  // the poles' lines: -180, -90, 0, 90, 180
+      for (std::uint64_t r = 1; r < rows; ++r) expected += 2 * (4 * r + 1);
+      expected += 4 * rows + 1;  // the equator
+      EXPECT_EQ(point_of_key.size(), expected) << "level " << level;
+    } else {
+      std::uniform_int_distribution<Code> any(0, cell_count(level) - 1);
+      for (int n = 0; n < kRandomCodesPerLevel; ++n) {
+        const Code code = any(rng);
+        visit(code);
+        Code nb[3];
+        neighbours(code, level, nb);
+        for (const Code c : nb) visit(c);
+      }
+    }
+    EXPECT_EQ(wrong, 0u) << "level " << level;
   }
 }
 

@@ -243,6 +243,7 @@ constexpr int kVertexKeyTagShift = 62;
 constexpr int kVertexKeyRowShift = 30;
 constexpr std::uint64_t kVertexKeyNorth = 0, kVertexKeySouth = 1, kVertexKeyEquator = 2, kVertexKeyPoleLine = 3;
 static_assert(kMaxLevel + 3 <= kVertexKeyRowShift, "a vertex key's column fits below its row");
+static_assert(kVertexKeyRowShift + kMaxLevel + 1 <= kVertexKeyTagShift, "a vertex key's row fits below its tag");
 
 /// The key of grid vertex (r, k) of an octant (grid_vertex's), 0 < r <= 2^L, 0 <= k <= r.
 QTMV_HD inline std::uint64_t vertex_key(int octant, std::uint64_t r, std::uint64_t k, int level) {

@@ -53,8 +53,8 @@ struct EdgeTerms {
   EdgeTerms reversed() const { return {0 - area, 0 - rough, 0 - crossings}; }
 };
 
-/// sin(latitude) of the last few latitudes (degrees) asked for: a cell's vertices lie on two
-/// rows, so a thread's consecutive edges share a handful of latitudes.
+/// sin(latitude) of the latitudes (degrees) asked for lately, 256 of them by their bits: a cell's
+/// vertices lie on two rows, and a thread's steps pass the rows of the 8 octants in turn.
 class LatitudeSines {
  public:
   double operator()(double lat) {

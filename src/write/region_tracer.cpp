@@ -140,8 +140,10 @@ class EdgesFrom {
   EdgesFrom(const Edge* edges, std::size_t count, std::vector<PointSlot>& table, std::vector<std::size_t>& next)
       : table_(table), next_(next) {
     std::size_t size = 16;
-    while (size < 2 * count) size <<= 1;
+    int bits = 4;
+    for (; size < 2 * count; size <<= 1) ++bits;
     mask_ = size - 1;
+    shift_ = 64 - bits;
     table_.assign(size, PointSlot{0, kNone});
     next_.assign(count, kNone);
     for (std::size_t k = 0; k < count; ++k) {
@@ -170,11 +172,12 @@ class EdgesFrom {
 
  private:
   std::size_t hash(std::uint64_t key) const {
-    // The column (low bits) and the row differ between a region's points: multiplied, the high
-    // bits mix both.
-    return static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ull) >> 24) & mask_;
+    // Fibonacci hashing: the product's top bits depend on every bit of the key, the row's (bits 30
+    // and up) as well as the column's, whatever the table's size.
+    return static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ull) >> shift_);
   }
   std::size_t mask_ = 0;
+  int shift_ = 64;
   std::vector<PointSlot>& table_;
   std::vector<std::size_t>& next_;
 };

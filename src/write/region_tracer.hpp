@@ -198,7 +198,10 @@ class DrawnCorners {
   DrawnCorners(const grid::Cell& cell, int level) : cell_(cell), level_(level) {}
   /// The ends (degrees) of drawn edge e: from(e) -> to(e).
   const LonLat& from(int e) { return corners()[e]; }
-  const LonLat& to(int e) { return corners()[e + 1 < count_ ? e + 1 : 0]; }  // not %: a division per edge
+  const LonLat& to(int e) {
+    const LonLat* ring = corners();  // first: it sets count_
+    return ring[e + 1 < count_ ? e + 1 : 0];  // not %: a division per edge
+  }
 
  private:
   const LonLat* corners() {
@@ -220,8 +223,9 @@ inline bool measured_edge(std::int32_t site, std::int32_t other) { return other 
 /// on their left): visit(edge, other, corners), `edge` the edge's index in drawn_ring's ring,
 /// `other` the site across the edge or kBorderEdge, `corners` the cell's DrawnCorners (its ends:
 /// corners.from(edge), corners.to(edge)). Only a boundary cell has a neighbour of another site;
-/// only a row end (the octant's sides, the pole cell) has border edges: the poles' lines and
-/// the cut at +-180 run along octant sides. The regions' tracing and their areas both walk the
+/// of the level's border edges (the poles' lines, the cut at +-180, which run along octant sides)
+/// only a row end (the octant's sides, the pole cell) has any; a tile's own border edges, to
+/// cells outside its range, are a boundary cell's (with_range_edges flags those cells). The regions' tracing and their areas both walk the
 /// outlines by this one rule. `walk`: the calling thread's, which then visits its cells in code
 /// order. Outlines of a part of the level (a tile: outlines.range) cut the regions at its edges:
 /// an edge to a cell outside the range is a border edge, seen only where the cell is flagged as

@@ -163,7 +163,7 @@ bool plain_source_values(const LayerInput& in, const OGRFeatureDefn& fields, con
   if (string_fields.empty()) return true;
   const auto site_total = static_cast<std::int64_t>(in.table.sites.size());
   bool plain = true;
-#pragma omp parallel for schedule(static) num_threads(thread_count(0)) reduction(&& : plain)
+#pragma omp parallel for schedule(static) num_threads(thread_count(0)) reduction(&& : plain) if (site_total >= 4096)
   for (std::int64_t k = 0; k < site_total; ++k) {
     const sites::SiteRecord& site = in.table.sites[static_cast<std::size_t>(k)];
     if (!plain || !site.attributes) continue;

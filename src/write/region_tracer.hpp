@@ -224,12 +224,11 @@ inline bool measured_edge(std::int32_t site, std::int32_t other) { return other 
 /// `other` the site across the edge or kBorderEdge, `corners` the cell's DrawnCorners (its ends:
 /// corners.from(edge), corners.to(edge)). Only a boundary cell has a neighbour of another site;
 /// of the level's border edges (the poles' lines, the cut at +-180, which run along octant sides)
-/// only a row end (the octant's sides, the pole cell) has any; a tile's own border edges, to
-/// cells outside its range, are a boundary cell's (with_range_edges flags those cells). The regions' tracing and their areas both walk the
-/// outlines by this one rule. `walk`: the calling thread's, which then visits its cells in code
-/// order. Outlines of a part of the level (a tile: outlines.range) cut the regions at its edges:
-/// an edge to a cell outside the range is a border edge, seen only where the cell is flagged as
-/// a boundary cell (with_range_edges does that).
+/// only a row end (the octant's sides, the pole cell) has any. The regions' tracing and their
+/// areas both walk the outlines by this one rule. `walk`: the calling thread's, which then visits
+/// its cells in code order. Outlines of a part of the level (a tile: outlines.range) cut the
+/// regions at its edges: an edge to a cell outside the range is a border edge, seen only where
+/// the cell is flagged as a boundary cell (with_range_edges does that).
 template <class Visit>
 void visit_region_edges(const label::Outlines& outlines, std::size_t k, OutlineWalk& walk, const Visit& visit) {
   const label::OutlineCell& outline = outlines.cells[k];
